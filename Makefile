@@ -1,0 +1,42 @@
+# make demo : install, bake configs/default.toml and render it into out/default/
+# make test : install with test extras and run the test suite
+# make bench: the larger measurements (written to out/bench/, never asserted)
+
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+SCENE  ?= configs/default.toml
+NAME   := $(basename $(notdir $(SCENE)))
+
+.PHONY: demo test bench sysdeps clean
+
+# Headless OpenGL needs Mesa's EGL and the llvmpipe driver; install them only if missing.
+sysdeps:
+	@if ! ldconfig -p | grep -q 'libEGL_mesa.so.0' || ! ls /usr/lib/*/dri/swrast_dri.so >/dev/null 2>&1; then \
+	  echo "installing Mesa EGL/llvmpipe (apt-get)"; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq \
+	    libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 >/dev/null; \
+	fi
+
+$(STAMP): pyproject.toml | sysdeps
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q -e '.[test]'
+	@touch $@
+
+demo: $(STAMP)
+	$(BIN)/vdmbake $(SCENE) -o out/$(NAME).bundle
+	$(BIN)/vdmrender out/$(NAME).bundle -o out/$(NAME)
+	@echo "report: out/$(NAME)/report.json  out/$(NAME)/report.csv  out/$(NAME)/error_vs_time.png"
+	@echo "frames: out/$(NAME)/frames/   heat maps: out/$(NAME)/heatmaps/   overview: out/$(NAME)/overview/"
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	$(BIN)/python -m vdmrender.bench -o out/bench
+
+clean:
+	rm -rf out build dist *.egg-info

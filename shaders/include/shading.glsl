@@ -1,0 +1,29 @@
+// The shared shading model (DESIGN.md): Lambert diffuse plus Blinn-Phong specular from one
+// directional light, a constant ambient term, ambient only where shadowed (as in the VDM
+// paper, sec. 3.3). Passes write linear radiance; vdmrender/shading.py encodes it to sRGB.
+// Its numpy twin is vdmrender/shading.py; the constants come from the scene.
+uniform vec3 u_light_dir;    // unit vector towards the light, world space
+uniform vec3 u_light_color;
+uniform vec3 u_ambient;
+uniform vec3 u_albedo;
+uniform float u_kd;
+uniform float u_ks;
+uniform float u_shininess;
+
+// A zero vector (e.g. opposite normals interpolated across a triangle) stays zero, not NaN.
+vec3 safe_normalize(vec3 v) {
+    float l = length(v);
+    return l > 1e-20 ? v / l : vec3(0.0);
+}
+
+// N: unit normal facing the viewer; V: unit vector to the eye; lit: 0 in shadow, 1 lit.
+vec3 shade(vec3 albedo, vec3 N, vec3 V, float lit) {
+    vec3 c = u_ambient * albedo;
+    float ndl = dot(N, u_light_dir);
+    if (lit > 0.0 && ndl > 0.0) {
+        vec3 h = u_light_dir + V;
+        vec3 H = h / max(length(h), 1e-8);
+        c += u_light_color * (u_kd * ndl * albedo + u_ks * pow(max(dot(N, H), 0.0), u_shininess));
+    }
+    return c;
+}

@@ -1,0 +1,133 @@
+"""The bundle: a directory with manifest.json and its parts (PLY meshes, EXR tables and maps).
+
+Writing goes to a hidden temporary sibling directory; the manifest is written last and
+the directory is renamed into place, so an interrupted bake never leaves a bundle that
+looks valid. Reading checks the format version, that every part path stays inside the
+bundle, and every part's sha256.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+
+from . import __version__, exr, ply
+from .errors import InputError
+from .meshes import TriMesh
+
+FORMAT = "vdm-bundle"
+FORMAT_VERSION = 1
+MANIFEST = "manifest.json"
+TIMING = "timing.json"  # wall times: kept out of the manifest so the manifest's bytes are deterministic
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def dumps(obj) -> str:
+    """Deterministic JSON; key order is the code's and the scene's (technique order matters)."""
+    return json.dumps(obj, indent=1) + "\n"
+
+
+class BundleWriter:
+    """Collects parts in a temporary sibling directory; commit() moves the finished bundle into place."""
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        if self.path.exists() and not (self.path / MANIFEST).is_file() and any(self.path.iterdir()):
+            raise InputError(f"{self.path}: exists and is not a bundle (no {MANIFEST}); "
+                             "refusing to replace it. Choose another -o path or remove it.")
+        self.tmp = self.path.parent / f".{self.path.name}.tmp-{os.getpid()}"
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            self.tmp.mkdir()
+        except OSError as e:
+            raise InputError(f"{self.path}: cannot write the bundle there ({e.strerror or e}).") from None
+        self.parts: dict[str, dict] = {}
+
+    def _file(self, rel: str) -> Path:
+        p = self.tmp / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
+    def _record(self, rel: str, kind: str, **meta) -> str:
+        data = (self.tmp / rel).read_bytes()
+        self.parts[rel] = {"kind": kind, "sha256": _sha256(data), "bytes": len(data), **meta}
+        return rel
+
+    def add_mesh(self, rel: str, mesh: TriMesh, kind: str = "mesh") -> str:
+        ply.write(self._file(rel), mesh)
+        return self._record(rel, kind, vertices=len(mesh.vertices), faces=len(mesh.faces))
+
+    def add_exr(self, rel: str, parts: dict[str, dict[str, np.ndarray]], kind: str) -> str:
+        exr.write(self._file(rel), parts)
+        return self._record(rel, kind, exr_parts=sorted(parts))
+
+    def commit(self, manifest: dict, timing: dict) -> None:
+        manifest = {"format": FORMAT, "format_version": FORMAT_VERSION, "tool_version": __version__,
+                    **manifest, "parts": self.parts}
+        (self.tmp / TIMING).write_text(dumps(timing))
+        (self.tmp / MANIFEST).write_text(dumps(manifest))  # last: its presence marks a complete bundle
+        old = self.path.parent / f".{self.path.name}.old-{os.getpid()}"
+        if self.path.exists():
+            self.path.rename(old)
+        self.tmp.rename(self.path)
+        shutil.rmtree(old, ignore_errors=True)
+
+    def abort(self) -> None:
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+class Bundle:
+    """A bundle opened for reading; each part is checked against its manifest sha256 when read."""
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        mf = self.path / MANIFEST
+        if not mf.is_file():
+            raise InputError(f"{self.path}: not a bundle ({MANIFEST} missing); make one with vdmbake.")
+        try:
+            self.manifest = json.loads(mf.read_text())
+        except (OSError, ValueError) as e:
+            raise InputError(f"{mf}: unreadable manifest ({e}); re-bake with vdmbake --force.") from None
+        if self.manifest.get("format") != FORMAT or self.manifest.get("format_version") != FORMAT_VERSION:
+            raise InputError(f"{mf}: format {self.manifest.get('format')!r} version "
+                             f"{self.manifest.get('format_version')!r}; this tool reads {FORMAT!r} version "
+                             f"{FORMAT_VERSION}. Re-bake the scene with this vdmbake.")
+        for rel in self.manifest.get("parts", {}):
+            self.part_path(rel)
+
+    def part_path(self, rel: str) -> Path:
+        pure = PurePosixPath(rel)
+        if pure.is_absolute() or ".." in pure.parts or not pure.parts:
+            raise InputError(f"{self.path / MANIFEST}: part path {rel!r} leaves the bundle; refusing to read it.")
+        p = (self.path / pure).resolve()
+        if not p.is_relative_to(self.path.resolve()):
+            raise InputError(f"{self.path / MANIFEST}: part path {rel!r} resolves outside the bundle; refusing it.")
+        return p
+
+    def read_bytes(self, rel: str) -> bytes:
+        meta = self.manifest["parts"].get(rel)
+        if meta is None:
+            raise InputError(f"{self.path}: the manifest lists no part {rel!r}.")
+        try:
+            data = self.part_path(rel).read_bytes()
+        except OSError as e:
+            raise InputError(f"{self.path / rel}: bundle part missing or unreadable ({e.strerror or e}).") from None
+        if _sha256(data) != meta["sha256"]:
+            raise InputError(f"{self.path / rel}: checksum mismatch (the part is corrupted or was edited); "
+                             "re-bake with vdmbake --force.")
+        return data
+
+    def mesh(self, rel: str) -> TriMesh:
+        return ply.from_bytes(self.read_bytes(rel), str(self.path / rel))
+
+    def exr(self, rel: str) -> dict[str, dict[str, np.ndarray]]:
+        self.read_bytes(rel)
+        return exr.read(self.part_path(rel))

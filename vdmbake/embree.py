@@ -1,0 +1,63 @@
+"""A thin wrapper over embreex: closest hits and occlusion for batches of rays.
+
+Embree works in float32. Geometry is therefore stored relative to an anchor point
+(the mesh's bounding-box centre) and ray origins are shifted by the same anchor
+in float64 first, so objects far from the origin keep their precision.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+CHUNK = 1 << 20  # rays per embree call: bounds the temporary arrays
+
+
+@dataclass
+class Hits:
+    t: np.ndarray       # (N,) float64 ray parameter, inf where missed
+    prim: np.ndarray    # (N,) int64 triangle index, -1 where missed
+    u: np.ndarray       # (N,) barycentrics: P = (1-u-v) v0 + u v1 + v v2
+    v: np.ndarray
+    ng: np.ndarray      # (N, 3) unit geometric normal, cross(v1-v0, v2-v0) direction
+
+
+class RayScene:
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        self.anchor = 0.5 * (vertices.min(0) + vertices.max(0))
+        self._scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(self._scene, np.ascontiguousarray((vertices - self.anchor)[faces], dtype=np.float32))
+        self.rays_cast = 0
+
+    def _batches(self, origins, dirs, tfar):
+        n = len(origins)
+        tfar = np.full(n, np.inf) if tfar is None else np.broadcast_to(tfar, (n,))
+        for s in range(0, n, CHUNK):
+            e = min(n, s + CHUNK)
+            self.rays_cast += e - s
+            yield s, e, (np.ascontiguousarray(origins[s:e] - self.anchor, dtype=np.float32),
+                         np.ascontiguousarray(dirs[s:e], dtype=np.float32),
+                         np.ascontiguousarray(np.minimum(tfar[s:e], 3.0e38), dtype=np.float32))
+
+    def intersect(self, origins: np.ndarray, dirs: np.ndarray, tfar=None) -> Hits:
+        n = len(origins)
+        h = Hits(np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros(n), np.zeros(n), np.zeros((n, 3)))
+        for s, e, (o, d, tf) in self._batches(origins, dirs, tfar):
+            r = self._scene.run(o, d, dists=tf, output=1)
+            hit = r["primID"] >= 0
+            h.prim[s:e] = r["primID"]
+            h.t[s:e] = np.where(hit, r["tfar"], np.inf)
+            h.u[s:e], h.v[s:e] = r["u"], r["v"]
+            ng = r["Ng"].astype(np.float64)
+            length = np.linalg.norm(ng, axis=1, keepdims=True)
+            h.ng[s:e] = np.where(length > 0, ng / np.where(length > 0, length, 1.0), 0.0)
+        return h
+
+    def occluded(self, origins: np.ndarray, dirs: np.ndarray, tfar=None) -> np.ndarray:
+        out = np.zeros(len(origins), bool)
+        for s, e, (o, d, tf) in self._batches(origins, dirs, tfar):
+            out[s:e] = self._scene.run(o, d, dists=tf, query="OCCLUDED") >= 0
+        return out

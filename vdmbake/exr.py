@@ -1,0 +1,57 @@
+"""Multi-part EXR files through the OpenEXR 3.x `OpenEXR.File` API.
+
+Each part is a name and a dict of 2-D channels; data channels get dotted names
+(`depth.Z`, `normal.X`) so no tool mistakes them for colour. Works around the
+binding's known pitfalls: every part gets the same explicit displayWindow (the
+union of the part sizes), arrays are made contiguous, float64 is narrowed to
+float32 explicitly, and 3-channel arrays are never passed whole (they would
+become R/G/B).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+_DTYPES = (np.float32, np.float16, np.uint32)
+
+
+def _channel(name: str, a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a)
+    if a.ndim != 2:
+        raise ValueError(f"EXR channel {name!r} must be 2-D, got shape {a.shape}")
+    if a.dtype == np.float64:
+        a = a.astype(np.float32)
+    if a.dtype.type not in _DTYPES:
+        raise ValueError(f"EXR channel {name!r}: dtype {a.dtype} not storable (float32, float16 or uint32)")
+    return np.ascontiguousarray(a)
+
+
+def write(path: Path, parts: dict[str, dict[str, np.ndarray]], compression: str = "zip") -> None:
+    """Write {part name: {channel name: 2-D array}} as one (multi-part if more than one) EXR file."""
+    import OpenEXR
+
+    comp = {"zip": OpenEXR.ZIP_COMPRESSION, "none": OpenEXR.NO_COMPRESSION}[compression]
+    parts = {p: {c: _channel(f"{p}/{c}", a) for c, a in chans.items()} for p, chans in parts.items()}
+    for p, chans in parts.items():
+        shapes = {a.shape for a in chans.values()}
+        if len(shapes) != 1:
+            raise ValueError(f"EXR part {p!r}: channels differ in size {sorted(shapes)}")
+    sizes = [next(iter(c.values())).shape for c in parts.values()]
+    hmax, wmax = max(s[0] for s in sizes), max(s[1] for s in sizes)
+    display = (np.array([0, 0], np.int32), np.array([wmax - 1, hmax - 1], np.int32))
+    out = []
+    for (name, chans), (h, w) in zip(parts.items(), sizes):
+        header = {"compression": comp, "type": OpenEXR.scanlineimage, "displayWindow": display,
+                  "dataWindow": (np.array([0, 0], np.int32), np.array([w - 1, h - 1], np.int32))}
+        out.append(OpenEXR.Part(header, chans, name=name))
+    with OpenEXR.File(out) as f:
+        f.write(str(path))
+
+
+def read(path: Path) -> dict[str, dict[str, np.ndarray]]:
+    """{part name: {channel name: 2-D array}} for every part of an EXR file."""
+    import OpenEXR
+
+    with OpenEXR.File(str(path)) as f:
+        return {p.name(): {c: np.array(ch.pixels) for c, ch in p.channels.items()} for p in f.parts}

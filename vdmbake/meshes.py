@@ -1,0 +1,124 @@
+"""Triangle meshes: the in-memory form, loading, validation, transforms and normals."""
+from __future__ import annotations
+
+import hashlib
+import importlib.resources
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+
+@dataclass
+class TriMesh:
+    vertices: np.ndarray            # (V, 3) float64
+    faces: np.ndarray               # (F, 3) int64, counter-clockwise seen from outside
+    normals: np.ndarray             # (V, 3) float64, unit
+    uvs: np.ndarray | None = None   # (V, 2) float64
+
+    @staticmethod
+    def concatenate(parts: list["TriMesh"]) -> "TriMesh":
+        offsets = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
+        uvs = [p.uvs for p in parts]
+        return TriMesh(np.concatenate([p.vertices for p in parts]),
+                       np.concatenate([p.faces + o for p, o in zip(parts, offsets)]),
+                       np.concatenate([p.normals for p in parts]),
+                       None if any(u is None for u in uvs) else np.concatenate(uvs))
+
+    def bounding_sphere(self) -> tuple[np.ndarray, float]:
+        """Centre of the bounding box and the radius that encloses every vertex."""
+        lo, hi = self.vertices.min(0), self.vertices.max(0)
+        centre = 0.5 * (lo + hi)
+        return centre, float(np.linalg.norm(self.vertices - centre, axis=1).max())
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals (the sum of the incident faces' cross products)."""
+    tri = vertices[faces]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(n, faces[:, k], fn)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    # A vertex used only by degenerate faces has no normal; give it +Z rather than NaN.
+    return np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
+
+
+def rotation_xyz(degrees) -> np.ndarray:
+    """Rotation about X, then Y, then Z (extrinsic), angles in degrees."""
+    ax, ay, az = np.radians(degrees)
+    cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def transformed(mesh: TriMesh, transform) -> TriMesh:
+    """Scale, rotate, translate (a scene Transform); normals by the inverse transpose, re-normalised."""
+    m = rotation_xyz(transform.rotate_deg) @ np.diag(transform.scale)
+    n = mesh.normals @ np.linalg.inv(m)  # row vectors: n' = (M^-T n)^T = n^T M^-1
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    faces = mesh.faces if np.linalg.det(m) > 0 else mesh.faces[:, ::-1].copy()  # a mirror flips winding
+    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs)
+
+
+def validate(mesh: TriMesh, origin: str) -> TriMesh:
+    """Reject what no technique can render: no faces, non-finite data, bad indices."""
+    if len(mesh.faces) == 0 or len(mesh.vertices) == 0:
+        raise InputError(f"{origin}: the mesh is empty ({len(mesh.vertices)} vertices, {len(mesh.faces)} faces); "
+                         "a mesh needs at least one triangle.")
+    bad = ~np.isfinite(mesh.vertices).all(1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{origin}: {int(bad.sum())} vertices have NaN or Inf coordinates "
+                         f"(first: vertex {i} = {mesh.vertices[i].tolist()}); every coordinate must be finite.")
+    if mesh.faces.min() < 0 or mesh.faces.max() >= len(mesh.vertices):
+        raise InputError(f"{origin}: face indices reach {int(mesh.faces.max())} but the mesh has "
+                         f"{len(mesh.vertices)} vertices.")
+    return mesh
+
+
+def resolve_path(spec: str, base: Path) -> Path:
+    """A mesh path relative to the scene file, or pkg:PACKAGE/PATH for a file shipped in a package."""
+    if spec.startswith("pkg:"):
+        package, _, inner = spec[4:].partition("/")
+        try:
+            root = importlib.resources.files(package)
+        except ModuleNotFoundError:
+            raise InputError(f"mesh '{spec}': Python package '{package}' is not installed "
+                             f"(pkg:PACKAGE/PATH names a file inside an installed package).") from None
+        path = Path(str(root / inner))
+    else:
+        path = (base / spec) if not Path(spec).is_absolute() else Path(spec)
+    if not path.is_file():
+        raise InputError(f"mesh '{spec}': file not found (looked at {path}).")
+    return path
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def load_mesh_file(path: Path) -> TriMesh:
+    """Any format trimesh reads, merged to one triangle mesh with area-weighted vertex normals."""
+    import trimesh  # imported here: only scenes with mesh files pay for it
+
+    try:
+        loaded = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as e:  # trimesh raises many types for unreadable files
+        raise InputError(f"{path}: cannot read the mesh ({type(e).__name__}: {e}).") from None
+    vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
+    faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+    validate(TriMesh(vertices, faces, np.zeros_like(vertices)), str(path))
+    # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces.
+    merged = trimesh.Trimesh(vertices, faces, process=False)
+    merged.merge_vertices()
+    v, f = np.asarray(merged.vertices, np.float64), np.asarray(merged.faces, np.int64)
+    return TriMesh(v, f, vertex_normals(v, f))

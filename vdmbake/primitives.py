@@ -1,0 +1,90 @@
+"""Built-in primitives with analytic normals and UVs (pure numpy).
+
+Sphere, cylinder, torus and vase are surfaces of revolution about +Z: a profile
+(r(t), z(t)), t in [0, 1], swept by the angle phi. With P = (r cos phi, r sin phi, z),
+dP/dphi x dP/dt = r (z' cos phi, z' sin phi, -r'), so the unit normal is
+(z' cos phi, z' sin phi, -r') / |(r', z')|, exact at every vertex, poles included.
+UVs: u = phi / 2pi (the seam column is duplicated), v = t.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .meshes import TriMesh
+
+
+def _grid_faces(rows: int, cols: int) -> np.ndarray:
+    """Two counter-clockwise triangles per cell of a (rows+1) x (cols+1) vertex grid."""
+    i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    a = (i * (cols + 1) + j).ravel()
+    b, c, d = a + 1, a + cols + 1, a + cols + 2
+    return np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)]).astype(np.int64)
+
+
+def revolve(profile, segments: int, rings: int) -> TriMesh:
+    """Sweep profile(t) -> (r, z, dr/dt, dz/dt) around +Z; rings along t, segments along phi."""
+    t = np.linspace(0.0, 1.0, rings + 1)
+    phi = np.linspace(0.0, 2.0 * np.pi, segments + 1)
+    r, z, dr, dz = (np.broadcast_to(np.asarray(a, float), t.shape) for a in profile(t))
+    T, P = np.meshgrid(np.arange(rings + 1), phi, indexing="ij")
+    c, s = np.cos(P), np.sin(P)
+    v = np.stack([r[T] * c, r[T] * s, z[T]], -1).reshape(-1, 3)
+    n = np.stack([dz[T] * c, dz[T] * s, -dr[T] * np.ones_like(c)], -1).reshape(-1, 3)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    uv = np.stack([P / (2 * np.pi), t[T]], -1).reshape(-1, 2)
+    return TriMesh(v, _grid_faces(rings, segments), n, uv)
+
+
+def _disk(radius: float, z: float, segments: int, up: bool) -> TriMesh:
+    phi = np.linspace(0.0, 2.0 * np.pi, segments + 1)[:-1]
+    v = np.concatenate([[[0.0, 0.0, z]], np.stack([radius * np.cos(phi), radius * np.sin(phi), np.full_like(phi, z)], 1)])
+    k = np.arange(segments)
+    f = np.stack([np.zeros_like(k), 1 + k, 1 + (k + 1) % segments], 1)
+    if not up:
+        f = f[:, ::-1]
+    n = np.tile([0.0, 0.0, 1.0 if up else -1.0], (len(v), 1))
+    uv = 0.5 + 0.5 * v[:, :2] / radius
+    return TriMesh(v, f.astype(np.int64), n, uv)
+
+
+def plane(size: float, segments: int) -> TriMesh:
+    """A square in the XY plane centred on the origin, normal +Z."""
+    u = np.linspace(0.0, 1.0, segments + 1)
+    V, U = np.meshgrid(u, u, indexing="ij")
+    v = np.stack([(U - 0.5) * size, (V - 0.5) * size, np.zeros_like(U)], -1).reshape(-1, 3)
+    n = np.tile([0.0, 0.0, 1.0], (len(v), 1))
+    return TriMesh(v, _grid_faces(segments, segments), n, np.stack([U, V], -1).reshape(-1, 2))
+
+
+def sphere(radius: float, segments: int, rings: int) -> TriMesh:
+    a = np.pi
+    return revolve(lambda t: (radius * np.sin(a * t), -radius * np.cos(a * t),
+                              radius * a * np.cos(a * t), radius * a * np.sin(a * t)), segments, rings)
+
+
+def cylinder(radius: float, height: float, segments: int, rings: int, caps: int) -> TriMesh:
+    side = revolve(lambda t: (radius, (t - 0.5) * height, 0.0, height), segments, rings)
+    if not caps:
+        return side
+    return TriMesh.concatenate([side, _disk(radius, -0.5 * height, segments, False),
+                                _disk(radius, 0.5 * height, segments, True)])
+
+
+def torus(major: float, minor: float, segments: int, rings: int) -> TriMesh:
+    a = 2.0 * np.pi
+    return revolve(lambda t: (major + minor * np.cos(a * t), minor * np.sin(a * t),
+                              -minor * a * np.sin(a * t), minor * a * np.cos(a * t)), segments, rings)
+
+
+def vase(radius: float, height: float, segments: int, rings: int) -> TriMesh:
+    """An open vase: r(t) = R (1 + 0.45 sin(1.6 pi t + 0.35) - 0.35 t), a belly, a neck and a lip."""
+    w = 1.6 * np.pi
+    return revolve(lambda t: (radius * (1.0 + 0.45 * np.sin(w * t + 0.35) - 0.35 * t), height * t,
+                              radius * (0.45 * w * np.cos(w * t + 0.35) - 0.35), height), segments, rings)
+
+
+BUILDERS = {"plane": plane, "sphere": sphere, "cylinder": cylinder, "torus": torus, "vase": vase}
+
+
+def build(name: str, params: dict) -> TriMesh:
+    return BUILDERS[name](**params)

@@ -1,0 +1,96 @@
+"""Pinhole cameras (pure numpy): view and projection matrices, pixel rays, orbit placement.
+
+Conventions: right-handed world, the camera looks down its -Z axis, vertical field of
+view, pixel (x, y) has its centre at (x + 0.5, y + 0.5) with row 0 at the top of the image.
+Near and far planes hug the object's bounding sphere, and the reference clips to the same
+near plane as the rasteriser, so both see the same geometry.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Camera:
+    eye: np.ndarray
+    target: np.ndarray
+    up: np.ndarray
+    fov_deg: float
+    width: int
+    height: int
+    near: float
+    far: float
+
+    def basis(self) -> np.ndarray:
+        """Rows: camera right, up, back (+Z) in world space, orthonormal (Gram-Schmidt)."""
+        back = self.eye - self.target
+        back = back / np.linalg.norm(back)
+        up = self.up - back * np.dot(self.up, back)
+        if np.linalg.norm(up) < 1e-9:  # looking along `up`: pick any perpendicular
+            up = np.cross(back, [1.0, 0.0, 0.0] if abs(back[0]) < 0.9 else [0.0, 1.0, 0.0])
+        up = up / np.linalg.norm(up)
+        return np.stack([np.cross(up, back), up, back])
+
+    def view(self) -> np.ndarray:
+        r = self.basis()
+        m = np.eye(4)
+        m[:3, :3] = r
+        m[:3, 3] = -r @ self.eye
+        return m
+
+    def projection(self) -> np.ndarray:
+        f = 1.0 / np.tan(np.radians(self.fov_deg) / 2)
+        n, fa, a = self.near, self.far, self.width / self.height
+        return np.array([[f / a, 0, 0, 0], [0, f, 0, 0],
+                         [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)], [0, 0, -1, 0]])
+
+    def pixel_rays(self) -> tuple[np.ndarray, np.ndarray]:
+        """World-space directions through every pixel centre, scaled so that one unit of the ray
+        parameter is one unit of view depth (camera-space z = -1); (H*W, 3) float64, row-major."""
+        t = np.tan(np.radians(self.fov_deg) / 2)
+        a = self.width / self.height
+        x = ((np.arange(self.width) + 0.5) / self.width * 2 - 1) * t * a
+        y = (1 - (np.arange(self.height) + 0.5) / self.height * 2) * t
+        X, Y = np.meshgrid(x, y)
+        d_cam = np.stack([X, Y, -np.ones_like(X)], -1).reshape(-1, 3)
+        return np.broadcast_to(self.eye, d_cam.shape), d_cam @ self.basis()
+
+
+def clip_planes(eye, target, centre, radius) -> tuple[float, float]:
+    """Near/far planes enclosing the bounding sphere along the view axis (near kept > 0)."""
+    fwd = (target - eye) / np.linalg.norm(target - eye)
+    depth = float(np.dot(centre - eye, fwd))
+    far = depth + radius * 1.01
+    near = max(depth - radius * 1.01, far * 1e-4)
+    return near, max(far, near * 2)
+
+
+def orbit(orbit_spec, up, centre, radius, width, height) -> list[Camera]:
+    """`count` cameras evenly around `up` at a fixed elevation, looking at the centre."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    a = np.array([1.0, 0.0, 0.0]) if abs(up[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = a - up * np.dot(a, up)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(up, e1)
+    cams = []
+    el = np.radians(orbit_spec.elevation_deg)
+    for k in range(orbit_spec.count):
+        az = np.radians(orbit_spec.azimuth_deg) + 2 * np.pi * k / orbit_spec.count
+        d = np.cos(el) * (np.cos(az) * e1 + np.sin(az) * e2) + np.sin(el) * up
+        eye = centre + d * orbit_spec.distance * radius
+        cams.append(Camera(eye, centre, up, orbit_spec.fov_deg, width, height,
+                           *clip_planes(eye, centre, centre, radius)))
+    return cams
+
+
+def cameras_for(scene_camera, centre, radius, width, height) -> list[Camera]:
+    """The scene's orbit cameras around this object, then its explicit poses."""
+    centre = np.asarray(centre, float)
+    cams = orbit(scene_camera.orbit, scene_camera.up, centre, radius, width, height) if scene_camera.orbit else []
+    up = np.asarray(scene_camera.up, float)
+    for p in scene_camera.poses:
+        eye, target = np.asarray(p.eye, float), np.asarray(p.target, float)
+        cams.append(Camera(eye, target, up, p.fov_deg, width, height, *clip_planes(eye, target, centre, radius)))
+    return cams

@@ -1,0 +1,190 @@
+"""One render run: every object's frames with each technique variant and the reference,
+the error of each frame, the time per frame, and the report."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import statistics
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vdmbake import __version__, exr
+from vdmbake.bundle import MANIFEST, Bundle
+from vdmbake.errors import InputError
+from vdmbake.scene import TECHNIQUES, parse_scene_dict
+
+from . import gl, images, reference, report
+from .camera import cameras_for
+from .metrics import compare
+from .outdir import OutputDir
+from .techniques import variants
+
+BYTES_PER_PIXEL = 800  # peak working memory of the reference per pixel (rays, hits, shading), measured loosely
+
+
+@dataclass
+class Options:
+    techniques: tuple[str, ...] | None = None    # render only these (the scene's list otherwise)
+    resolution: tuple[int, int] | None = None    # override the scene's
+    repeats: int | None = None
+    warmup: int | None = None
+    device: str | None = None
+    heat_max: float = 10.0                       # delta-Luv at the top of the heat-map colour scale
+
+
+def check_memory(width: int, height: int, available: int | None = None) -> None:
+    """Refuse resolutions whose reference would not fit in memory, before any work starts."""
+    if available is None:
+        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    need = width * height * BYTES_PER_PIXEL
+    if need > 0.8 * available:
+        raise InputError(f"resolution {width}x{height} needs about {need / 2**30:.1f} GiB for the reference, "
+                         f"more than 80% of the {available / 2**30:.1f} GiB available; lower render.resolution "
+                         "or --resolution.")
+
+
+def _reference_key(mesh_sha: str, cams, light, material, background) -> str:
+    blob = {"version": reference.VERSION, "mesh": mesh_sha, "light": asdict(light), "material": asdict(material),
+            "background": list(background),
+            "cameras": [[c.eye.tolist(), c.target.tolist(), c.up.tolist(), c.fov_deg, c.width, c.height,
+                         c.near, c.far] for c in cams]}
+    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
+
+
+def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np.ndarray], dict]:
+    """The reference frames (linear RGBA float32), traced or taken from the previous run's cache."""
+    folder = f"reference/{obj.name}"
+    key = _reference_key(bundle.manifest["parts"][entry["mesh"]]["sha256"], cams, scene.light, obj.material,
+                         scene.render.background)
+    prev_key = out.previous(f"{folder}/key.txt")
+    names = [f"{folder}/{k:03d}" for k in range(len(cams))]
+    if prev_key.is_file() and prev_key.read_text().strip() == key and all(
+            out.previous(n + ".exr").is_file() for n in names):
+        frames = [np.stack([exr.read(out.previous(n + ".exr"))["reference"][c] for c in "RGBA"], -1) for n in names]
+        info = {"cached": True, "trace_s": 0.0}
+    else:
+        t0 = time.perf_counter()
+        ref = reference.MeshReference(bundle.mesh(entry["mesh"]), scene.light, obj.material)
+        frames = [ref.render(c) for c in cams]
+        info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
+    for n, f in zip(names, frames):
+        exr.write(out.file(n + ".exr"), {"reference": {c: f[..., i] for i, c in enumerate("RGBA")}})
+        images.save_rgb(out.file(n + ".png"), images.encode(f, scene.render.background))
+    out.file(f"{folder}/key.txt").write_text(key + "\n")
+    log(f"{obj.name}: reference {len(cams)} frames " +
+        ("(cached)" if info["cached"] else f"traced in {info['trace_s']:.2f} s, {info['rays']} rays"))
+    return frames, info
+
+
+def time_variant(ctx, renderer, target, cams, repeats: int, warmup: int) -> tuple[list[float], list[np.ndarray]]:
+    """Per frame: `warmup` untimed renders, then `repeats` timed ones (ctx.finish() inside the timed
+    region); returns every timed sample in ms and each frame's read-back image."""
+    samples, frames = [], []
+    for cam in cams:
+        for _ in range(warmup):
+            renderer.render(cam, target)
+            ctx.finish()
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            renderer.render(cam, target)
+            ctx.finish()
+            samples.append((time.perf_counter() - t0) * 1e3)
+        frames.append(target.read())
+    return samples, frames
+
+
+def _technique_filter(opts: Options, scene) -> set | None:
+    if not opts.techniques:
+        return None
+    named = {t for o in scene.objects for t in o.techniques}
+    for t in opts.techniques:
+        if t not in TECHNIQUES:
+            raise InputError(f"--technique {t!r}: unknown; known techniques: {', '.join(TECHNIQUES)}.")
+        if t not in named:
+            raise InputError(f"--technique {t!r}: no object of this bundle's scene names it "
+                             f"(they name: {', '.join(sorted(named))}).")
+    return set(opts.techniques)
+
+
+def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) -> dict:
+    bundle = Bundle(bundle_path)
+    scene = parse_scene_dict(bundle.manifest["scene"], str(bundle.path / MANIFEST))
+    width, height = opts.resolution or scene.render.resolution
+    repeats = opts.repeats or scene.render.repeats
+    warmup = scene.render.warmup if opts.warmup is None else opts.warmup
+    only = _technique_filter(opts, scene)
+    check_memory(width, height)
+    ctx = gl.create_context(opts.device)
+    device = gl.renderer_name(ctx)
+    out = OutputDir(out_path)
+    try:
+        rows = _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log)
+        report.add_baseline_ratios(rows)
+        result = {"tool_version": __version__, "bundle": str(bundle.path), "device": device,
+                  "resolution": [width, height], "repeats": repeats, "warmup": warmup,
+                  "timing": "median wall time per frame over all timed renders, ctx.finish() inside the timed "
+                            "region; ratio_to_baseline divides by the baseline row of the same object and run",
+                  "error": "delta-L*u*v* (CIE 1976, sRGB/D65) against the reference over the union of both "
+                           "coverage masks (thesis eq. 2.2)",
+                  "heatmap_max_dluv": opts.heat_max, "rows": rows}
+        report.write(out.tmp, result)
+        out.commit()
+    except BaseException:
+        out.abort()
+        raise
+    finally:
+        ctx.release()
+    return result
+
+
+def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log) -> list[dict]:
+    target = gl.Target(ctx, width, height)
+    rows = []
+    for obj in scene.objects:
+        entry = bundle.manifest["objects"][obj.name]
+        cams = cameras_for(scene.camera, entry["centre"], entry["radius"], width, height)
+        chosen = variants(obj, entry, bundle, scene, only)
+        if not chosen:
+            continue
+        ref_frames, ref_info = reference_frames(out, obj, entry, bundle, scene, cams, log)
+        ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
+        sheet = [("reference", ref8)]
+        for v in chosen:
+            renderer = v.build(ctx)
+            samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup)
+            faces = getattr(renderer, "faces", None)
+            renderer.release()
+            per_frame, dists, heats, enc = [], [], [], []
+            for k, (f, r8) in enumerate(zip(frames, ref8)):
+                nonfinite = int((~np.isfinite(f)).any(-1).sum())
+                f8 = images.encode(f, scene.render.background)
+                c = compare(f8, r8)
+                heat = images.heatmap(c["dist"], opts.heat_max)
+                images.save_rgb(out.file(f"frames/{obj.name}/{v.label}/{k:03d}.png"), f8)
+                images.save_rgb(out.file(f"heatmaps/{obj.name}/{v.label}/{k:03d}.png"), heat)
+                per_frame.append({"frame": k, "mean_dluv": round(c["mean"], 4), "iou": round(c["iou"], 6),
+                                  "nonfinite": nonfinite})
+                dists.append(c["values"])
+                heats.append(heat)
+                enc.append(f8)
+            d = np.concatenate(dists)
+            row = {"object": obj.name, "technique": v.technique, "knob": v.knob, "value": v.value,
+                   "label": v.label, "faces": faces, "frames": len(cams),
+                   "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3),
+                   "mean_dluv": round(float(d.mean()), 4) if d.size else 0.0,
+                   "p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else 0.0,
+                   "max_dluv": round(float(d.max()), 4) if d.size else 0.0,
+                   "iou": round(float(np.mean([p["iou"] for p in per_frame])), 6),
+                   "nonfinite": sum(p["nonfinite"] for p in per_frame), "device": device,
+                   "reference_cached": ref_info["cached"], "per_frame": per_frame}
+            rows.append(row)
+            sheet += [(v.label, enc), (f"{v.label} error", heats)]
+            log(f"{obj.name}: {v.label:>14}  {row['median_ms']:9.3f} ms/frame  mean dLuv {row['mean_dluv']:7.3f}  "
+                f"p95 {row['p95_dluv']:7.3f}  IoU {row['iou']:.4f}")
+        images.overview(sheet, out.file(f"overview/{obj.name}.png"))
+    target.release()
+    return rows

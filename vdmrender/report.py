@@ -1,0 +1,59 @@
+"""The error-against-time report: report.json, report.csv and error_vs_time.png."""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "median_ms", "min_ms",
+           "ratio_to_baseline", "baseline", "mean_dluv", "p95_dluv", "max_dluv", "iou", "nonfinite", "device"]
+
+
+def add_baseline_ratios(rows: list[dict]) -> None:
+    """Each row's time as a ratio to its object's baseline, measured in the same run: the `mesh`
+    technique where the object has it, else the object's first variant."""
+    for obj in dict.fromkeys(r["object"] for r in rows):
+        mine = [r for r in rows if r["object"] == obj]
+        base = next((r for r in mine if r["technique"] == "mesh"), mine[0])
+        for r in mine:
+            r["baseline"] = base["label"]
+            r["ratio_to_baseline"] = round(r["median_ms"] / base["median_ms"], 4) if base["median_ms"] > 0 else None
+
+
+def write(folder: Path, report: dict) -> None:
+    (folder / "report.json").write_text(json.dumps(report, indent=1) + "\n")
+    with open(folder / "report.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(report["rows"])
+    plot(folder / "error_vs_time.png", report)
+
+
+def plot(path: Path, report: dict) -> None:
+    """Mean delta-Luv against median ms per frame; a technique's knob values joined by a line."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = report["rows"]
+    objects = list(dict.fromkeys(r["object"] for r in rows))
+    fig, axes = plt.subplots(1, len(objects), figsize=(6.4 * len(objects), 4.8), squeeze=False)
+    for ax, obj in zip(axes[0], objects):
+        mine = [r for r in rows if r["object"] == obj]
+        for tech in dict.fromkeys(r["technique"] for r in mine):
+            pts = sorted((r for r in mine if r["technique"] == tech), key=lambda r: r["value"] or 0.0)
+            ax.plot([r["median_ms"] for r in pts], [r["mean_dluv"] for r in pts], "o-", label=tech)
+            for r in pts:
+                ax.annotate(r["label"], (r["median_ms"], r["mean_dluv"]), textcoords="offset points",
+                            xytext=(4, 4), fontsize=7)
+        ax.set_xscale("log")
+        ax.set_xlabel("median wall time per frame [ms] (log)")
+        ax.set_ylabel("mean ΔL*u*v* against the reference (eq. 2.2)")
+        ax.set_title(f"{obj}  {report['resolution'][0]}x{report['resolution'][1]}", fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"error against time on {report['device']}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

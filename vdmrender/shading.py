@@ -1,0 +1,39 @@
+"""The shared shading model in numpy: the twin of shaders/include/shading.glsl.
+
+Lambert diffuse plus Blinn-Phong specular from one directional light, a constant ambient
+term, ambient only where shadowed, linear radiance encoded to 8-bit sRGB on output.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def shade(albedo, normals, to_eye, lit, light, material) -> np.ndarray:
+    """Linear radiance (N, 3). normals, to_eye: (N, 3) unit; lit: (N,) bool; light/material from the scene."""
+    L = np.asarray(light.direction)
+    albedo = np.broadcast_to(np.asarray(albedo, float), normals.shape)
+    c = np.asarray(light.ambient) * albedo
+    ndl = normals @ L
+    on = lit & (ndl > 0)
+    h = L + to_eye
+    H = h / np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-8)
+    spec = np.maximum(np.einsum("ij,ij->i", normals, H), 0.0) ** material.shininess
+    direct = np.asarray(light.color) * (material.diffuse * ndl[:, None] * albedo + material.specular * spec[:, None])
+    return c + np.where(on[:, None], direct, 0.0)
+
+
+def srgb_encode(c: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 sRGB transfer function on linear values, clamped to [0, 1]."""
+    c = np.clip(c, 0.0, 1.0)
+    return np.where(c < 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
+
+
+def to_srgb8(c: np.ndarray) -> np.ndarray:
+    """Linear radiance to 8-bit sRGB, rounded to nearest as the GL framebuffer conversion does."""
+    return np.round(srgb_encode(c) * 255.0).astype(np.uint8)
+
+
+def safe_normalize(v: np.ndarray) -> np.ndarray:
+    """Unit rows; a zero row stays zero (as safe_normalize in shading.glsl)."""
+    length = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.where(length > 1e-20, v / np.where(length > 1e-20, length, 1.0), 0.0)

@@ -1,0 +1,36 @@
+"""Techniques: each module turns an object's bundle parts into renderable variants.
+
+A variant is one point on the error-against-time chart: a technique at one value of its
+quality knob. Building a variant uploads its data and compiles (once) the programs it uses,
+so a scene compiles only the shaders of the techniques it names.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+from . import coarse, mesh
+
+
+@dataclass
+class Variant:
+    technique: str
+    knob: str | None          # name of the quality knob, e.g. "ratio"
+    value: float | None       # its value for this variant
+    build: Callable           # build(ctx) -> renderer with render(camera, target) and release()
+
+    @property
+    def label(self) -> str:
+        return self.technique if self.knob is None else f"{self.technique}@{self.value:g}"
+
+
+REGISTRY = {"mesh": mesh.variants, "coarse": coarse.variants}
+
+
+def variants(obj, entry: dict, bundle, scene, only=None) -> list[Variant]:
+    """The variants of every technique the object names (restricted to `only` if given), in scene order."""
+    out = []
+    for name, options in obj.techniques.items():
+        if only is None or name in only:
+            out += [Variant(name, *v) for v in REGISTRY[name](obj, entry, bundle, scene, options)]
+    return out
