@@ -5,7 +5,7 @@ Each part is a name and a dict of 2-D channels; data channels get dotted names
 binding's known pitfalls: every part gets the same explicit displayWindow (the
 union of the part sizes), arrays are made contiguous, float64 is narrowed to
 float32 explicitly, and 3-channel arrays are never passed whole (they would
-become R/G/B).
+become R/G/B); reading keeps channels separate (the binding would merge R, G, B, A).
 """
 from __future__ import annotations
 
@@ -53,5 +53,5 @@ def read(path: Path) -> dict[str, dict[str, np.ndarray]]:
     """{part name: {channel name: 2-D array}} for every part of an EXR file."""
     import OpenEXR
 
-    with OpenEXR.File(str(path)) as f:
+    with OpenEXR.File(str(path), separate_channels=True) as f:
         return {p.name(): {c: np.array(ch.pixels) for c, ch in p.channels.items()} for p in f.parts}
