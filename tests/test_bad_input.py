@@ -210,8 +210,6 @@ def test_output_under_a_regular_file(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "scene.toml"]
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: BundleWriter calls iterdir() on an -o that is a regular file; "
-                                       "NotADirectoryError escapes as a traceback (exit 1)")
 def test_output_is_a_regular_file(tmp_path):
     scene = write_scene(tmp_path, GOOD_SCENE)
     out = tmp_path / "x.bundle"

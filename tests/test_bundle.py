@@ -233,8 +233,8 @@ def _interrupt(monkeypatch, where: str, exc: type[BaseException]) -> dict:
 
         def failing(writer, obj, base, log):
             if writer.parts:                              # the second object: the first one's parts exist
-                seen["tmp"] = writer.tmp
-                seen["tmp_files"] = sorted(files(writer.tmp))
+                seen["tmp"] = writer.stage.tmp
+                seen["tmp_files"] = sorted(files(writer.stage.tmp))
                 raise exc("interrupted")
             return original(writer, obj, base, log)
         monkeypatch.setattr(bake_mod, "_bake_object", failing)

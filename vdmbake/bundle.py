@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import shutil
 from pathlib import Path, PurePosixPath
 
 import numpy as np
@@ -18,6 +16,7 @@ import numpy as np
 from . import __version__, exr, ply
 from .errors import InputError
 from .meshes import TriMesh
+from .staging import StagedDir
 
 FORMAT = "vdm-bundle"
 FORMAT_VERSION = 1
@@ -35,53 +34,34 @@ def dumps(obj) -> str:
 
 
 class BundleWriter:
-    """Collects parts in a temporary sibling directory; commit() moves the finished bundle into place."""
+    """Collects parts in a staging folder; commit() writes the manifest last and moves the bundle into place."""
 
     def __init__(self, path: Path):
-        self.path = Path(path)
-        if self.path.exists() and not (self.path / MANIFEST).is_file() and any(self.path.iterdir()):
-            raise InputError(f"{self.path}: exists and is not a bundle (no {MANIFEST}); "
-                             "refusing to replace it. Choose another -o path or remove it.")
-        self.tmp = self.path.parent / f".{self.path.name}.tmp-{os.getpid()}"
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            shutil.rmtree(self.tmp, ignore_errors=True)
-            self.tmp.mkdir()
-        except OSError as e:
-            raise InputError(f"{self.path}: cannot write the bundle there ({e.strerror or e}).") from None
+        self.stage = StagedDir(path, MANIFEST, "bundle")
         self.parts: dict[str, dict] = {}
 
-    def _file(self, rel: str) -> Path:
-        p = self.tmp / rel
-        p.parent.mkdir(parents=True, exist_ok=True)
-        return p
-
     def _record(self, rel: str, kind: str, **meta) -> str:
-        data = (self.tmp / rel).read_bytes()
+        data = (self.stage.tmp / rel).read_bytes()
         self.parts[rel] = {"kind": kind, "sha256": _sha256(data), "bytes": len(data), **meta}
         return rel
 
     def add_mesh(self, rel: str, mesh: TriMesh, kind: str = "mesh") -> str:
-        ply.write(self._file(rel), mesh)
+        ply.write(self.stage.file(rel), mesh)
         return self._record(rel, kind, vertices=len(mesh.vertices), faces=len(mesh.faces))
 
     def add_exr(self, rel: str, parts: dict[str, dict[str, np.ndarray]], kind: str) -> str:
-        exr.write(self._file(rel), parts)
+        exr.write(self.stage.file(rel), parts)
         return self._record(rel, kind, exr_parts=sorted(parts))
 
     def commit(self, manifest: dict, timing: dict) -> None:
         manifest = {"format": FORMAT, "format_version": FORMAT_VERSION, "tool_version": __version__,
                     **manifest, "parts": self.parts}
-        (self.tmp / TIMING).write_text(dumps(timing))
-        (self.tmp / MANIFEST).write_text(dumps(manifest))  # last: its presence marks a complete bundle
-        old = self.path.parent / f".{self.path.name}.old-{os.getpid()}"
-        if self.path.exists():
-            self.path.rename(old)
-        self.tmp.rename(self.path)
-        shutil.rmtree(old, ignore_errors=True)
+        self.stage.file(TIMING).write_text(dumps(timing))
+        self.stage.file(MANIFEST).write_text(dumps(manifest))  # last: its presence marks a complete bundle
+        self.stage.commit()
 
     def abort(self) -> None:
-        shutil.rmtree(self.tmp, ignore_errors=True)
+        self.stage.abort()
 
 
 class Bundle:

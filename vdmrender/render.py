@@ -15,12 +15,12 @@ import numpy as np
 from vdmbake import __version__, exr
 from vdmbake.bundle import MANIFEST, Bundle
 from vdmbake.errors import InputError
+from vdmbake.staging import StagedDir
 from vdmbake.scene import TECHNIQUES, parse_scene_dict
 
 from . import gl, images, reference, report
 from .camera import cameras_for
 from .metrics import compare
-from .outdir import OutputDir
 from .techniques import variants
 
 BYTES_PER_PIXEL = 800  # peak working memory of the reference per pixel (rays, hits, shading), measured loosely
@@ -120,7 +120,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     check_memory(width, height)
     ctx = gl.create_context(opts.device)
     device = gl.renderer_name(ctx)
-    out = OutputDir(out_path)
+    out = StagedDir(out_path, "report.json", "vdmrender output folder")
     try:
         rows = _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log)
         report.add_baseline_ratios(rows)
