@@ -1,6 +1,5 @@
 # make demo : install, bake configs/default.toml and render it into out/default/
 # make test : install with test extras and run the test suite
-# make bench: the larger measurements (written to out/bench/, never asserted)
 
 PYTHON ?= python3
 VENV   := .venv
@@ -9,7 +8,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test bench sysdeps clean
+.PHONY: demo test sysdeps clean
 
 # Headless OpenGL needs Mesa's EGL and the llvmpipe driver; install them only if missing.
 sysdeps:
@@ -34,9 +33,6 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
-
-bench: $(STAMP)
-	$(BIN)/python -m vdmrender.bench -o out/bench
 
 clean:
 	rm -rf out build dist *.egg-info

@@ -24,14 +24,16 @@ class Camera:
     far: float
 
     def basis(self) -> np.ndarray:
-        """Rows: camera right, up, back (+Z) in world space, orthonormal (Gram-Schmidt)."""
+        """Rows: camera right, up, back (+Z) in world space. Built as right = up x back, then
+        up = back x right, so the frame is orthonormal to rounding even when `up` nearly
+        parallels the view direction (subtracting the projection would cancel digits there)."""
         back = self.eye - self.target
         back = back / np.linalg.norm(back)
-        up = self.up - back * np.dot(self.up, back)
-        if np.linalg.norm(up) < 1e-9:  # looking along `up`: pick any perpendicular
-            up = np.cross(back, [1.0, 0.0, 0.0] if abs(back[0]) < 0.9 else [0.0, 1.0, 0.0])
-        up = up / np.linalg.norm(up)
-        return np.stack([np.cross(up, back), up, back])
+        right = np.cross(self.up, back)
+        if np.linalg.norm(right) < 1e-12 * np.linalg.norm(self.up):  # looking along `up`: any perpendicular
+            right = np.cross([1.0, 0.0, 0.0] if abs(back[0]) < 0.9 else [0.0, 1.0, 0.0], back)
+        right = right / np.linalg.norm(right)
+        return np.stack([right, np.cross(back, right), back])
 
     def view(self) -> np.ndarray:
         r = self.basis()
