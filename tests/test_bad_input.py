@@ -14,17 +14,8 @@ from vdmbake.errors import InputError
 from vdmrender.cli import main as vdmrender_main
 from vdmrender.render import BYTES_PER_PIXEL, check_memory
 
-RENDER = """\
-[render]
-resolution = [32, 32]
-repeats = 1
-warmup = 0
-shadow_map = 256
-"""
-CAMERA = """
-[camera]
-orbit = { count = 1 }
-"""
+from scenes import CAMERA, RENDER
+
 BALL = """
 [[objects]]
 name = "ball"

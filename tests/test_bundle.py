@@ -21,16 +21,8 @@ from vdmbake.errors import InputError
 from vdmbake.meshes import TriMesh
 from vdmbake.scene import load_scene
 
-HEAD = """\
-[render]
-resolution = [32, 32]
-repeats = 1
-warmup = 0
-shadow_map = 256
+from scenes import TINY_HEAD as HEAD
 
-[camera]
-orbit = { count = 1 }
-"""
 TET_OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
 
 
