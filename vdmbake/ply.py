@@ -1,7 +1,9 @@
-"""Binary PLY for the bundle's meshes: positions, normals and optional UVs, as MeshLab reads them.
+"""Binary little-endian PLY for the bundle: meshes (vertex + face) and quadric lists (sphere,
+cylinder elements), as MeshLab and trimesh read them.
 
-Positions are float64 ('double'), so objects far from the origin keep their precision;
-normals and UVs are float32. The writer is deterministic: same mesh, same bytes.
+Elements are numpy structured arrays; a sub-array field is written as a PLY list whose count
+is the field before it (faces: n, vertex_indices). Positions are float64 ('double') so objects
+far from the origin keep their precision. The writer is deterministic: same data, same bytes.
 """
 from __future__ import annotations
 
@@ -12,54 +14,80 @@ import numpy as np
 from .errors import InputError
 from .meshes import TriMesh
 
-_POS = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
-_NRM = [("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4")]
-_UV = [("texture_u", "<f4"), ("texture_v", "<f4")]
-_PLY_TYPES = {"<f8": "double", "<f4": "float"}
-_FACE = np.dtype([("n", "u1"), ("i", "<i4", (3,))])
+_TYPES = {"<f8": "double", "<f4": "float", "|u1": "uchar", "<i4": "int"}
+_DTYPES = {v: k for k, v in _TYPES.items()}
+_FACE = np.dtype([("n", "u1"), ("vertex_indices", "<i4", (3,))])
 
 
-def _vertex_dtype(with_uv: bool) -> np.dtype:
-    return np.dtype(_POS + _NRM + (_UV if with_uv else []))
+def _properties(dt: np.dtype) -> str:
+    lines = []
+    for name in dt.names:
+        field = dt.fields[name][0]
+        if field.shape:  # a list: its count is the previous field
+            count = lines.pop().split()[1]
+            lines.append(f"property list {count} {_TYPES[field.base.str]} {name}")
+        else:
+            lines.append(f"property {_TYPES[field.str]} {name}")
+    return "".join(line + "\n" for line in lines)
+
+
+def elements_to_bytes(elements: dict[str, np.ndarray], comment: str) -> bytes:
+    header = f"ply\nformat binary_little_endian 1.0\ncomment {comment}\n" + "".join(
+        f"element {name} {len(a)}\n{_properties(a.dtype)}" for name, a in elements.items()) + "end_header\n"
+    return header.encode("ascii") + b"".join(np.ascontiguousarray(a).tobytes() for a in elements.values())
+
+
+def elements_from_bytes(data: bytes, origin: str) -> dict[str, np.ndarray]:
+    """Read what elements_to_bytes wrote (lists are taken as triangles: 3 items each)."""
+    end = data.find(b"end_header\n")
+    if not data.startswith(b"ply\n") or end < 0 or b"binary_little_endian" not in data[:end]:
+        raise InputError(f"{origin}: not a binary PLY file written by vdmbake.")
+    specs: list[tuple[str, int, list]] = []
+    try:
+        for line in data[:end].decode("ascii").splitlines():
+            w = line.split()
+            if w[0] == "element":
+                specs.append((w[1], int(w[2]), []))
+            elif w[0] == "property" and w[1] == "list":
+                specs[-1][2].extend([("n", _DTYPES[w[2]]), (w[4], _DTYPES[w[3]], (3,))])
+            elif w[0] == "property":
+                specs[-1][2].append((w[2], _DTYPES[w[1]]))
+    except (IndexError, KeyError, ValueError) as e:
+        raise InputError(f"{origin}: malformed PLY header ({e}).") from None
+    offset, out = end + len(b"end_header\n"), {}
+    for name, count, fields in specs:
+        dt = np.dtype(fields)
+        if len(data) < offset + count * dt.itemsize:
+            raise InputError(f"{origin}: PLY body shorter than its header says (truncated file?).")
+        out[name] = np.frombuffer(data, dt, count, offset)
+        offset += count * dt.itemsize
+    if offset != len(data):
+        raise InputError(f"{origin}: PLY body size does not match its header.")
+    return out
 
 
 def to_bytes(mesh: TriMesh) -> bytes:
-    dt = _vertex_dtype(mesh.uvs is not None)
-    v = np.zeros(len(mesh.vertices), dt)
+    fields = [(n, "<f8") for n in "xyz"] + [(n, "<f4") for n in ("nx", "ny", "nz")]
+    if mesh.uvs is not None:
+        fields += [("texture_u", "<f4"), ("texture_v", "<f4")]
+    v = np.zeros(len(mesh.vertices), fields)
     for k, name in enumerate("xyz"):
         v[name] = mesh.vertices[:, k]
         v["n" + name] = mesh.normals[:, k]
     if mesh.uvs is not None:
         v["texture_u"], v["texture_v"] = mesh.uvs[:, 0], mesh.uvs[:, 1]
     f = np.zeros(len(mesh.faces), _FACE)
-    f["n"], f["i"] = 3, mesh.faces
-    props = "".join(f"property {_PLY_TYPES[dt.fields[n][0].str]} {n}\n" for n in dt.names)
-    header = (f"ply\nformat binary_little_endian 1.0\ncomment vdmbake mesh\n"
-              f"element vertex {len(v)}\n{props}"
-              f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n")
-    return header.encode("ascii") + v.tobytes() + f.tobytes()
+    f["n"], f["vertex_indices"] = 3, mesh.faces
+    return elements_to_bytes({"vertex": v, "face": f}, "vdmbake mesh")
 
 
 def from_bytes(data: bytes, origin: str) -> TriMesh:
-    """Read back what to_bytes wrote (the bundle's own layout only)."""
-    end = data.find(b"end_header\n")
-    if not data.startswith(b"ply\n") or end < 0:
-        raise InputError(f"{origin}: not a PLY file written by vdmbake.")
-    lines = data[:end].decode("ascii").splitlines()
-    try:
-        nv = next(int(line.split()[2]) for line in lines if line.startswith("element vertex"))
-        nf = next(int(line.split()[2]) for line in lines if line.startswith("element face"))
-    except StopIteration:
-        raise InputError(f"{origin}: PLY header lacks vertex or face counts.") from None
-    dt = _vertex_dtype(any(line.endswith("texture_u") for line in lines))
-    body = end + len(b"end_header\n")
-    if len(data) != body + nv * dt.itemsize + nf * _FACE.itemsize:
-        raise InputError(f"{origin}: PLY body size does not match its header (truncated file?).")
-    v = np.frombuffer(data, dt, nv, body)
-    f = np.frombuffer(data, _FACE, nf, body + nv * dt.itemsize)
-    uvs = np.stack([v["texture_u"], v["texture_v"]], 1).astype(np.float64) if "texture_u" in dt.names else None
-    return TriMesh(np.stack([v["x"], v["y"], v["z"]], 1),
-                   f["i"].astype(np.int64),
+    e = elements_from_bytes(data, origin)
+    if "vertex" not in e or "face" not in e:
+        raise InputError(f"{origin}: PLY file lacks vertex or face elements.")
+    v, f = e["vertex"], e["face"]
+    uvs = np.stack([v["texture_u"], v["texture_v"]], 1).astype(np.float64) if "texture_u" in v.dtype.names else None
+    return TriMesh(np.stack([v["x"], v["y"], v["z"]], 1), f["vertex_indices"].astype(np.int64),
                    np.stack([v["nx"], v["ny"], v["nz"]], 1).astype(np.float64), uvs)
 
 

@@ -11,19 +11,54 @@ import math
 import re
 import tomllib
 from dataclasses import asdict, dataclass
+from typing import Callable
 from pathlib import Path
 
 from .errors import InputError
 
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
 
-# Technique name -> its options with their defaults. A technique's "knob" (the option
-# swept into an error-against-time curve) is the list-valued option, if any.
-TECHNIQUES: dict[str, dict[str, object]] = {
-    "mesh": {},                                   # the full mesh, rasterised (shadow map)
-    "coarse": {"ratios": [0.5, 0.1, 0.01]},       # the mesh simplified to these face ratios
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+@dataclass(frozen=True)
+class Knob:
+    """A technique's quality knob: the list-valued option swept into an error-against-time curve."""
+    key: str           # option name in the scene, e.g. "ratios"
+    label: str         # one value's name in reports, e.g. "ratio"
+    default: tuple
+    check: Callable[[object], bool]
+    allowed: str       # what check accepts, for error messages
+
+
+@dataclass(frozen=True)
+class TechniqueSpec:
+    kinds: tuple[str, ...]                 # object kinds it draws: "surface" (mesh, primitive), "quadrics"
+    knob: Knob | None = None
+    options: tuple[tuple[str, float, float, float], ...] = ()   # scalar options: (name, default, lo, hi)
+
+
+TECHNIQUES: dict[str, TechniqueSpec] = {
+    # the full mesh, rasterised, shadow map
+    "mesh": TechniqueSpec(("surface",)),
+    # the mesh simplified by quadric collapses to these face ratios
+    "coarse": TechniqueSpec(("surface",), Knob("ratios", "ratio", (0.5, 0.1, 0.01),
+                                                lambda x: _is_number(x) and 0 < x <= 1, "numbers in (0, 1]")),
+    # spheres and capped cylinders ray cast per pixel (Sigg et al. 2006): direct or deferred shading,
+    # deferred with Sobel silhouette/crease outlines of these strengths
+    "impostor": TechniqueSpec(("quadrics",), Knob("shading", "shading", ("direct", "deferred", "outlines"),
+                                                   lambda x: x in ("direct", "deferred", "outlines"),
+                                                   "'direct', 'deferred', 'outlines'"),
+                              (("silhouette", 1.0, 0.0, 100.0), ("crease", 1.0, 0.0, 100.0))),
+    # instanced tessellated spheres (icosphere subdivision level) and cylinders (4 * 2^level sides)
+    "tessellated": TechniqueSpec(("quadrics",), Knob("levels", "level", (0, 1, 2, 3),
+                                                      lambda x: isinstance(x, int) and not isinstance(x, bool)
+                                                      and 0 <= x <= 6, "integers in [0, 6]")),
 }
-KNOBS = {"coarse": "ratios"}
+STYLES = ("ball-and-stick", "spacefill", "licorice")   # molecule styles (vdmbake/molecules.py)
 
 # Built-in primitives -> parameters with their defaults (all lengths in scene units).
 PRIMITIVES: dict[str, dict[str, float]] = {
@@ -97,9 +132,17 @@ class Object:
     mesh: str | None                 # a file trimesh reads, relative to the scene, or pkg:PACKAGE/PATH
     primitive: str | None
     params: dict                      # primitive parameters, defaults filled in
+    molecule: str | None              # a PDB or mmCIF file (same path rules as mesh)
+    style: str | None                 # molecule style, one of STYLES
+    spheres: tuple                    # inline spheres (x, y, z, radius)
+    cylinders: tuple                  # inline capped cylinders (x0, y0, z0, x1, y1, z1, radius)
     transform: Transform
     material: Material
     techniques: dict                  # technique -> options, defaults filled in, in scene order
+
+    @property
+    def kind(self) -> str:
+        return "surface" if (self.mesh or self.primitive) else "quadrics"
 
 
 @dataclass(frozen=True)
@@ -115,7 +158,8 @@ class Scene:
             "render": asdict(self.render),
             "camera": asdict(self.camera),
             "light": asdict(self.light),
-            "objects": [asdict(o) for o in self.objects],
+            "objects": [{k: v for k, v in asdict(o).items() if v is not None and v != () and v != {}}
+                        for o in self.objects],
         }
 
 
@@ -282,17 +326,16 @@ def _object(t: _Table, default_material: Material) -> Object:
     name = t.raw("name")
     if not isinstance(name, str) or not _NAME.match(name):
         t._fail("name", name, "1-64 characters from A-Z a-z 0-9 _ -")
-    mesh, primitive = t.raw("mesh"), t.raw("primitive")
-    if (mesh is None) == (primitive is None):
-        raise InputError(f"{t.origin}: [{t.where}] (object {name!r}) needs exactly one of "
-                         f"'mesh = PATH' or 'primitive = NAME' (NAME one of {', '.join(PRIMITIVES)}).")
+    sources = [k for k in ("mesh", "primitive", "molecule") if t.has(k)] + (
+        ["spheres/cylinders"] if t.has("spheres") or t.has("cylinders") else [])
+    if len(sources) != 1:
+        raise InputError(f"{t.origin}: [{t.where}] (object {name!r}) needs exactly one source: 'mesh = PATH', "
+                         f"'primitive = NAME' (NAME one of {', '.join(PRIMITIVES)}), 'molecule = PATH' "
+                         f"(PDB or mmCIF), or inline 'spheres'/'cylinders' lists; it has "
+                         f"{', '.join(sources) or 'none'}.")
+    mesh, primitive, molecule = (_path(t, k) for k in ("mesh", "primitive", "molecule"))
     params = {}
-    if mesh is not None:
-        if not isinstance(mesh, str) or not mesh:
-            t._fail("mesh", mesh, "a file path (relative to the scene) or pkg:PACKAGE/PATH")
-        if t.raw("params"):
-            t._fail("params", t.data["params"], "no params for a mesh file (they belong to primitives)")
-    else:
+    if primitive is not None:
         primitive = t.choice("primitive", None, list(PRIMITIVES))
         pt = t.table("params")
         for k, default in PRIMITIVES[primitive].items():
@@ -300,36 +343,68 @@ def _object(t: _Table, default_material: Material) -> Object:
             lo = (0 if k == "caps" else 1) if integer else 1e-9
             params[k] = pt.number(k, default, lo, 4096 if integer else 1e9, integer=integer)
         pt.done()
+    elif t.raw("params"):
+        t._fail("params", t.data["params"], "no params here (they belong to primitives)")
+    if molecule is None and t.has("style"):
+        t._fail("style", t.data["style"], "a style only for molecule objects")
+    style = t.choice("style", STYLES[0], STYLES) if molecule is not None else None
+    spheres = _rows(t, "spheres", 4, "[x, y, z, radius]")
+    cylinders = _rows(t, "cylinders", 7, "[x0, y0, z0, x1, y1, z1, radius]")
     tr = t.table("transform")
     transform = Transform(tr.vector("scale", Transform.scale, lo=1e-9, hi=1e9),
                           tr.vector("rotate_deg", Transform.rotate_deg),
                           tr.vector("translate", Transform.translate))
     tr.done()
     material = _material(t.table("material"), default_material)
-    techniques = _techniques(t.table("techniques"), name)
+    kind = "surface" if (mesh or primitive) else "quadrics"
+    techniques = _techniques(t.table("techniques"), name, kind)
     t.done()
-    return Object(name, mesh, primitive, params, transform, material, techniques)
+    return Object(name, mesh, primitive, params, molecule, style, spheres, cylinders, transform, material,
+                  techniques)
 
 
-def _techniques(t: _Table, name: str) -> dict:
+def _path(t: _Table, key: str) -> str | None:
+    v = t.raw(key)
+    if v is not None and (not isinstance(v, str) or not v):
+        t._fail(key, v, "a file path (relative to the scene) or pkg:PACKAGE/PATH" if key != "primitive"
+                else ", ".join(PRIMITIVES))
+    return v
+
+
+def _rows(t: _Table, key: str, n: int, shape: str) -> tuple:
+    """An inline list of quadrics: rows of n finite numbers, the last (a radius) >= 0."""
+    rows = t.raw(key, [])
+    good = isinstance(rows, list) and all(
+        isinstance(r, list) and len(r) == n and all(_is_number(x) for x in r) and r[-1] >= 0 for r in rows)
+    if not good:
+        t._fail(key, rows if len(str(rows)) < 200 else f"{str(rows)[:200]}...",
+                f"a list of {shape} rows of finite numbers, radius >= 0")
+    return tuple(tuple(float(x) for x in r) for r in rows)
+
+
+def _techniques(t: _Table, name: str, kind: str) -> dict:
+    fitting = [k for k, spec in TECHNIQUES.items() if kind in spec.kinds]
     if not t.data:
         raise InputError(f"{t.origin}: object {name!r} has no [{t.where}]; name at least one of "
-                         f"{', '.join(TECHNIQUES)}, e.g. techniques = {{ mesh = {{}} }}.")
+                         f"{', '.join(fitting)}, e.g. techniques = {{ {fitting[0]} = {{}} }}.")
     out = {}
     for tech in list(t.data):
         if tech not in TECHNIQUES:
             raise InputError(f"{t.origin}: unknown technique '{tech}' in [{t.where}]; "
                              f"known techniques: {', '.join(TECHNIQUES)}.")
+        spec = TECHNIQUES[tech]
+        if kind not in spec.kinds:
+            raise InputError(f"{t.origin}: technique '{tech}' in [{t.where}] does not draw {kind} objects "
+                             f"like {name!r}; techniques for them: {', '.join(fitting)}.")
         opts = t.table(tech)
         out[tech] = {}
-        for k, default in TECHNIQUES[tech].items():
-            if isinstance(default, list):
-                v = opts.raw(k, default)
-                if (not isinstance(v, list) or not v or len(set(v)) != len(v) or not all(
-                        isinstance(x, (int, float)) and not isinstance(x, bool) and 0 < x <= 1 for x in v)):
-                    opts._fail(k, v, "a non-empty list of distinct numbers in (0, 1]")
-                out[tech][k] = [float(x) for x in v]
-            else:
-                out[tech][k] = opts.number(k, default)
+        if spec.knob:
+            k = spec.knob
+            v = opts.raw(k.key, list(k.default))
+            if not isinstance(v, list) or not v or len(set(map(str, v))) != len(v) or not all(map(k.check, v)):
+                opts._fail(k.key, v, f"a non-empty list of distinct values, each one of: {k.allowed}")
+            out[tech][k.key] = [float(x) if isinstance(x, float) else x for x in v]
+        for opt, default, lo, hi in spec.options:
+            out[tech][opt] = opts.number(opt, default, lo, hi)
         opts.done()
     return out
