@@ -1,4 +1,4 @@
 #version 430
-// Depth-only pass: the depth attachment is all that is written.
+// Depth-only pass (shadow maps): the depth attachment is all that is written.
 void main() {
 }

@@ -3,6 +3,7 @@
 #include "shadow.glsl"
 in vec3 v_pos;
 in vec3 v_normal;
+in vec3 v_albedo;
 uniform vec3 u_eye;   // anchor-relative
 out vec4 frag;
 
@@ -10,5 +11,5 @@ void main() {
     vec3 N = safe_normalize(v_normal);
     if (!gl_FrontFacing) N = -N;   // two-sided: the normal faces the viewer (reference: Ng . dir < 0)
     vec3 V = normalize(u_eye - v_pos);
-    frag = vec4(shade(u_albedo, N, V, shadow_lit(v_pos)), 1.0);
+    frag = vec4(shade(v_albedo, N, V, shadow_lit(v_pos, N)), 1.0);
 }

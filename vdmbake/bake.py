@@ -1,8 +1,9 @@
 """The bake: what each object's techniques need, and nothing more, written as a bundle.
 
-Every object gets its full mesh (the reference and the `mesh` technique trace and draw
-it). `coarse` adds one simplified mesh per requested ratio. Later representations add
-their own parts here, each only when a technique of the scene asks for it.
+A surface object (mesh file or primitive) gets its full mesh: the reference traces it and
+the `mesh` technique draws it; `coarse` adds one simplified mesh per requested ratio.
+A quadrics object (molecule or inline spheres/cylinders) gets only its quadric list:
+nothing is ray cast at bake time. Each part is baked only when a technique asks for it.
 """
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import json
 import time
 from pathlib import Path
 
-from . import __version__, coarse, primitives
+from . import __version__, coarse, primitives, quadrics
 from .bundle import FORMAT_VERSION, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
@@ -28,9 +29,21 @@ def object_mesh(obj: Object, base: Path) -> TriMesh:
     return validate(world, f"object {obj.name!r}")
 
 
+def object_quadrics(obj: Object, base: Path) -> tuple[quadrics.QuadricSet, dict]:
+    """The object's spheres and cylinders in world space, and counts of what was dropped."""
+    if obj.molecule:
+        from .molecules import load_molecule  # gemmi is imported only for molecule scenes
+        q = load_molecule(resolve_path(obj.molecule, base), obj.style)
+    else:
+        q = quadrics.inline(obj.spheres, obj.cylinders, obj.material.albedo)
+    origin = f"object {obj.name!r}"
+    return quadrics.cleaned(quadrics.transformed(q, obj.transform, origin), origin)
+
+
 def input_hash(scene: Scene, base: Path) -> tuple[str, dict]:
     """One hash over the resolved scene, the input files' contents and the format/tool versions."""
-    inputs = {o.mesh: file_sha256(resolve_path(o.mesh, base)) for o in scene.objects if o.mesh}
+    files = [f for o in scene.objects for f in (o.mesh, o.molecule) if f]
+    inputs = {f: file_sha256(resolve_path(f, base)) for f in files}
     key = json.dumps({"format_version": FORMAT_VERSION, "tool_version": __version__,
                       "scene": scene.to_dict(), "inputs": inputs}, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest(), inputs
@@ -77,6 +90,14 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
 
 
 def _bake_object(writer: BundleWriter, obj: Object, base: Path, log) -> dict:
+    if obj.kind == "quadrics":
+        q, dropped = object_quadrics(obj, base)
+        centre, radius = q.bounding_sphere()
+        rel = writer.add_bytes(f"objects/{obj.name}/quadrics.ply", quadrics.to_bytes(q), "quadrics",
+                               spheres=len(q.spheres), cylinders=len(q.cylinders))
+        log(f"{obj.name}: {len(q.spheres)} spheres, {len(q.cylinders)} cylinders"
+            + (f" (dropped without volume: {dropped})" if any(dropped.values()) else ""))
+        return {"quadrics": rel, "centre": centre.tolist(), "radius": radius, **dropped}
     mesh = object_mesh(obj, base)
     centre, radius = mesh.bounding_sphere()
     entry = {"mesh": writer.add_mesh(f"objects/{obj.name}/mesh.ply", mesh),

@@ -13,7 +13,7 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from . import __version__, exr, ply
+from . import __version__, exr, ply, quadrics
 from .errors import InputError
 from .meshes import TriMesh
 from .staging import StagedDir
@@ -45,9 +45,12 @@ class BundleWriter:
         self.parts[rel] = {"kind": kind, "sha256": _sha256(data), "bytes": len(data), **meta}
         return rel
 
+    def add_bytes(self, rel: str, data: bytes, kind: str, **meta) -> str:
+        self.stage.file(rel).write_bytes(data)
+        return self._record(rel, kind, **meta)
+
     def add_mesh(self, rel: str, mesh: TriMesh, kind: str = "mesh") -> str:
-        ply.write(self.stage.file(rel), mesh)
-        return self._record(rel, kind, vertices=len(mesh.vertices), faces=len(mesh.faces))
+        return self.add_bytes(rel, ply.to_bytes(mesh), kind, vertices=len(mesh.vertices), faces=len(mesh.faces))
 
     def add_exr(self, rel: str, parts: dict[str, dict[str, np.ndarray]], kind: str) -> str:
         exr.write(self.stage.file(rel), parts)
@@ -107,6 +110,9 @@ class Bundle:
 
     def mesh(self, rel: str) -> TriMesh:
         return ply.from_bytes(self.read_bytes(rel), str(self.path / rel))
+
+    def quadrics(self, rel: str) -> quadrics.QuadricSet:
+        return quadrics.from_bytes(self.read_bytes(rel), str(self.path / rel))
 
     def exr(self, rel: str) -> dict[str, dict[str, np.ndarray]]:
         self.read_bytes(rel)

@@ -57,14 +57,31 @@ def source(name: str) -> str:
     return expand((SHADERS / name).read_text())
 
 
-def program(ctx, vertex: str, fragment: str):
-    """Compiled once per context, and only when a technique of the scene asks for it."""
+def _with_defines(src: str, defines: tuple[str, ...]) -> str:
+    first, _, rest = src.partition("\n")  # #version must stay the first line
+    return "\n".join([first, *(f"#define {d}" for d in defines), rest])
+
+
+def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = ()):
+    """Compiled once per context, and only when a technique of the scene asks for it.
+    `defines` select a pass variant of a stage (e.g. DIRECT, GBUFFER)."""
     if ctx.extra is None:
         ctx.extra = {}
-    key = (vertex, fragment)
+    key = (vertex, fragment, *defines)
     if key not in ctx.extra:
-        ctx.extra[key] = ctx.program(vertex_shader=source(vertex), fragment_shader=source(fragment))
+        ctx.extra[key] = ctx.program(vertex_shader=_with_defines(source(vertex), defines),
+                                     fragment_shader=_with_defines(source(fragment), defines))
     return ctx.extra[key]
+
+
+def set_uniforms(prog, **values) -> None:
+    """Set the uniforms a program has; those its pass variant compiled away are skipped."""
+    for name, value in values.items():
+        if name in prog:
+            if isinstance(value, np.ndarray) and value.shape == (4, 4):
+                prog[name].write(mat(value))
+            else:
+                prog[name].value = value
 
 
 def mat(m: np.ndarray) -> bytes:
@@ -73,14 +90,10 @@ def mat(m: np.ndarray) -> bytes:
 
 
 def set_shading(prog, light, material) -> None:
-    """The shared shading model's uniforms (shaders/include/shading.glsl)."""
-    prog["u_light_dir"].value = tuple(light.direction)
-    prog["u_light_color"].value = tuple(light.color)
-    prog["u_ambient"].value = tuple(light.ambient)
-    prog["u_albedo"].value = tuple(material.albedo)
-    prog["u_kd"].value = material.diffuse
-    prog["u_ks"].value = material.specular
-    prog["u_shininess"].value = material.shininess
+    """The shared shading model's uniforms (shaders/include/shading.glsl) and the object's albedo."""
+    set_uniforms(prog, u_light_dir=tuple(light.direction), u_light_color=tuple(light.color),
+                 u_ambient=tuple(light.ambient), u_albedo=tuple(material.albedo), u_kd=material.diffuse,
+                 u_ks=material.specular, u_shininess=material.shininess)
 
 
 class Target:

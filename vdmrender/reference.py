@@ -1,11 +1,13 @@
-"""The reference: Embree primary rays through every pixel centre plus one shadow ray per hit,
-shaded in float64 with the numpy twin of the shared model. Independent of the GL path."""
+"""The references, independent of the GL path: a primary ray through every pixel centre plus
+one shadow ray per hit, shaded in float64 with the numpy twin of the shared model.
+Meshes are traced by Embree; spheres and cylinders analytically in float64."""
 from __future__ import annotations
 
 import numpy as np
 
 from vdmbake.embree import RayScene
 
+from . import quadric_math
 from .shading import safe_normalize, shade
 
 SHADOW_EPSILON = 1e-5  # shadow-ray origin offset along the geometric normal, in bounding radii
@@ -39,5 +41,109 @@ class MeshReference:
         lit = ~self.scene.occluded(p + ng * self.eps, L)
         out = np.zeros((camera.height * camera.width, 4), np.float64)
         out[hit, :3] = shade(self.material.albedo, n, to_eye, lit, self.light, self.material)
+        out[hit, 3] = 1.0
+        return out.reshape(camera.height, camera.width, 4).astype(np.float32)
+
+
+_BOX = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+_BOX_FACES = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                       [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+
+
+class QuadricTracer:
+    """Exact first hits of rays with spheres and capped cylinders, in float64.
+
+    Embree finds the candidates: each quadric is enclosed in a box (12 triangles). Boxes are
+    visited front to back along each ray; every box face met makes its quadric tested
+    analytically (quadric_math); a ray is done when the next box face lies beyond its best
+    hit. A box is left by stepping a hair past the face, so overlapping boxes are all seen."""
+
+    def __init__(self, q):
+        self.q = q
+        self.n_s = len(q.spheres)
+        s, c = q.spheres, q.cylinders
+        axis = c[:, 3:6] - c[:, :3]
+        half = 0.5 * np.linalg.norm(axis, axis=1)
+        w = axis / (2 * half)[:, None]
+        u, v = quadric_math.frames(w)
+        grow = 1.0 + 1e-5  # boxes strictly enclose their quadric despite float32 rounding in Embree
+        corners = np.concatenate([
+            s[:, None, :3] + grow * s[:, None, 3:4] * _BOX[None],
+            0.5 * (c[:, None, :3] + c[:, None, 3:6]) + grow * (
+                u[:, None] * c[:, None, 6:7] * _BOX[None, :, :1] + v[:, None] * c[:, None, 6:7] * _BOX[None, :, 1:2]
+                + w[:, None] * half[:, None, None] * _BOX[None, :, 2:3])])
+        faces = (np.arange(len(corners))[:, None, None] * 8 + _BOX_FACES[None]).reshape(-1, 3)
+        self.scene = RayScene(corners.reshape(-1, 3), faces)
+        centre, radius = q.bounding_sphere()
+        self.step = 1e-6 * radius
+
+    def _test(self, o, d, idx, tmin):
+        """Analytic first hit of rays (o, d unit) with quadric idx: (t, normal)."""
+        t, n = np.full(len(o), np.inf), np.zeros((len(o), 3))
+        sph = idx < self.n_s
+        if sph.any():
+            s = self.q.spheres[idx[sph]]
+            ts = quadric_math.ray_spheres(o[sph], d[sph], s[:, :3], s[:, 3], tmin[sph])
+            hit = o[sph] + np.where(np.isfinite(ts), ts, 0.0)[:, None] * d[sph]
+            t[sph], n[sph] = ts, (hit - s[:, :3]) / s[:, 3:4]
+        cyl = ~sph
+        if cyl.any():
+            c = self.q.cylinders[idx[cyl] - self.n_s]
+            t[cyl], n[cyl] = quadric_math.ray_capped_cylinders(o[cyl], d[cyl], c[:, :3], c[:, 3:6], c[:, 6], tmin[cyl])
+        return t, n
+
+    def first_hit(self, o, d, tmin, tmax, stop_at_any=False):
+        """Unit rays o + t d: (t, normal, quadric index), t inf and index -1 where nothing is hit in
+        [tmin, tmax]. stop_at_any: shadow rays; any hit will do."""
+        n = len(o)
+        best_t, best_n, best_i = np.full(n, np.inf), np.zeros((n, 3)), np.full(n, -1)
+        cur = np.array(tmin, float, copy=True)
+        tmax = np.broadcast_to(np.asarray(tmax, float), (n,))
+        tmin = np.broadcast_to(np.asarray(tmin, float), (n,))
+        active = np.arange(n)
+        for _ in range(100000):
+            if not len(active):
+                break
+            h = self.scene.intersect(o[active] + d[active] * cur[active, None], d[active], tmax[active] - cur[active])
+            face_t = cur[active] + h.t
+            go = (h.prim >= 0) & (face_t < best_t[active])
+            active, face_t, idx = active[go], face_t[go], h.prim[go] // 12
+            t, nrm = self._test(o[active], d[active], idx, tmin[active])
+            better = t < best_t[active]
+            a = active[better]
+            best_t[a], best_n[a], best_i[a] = t[better], nrm[better], idx[better]
+            cur[active] = face_t + self.step
+            if stop_at_any:
+                active = active[~better]
+        else:
+            raise RuntimeError("quadric reference: box traversal did not finish")
+        return best_t, best_n, best_i
+
+
+class QuadricReference:
+    """Traces spheres and capped cylinders exactly (float64), with one shadow ray per hit."""
+
+    def __init__(self, q, light, material):
+        self.q, self.light, self.material = q, light, material
+        self.tracer = QuadricTracer(q)
+        self.scene = self.tracer.scene  # its rays_cast counts every traversal step
+        self.rgb = np.concatenate([q.sphere_rgb, q.cylinder_rgb]).astype(np.float64)
+        self.eps = SHADOW_EPSILON * q.bounding_sphere()[1]
+
+    def render(self, camera) -> np.ndarray:
+        eye, d = camera.pixel_rays()
+        scale = np.linalg.norm(d, axis=1)         # d has view depth 1: near/far become distances
+        du = d / scale[:, None]
+        t, n, idx = self.tracer.first_hit(np.ascontiguousarray(eye), du, camera.near * scale, camera.far * scale)
+        hit = idx >= 0
+        p = camera.eye + du[hit] * t[hit, None]
+        n = n[hit]
+        n = np.where((np.einsum("ij,ij->i", n, du[hit]) > 0)[:, None], -n, n)  # face the viewer
+        L = np.broadcast_to(np.asarray(self.light.direction, float), p.shape)
+        ts, _, _ = self.tracer.first_hit(p + n * self.eps, np.ascontiguousarray(L), np.zeros(len(p)),
+                                         np.full(len(p), np.inf), stop_at_any=True)
+        out = np.zeros((camera.height * camera.width, 4))
+        out[hit, :3] = shade(self.rgb[idx[hit]], n, safe_normalize(camera.eye - p), ~np.isfinite(ts),
+                             self.light, self.material)
         out[hit, 3] = 1.0
         return out.reshape(camera.height, camera.width, 4).astype(np.float32)

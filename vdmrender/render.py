@@ -58,7 +58,8 @@ def _reference_key(mesh_sha: str, cams, light, material, background) -> str:
 def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np.ndarray], dict]:
     """The reference frames (linear RGBA float32), traced or taken from the previous run's cache."""
     folder = f"reference/{obj.name}"
-    key = _reference_key(bundle.manifest["parts"][entry["mesh"]]["sha256"], cams, scene.light, obj.material,
+    part = entry.get("mesh") or entry["quadrics"]
+    key = _reference_key(bundle.manifest["parts"][part]["sha256"], cams, scene.light, obj.material,
                          scene.render.background)
     prev_key = out.previous(f"{folder}/key.txt")
     names = [f"{folder}/{k:03d}" for k in range(len(cams))]
@@ -68,7 +69,8 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
         info = {"cached": True, "trace_s": 0.0}
     else:
         t0 = time.perf_counter()
-        ref = reference.MeshReference(bundle.mesh(entry["mesh"]), scene.light, obj.material)
+        ref = (reference.MeshReference(bundle.mesh(part), scene.light, obj.material) if obj.kind == "surface"
+               else reference.QuadricReference(bundle.quadrics(part), scene.light, obj.material))
         frames = [ref.render(c) for c in cams]
         info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
     for n, f in zip(names, frames):

@@ -42,7 +42,7 @@ def plot(path: Path, report: dict) -> None:
     for ax, obj in zip(axes[0], objects):
         mine = [r for r in rows if r["object"] == obj]
         for tech in dict.fromkeys(r["technique"] for r in mine):
-            pts = sorted((r for r in mine if r["technique"] == tech), key=lambda r: r["value"] or 0.0)
+            pts = [r for r in mine if r["technique"] == tech]   # in knob order, as the scene lists it
             ax.plot([r["median_ms"] for r in pts], [r["mean_dluv"] for r in pts], "o-", label=tech)
             for r in pts:
                 ax.annotate(r["label"], (r["median_ms"], r["mean_dluv"]), textcoords="offset points",

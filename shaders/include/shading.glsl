@@ -5,7 +5,6 @@
 uniform vec3 u_light_dir;    // unit vector towards the light, world space
 uniform vec3 u_light_color;
 uniform vec3 u_ambient;
-uniform vec3 u_albedo;
 uniform float u_kd;
 uniform float u_ks;
 uniform float u_shininess;

@@ -9,22 +9,25 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from . import coarse, mesh
+from . import coarse, impostor, mesh, tessellated
 
 
 @dataclass
 class Variant:
     technique: str
-    knob: str | None          # name of the quality knob, e.g. "ratio"
-    value: float | None       # its value for this variant
+    knob: str | None          # name of the quality knob's value, e.g. "ratio"
+    value: float | int | str | None   # its value for this variant
     build: Callable           # build(ctx) -> renderer with render(camera, target) and release()
 
     @property
     def label(self) -> str:
-        return self.technique if self.knob is None else f"{self.technique}@{self.value:g}"
+        if self.knob is None:
+            return self.technique
+        return f"{self.technique}@{self.value:g}" if isinstance(self.value, float) else f"{self.technique}@{self.value}"
 
 
-REGISTRY = {"mesh": mesh.variants, "coarse": coarse.variants}
+REGISTRY = {"mesh": mesh.variants, "coarse": coarse.variants, "impostor": impostor.variants,
+            "tessellated": tessellated.variants}
 
 
 def variants(obj, entry: dict, bundle, scene, only=None) -> list[Variant]:

@@ -1,0 +1,35 @@
+#version 430
+// One quad per capped cylinder (instanced): the union of its two caps' projected bounding
+// boxes (Sigg et al.), each cap a flat disk: a unit sphere squashed by the variance matrix.
+#include "quadric.glsl"
+in vec2 in_corner;
+in vec3 in_p0;              // per instance: axis end points (anchor-relative) and radius
+in vec3 in_p1;
+in float in_radius;
+in vec3 in_rgb;
+flat out mat4 v_to_param;   // world -> parameter space (unit cylinder, |z| <= 1)
+flat out mat3 v_frame;      // columns u, v, w: parameter-space normals -> world
+flat out vec3 v_rgb;
+
+void main() {
+    vec3 axis = in_p1 - in_p0;
+    float h = 0.5 * length(axis);
+    vec3 w = axis / (2.0 * h);
+    // Branch-free orthonormal frame (Duff et al. 2017), stable for every axis direction.
+    float s = w.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (s + w.z);
+    float b = w.x * w.y * a;
+    vec3 u = vec3(1.0 + s * w.x * w.x * a, s * b, -s * w.x);
+    vec3 v = vec3(b, s + w.y * w.y * a, -w.y);
+    float r = in_radius;
+    vec4 box0 = quadric_bounds(mat4(vec4(u * r, 0.0), vec4(v * r, 0.0), vec4(0.0), vec4(in_p0, 1.0)));
+    vec4 box1 = quadric_bounds(mat4(vec4(u * r, 0.0), vec4(v * r, 0.0), vec4(0.0), vec4(in_p1, 1.0)));
+    gl_Position = quad_corner(vec4(min(box0.xy, box1.xy), max(box0.zw, box1.zw)), in_corner);
+    vec3 m = 0.5 * (in_p0 + in_p1);
+    mat3 scale_inv = mat3(1.0 / r, 0.0, 0.0,  0.0, 1.0 / r, 0.0,  0.0, 0.0, 1.0 / h);
+    mat3 rot_t = transpose(mat3(u, v, w));
+    v_to_param = mat4(scale_inv * rot_t);
+    v_to_param[3] = vec4(-(scale_inv * rot_t * m), 1.0);
+    v_frame = mat3(u, v, w);
+    v_rgb = in_rgb;
+}
