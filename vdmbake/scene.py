@@ -156,7 +156,7 @@ class Scene:
         """The resolved scene (every default filled in) as plain data; parse_scene_dict reads it back."""
         return {
             "render": asdict(self.render),
-            "camera": asdict(self.camera),
+            "camera": {k: v for k, v in asdict(self.camera).items() if v is not None},
             "light": asdict(self.light),
             "objects": [{k: v for k, v in asdict(o).items() if v is not None and v != () and v != {}}
                         for o in self.objects],

@@ -181,6 +181,7 @@ def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, o
                    "p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else 0.0,
                    "max_dluv": round(float(d.max()), 4) if d.size else 0.0,
                    "iou": round(float(np.mean([p["iou"] for p in per_frame])), 6),
+                   "coverage": round(float(np.mean([r8[..., 3].mean() / 255 for r8 in ref8])), 6),
                    "nonfinite": sum(p["nonfinite"] for p in per_frame), "device": device,
                    "reference_cached": ref_info["cached"], "per_frame": per_frame}
             rows.append(row)

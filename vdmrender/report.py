@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "median_ms", "min_ms",
-           "ratio_to_baseline", "baseline", "mean_dluv", "p95_dluv", "max_dluv", "iou", "nonfinite", "device"]
+           "ratio_to_baseline", "baseline", "mean_dluv", "p95_dluv", "max_dluv", "iou", "coverage", "nonfinite", "device"]
 
 
 def add_baseline_ratios(rows: list[dict]) -> None:
