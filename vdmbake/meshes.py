@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import hashlib
-import importlib.resources
+import importlib.util
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -82,19 +82,20 @@ def validate(mesh: TriMesh, origin: str) -> TriMesh:
 
 
 def resolve_path(spec: str, base: Path) -> Path:
-    """A mesh path relative to the scene file, or pkg:PACKAGE/PATH for a file shipped in a package."""
+    """An input file's path relative to the scene file, or pkg:PACKAGE/PATH for a file shipped in a package."""
     if spec.startswith("pkg:"):
         package, _, inner = spec[4:].partition("/")
-        try:
-            root = importlib.resources.files(package)
-        except ModuleNotFoundError:
-            raise InputError(f"mesh '{spec}': Python package '{package}' is not installed "
-                             f"(pkg:PACKAGE/PATH names a file inside an installed package).") from None
-        path = Path(str(root / inner))
+        # find_spec locates the package without importing it (some data-carrying packages
+        # import heavy dependencies that the data does not need).
+        found = importlib.util.find_spec(package) if package.isidentifier() else None
+        if found is None or not found.submodule_search_locations:
+            raise InputError(f"'{spec}': Python package '{package}' is not installed "
+                             f"(pkg:PACKAGE/PATH names a file inside an installed package).")
+        path = Path(next(iter(found.submodule_search_locations))) / inner
     else:
         path = (base / spec) if not Path(spec).is_absolute() else Path(spec)
     if not path.is_file():
-        raise InputError(f"mesh '{spec}': file not found (looked at {path}).")
+        raise InputError(f"'{spec}': file not found (looked at {path}).")
     return path
 
 

@@ -26,16 +26,21 @@ the midpoint (x0 is always the atom end). Bonds are listed with i < j, sorted by
 
 Bonds come from the covalent-distance rule: i and j are bonded when
     0.4 < |p_i - p_j| <= r_cov(i) + r_cov(j) + 0.45
-found with a vectorised cell list (no O(N^2) distances or memory; ~1 s for 150k atoms).
+found with a vectorised cell list (no O(N^2) distances or memory): a 165k-atom ribosome mmCIF
+loads and bonds in under 1 s on 2 cores. The rule also bonds metal ions to their ligands and,
+rarely, to each other (two Mg 3.1 A apart in a kinase site): it is the distance rule, not chemistry.
+Elements come from the file's element column, or gemmi's guess from the atom name when that is
+blank (CHARMM's chloride 'CLA' then reads as carbon).
 """
 from __future__ import annotations
 
+import functools
 import pathlib
-from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import InputError
+from .quadrics import QuadricSet
 
 STYLES = ("ball-and-stick", "spacefill", "licorice")
 
@@ -96,14 +101,6 @@ _OTHER_HEX = "FF1493"
 _KNOWN_SUFFIXES = (".pdb", ".ent", ".cif", ".mmcif", ".json", ".mmjson")
 
 
-@dataclass
-class QuadricSet:
-    spheres: np.ndarray      # (N, 4) float64: x, y, z, radius (Angstrom)
-    sphere_rgb: np.ndarray   # (N, 3) float32 linear RGB albedo in [0, 1]
-    cylinders: np.ndarray    # (M, 7) float64: x0, y0, z0, x1, y1, z1, radius
-    cylinder_rgb: np.ndarray # (M, 3) float32
-
-
 def srgb8_to_linear(rgb8) -> np.ndarray:
     """sRGB 8-bit values (0..255) to linear RGB in [0, 1] (IEC 61966-2-1 transfer function)."""
     c = np.asarray(rgb8, np.float64) / 255.0
@@ -124,14 +121,9 @@ def _tables():
     return vdw, cov, srgb8_to_linear(rgb8).astype(np.float32)
 
 
-_TABLES = None
-
-
+@functools.cache
 def element_tables():
-    global _TABLES
-    if _TABLES is None:
-        _TABLES = _tables()
-    return _TABLES
+    return _tables()
 
 
 def _read_atoms(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:

@@ -15,6 +15,7 @@ from typing import Callable
 from pathlib import Path
 
 from .errors import InputError
+from .molecules import STYLES
 
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
 
@@ -58,7 +59,6 @@ TECHNIQUES: dict[str, TechniqueSpec] = {
                                                       lambda x: isinstance(x, int) and not isinstance(x, bool)
                                                       and 0 <= x <= 6, "integers in [0, 6]")),
 }
-STYLES = ("ball-and-stick", "spacefill", "licorice")   # molecule styles (vdmbake/molecules.py)
 
 # Built-in primitives -> parameters with their defaults (all lengths in scene units).
 PRIMITIVES: dict[str, dict[str, float]] = {
