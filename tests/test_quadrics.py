@@ -249,3 +249,17 @@ def test_only_zero_volume_input_is_refused(tmp_path):
     scene.write_text(SCENE.format(w=8, h=8, camera="", spheres="[[0, 0, 0, 0]]", cylinders="[]"))
     r = CliRunner().invoke(bake_main, [str(scene), "-o", str(tmp_path / "q.bundle")])
     assert r.exit_code == 2 and "no sphere or cylinder" in r.stderr
+
+
+def test_bench_quick_smoke(tmp_path):
+    """make bench's script runs end to end (two small real molecules at 256x192) and writes its report."""
+    from vdmrender.bench import main as bench_main
+
+    r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
+    assert r.exit_code == 0, r.output
+    report = json.loads((tmp_path / "quadrics.json").read_text())
+    labels = {row["label"] for row in report["rows"]}
+    assert {"impostor@direct", "impostor@deferred", "impostor@outlines", "tessellated@3"} <= labels
+    assert {row["distance"] for row in report["rows"]} == {1.0, 3.0, 5.0}
+    assert all(row["nonfinite"] == 0 for row in report["rows"])
+    assert (tmp_path / "quadrics.md").read_text().count("\n") > 10 and (tmp_path / "quadrics.png").is_file()
