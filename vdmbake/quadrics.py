@@ -40,6 +40,15 @@ class QuadricSet:
         return centre, float(reach.max())
 
 
+    def instances(self, anchor) -> tuple[np.ndarray, np.ndarray]:
+        """Per-instance float32 rows for the GPU, positions relative to `anchor`:
+        spheres (x, y, z, radius, r, g, b), cylinders (x0, y0, z0, x1, y1, z1, radius, r, g, b)."""
+        s = np.concatenate([self.spheres[:, :3] - anchor, self.spheres[:, 3:], self.sphere_rgb], 1)
+        c = np.concatenate([self.cylinders[:, :3] - anchor, self.cylinders[:, 3:6] - anchor,
+                            self.cylinders[:, 6:], self.cylinder_rgb], 1)
+        return s.astype(np.float32), c.astype(np.float32)
+
+
 def inline(spheres, cylinders, albedo) -> QuadricSet:
     """Quadrics listed in the scene, all with the object's material albedo."""
     s = np.asarray(spheres, np.float64).reshape(-1, 4)

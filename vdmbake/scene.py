@@ -178,7 +178,7 @@ class _Table:
         return f"{self.where}.{key}" if self.where else key
 
     def has(self, key):
-        return key in self.data
+        return self.data.get(key) is not None   # JSON null (a manifest's "no value") counts as absent
 
     def raw(self, key, default=None):
         self.used.add(key)

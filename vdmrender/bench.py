@@ -52,12 +52,12 @@ def _available(path: str) -> bool:
     return importlib.util.find_spec(path[4:].split("/")[0]) is not None
 
 
-def _one(out: Path, name, path, distance, techniques, w, h, repeats) -> list[dict]:
+def _one(out: Path, name, path, distance, techniques, w, h, repeats, shadow_map) -> list[dict]:
     tag = f"{name}-d{distance:g}"
     scene = out / "scenes" / f"{tag}.toml"
     scene.parent.mkdir(parents=True, exist_ok=True)
     scene.write_text(SCENE.format(w=w, h=h, repeats=repeats, distance=distance, name=name, path=path,
-                                  techniques=techniques, shadow_map=SHADOW_MAP))
+                                  techniques=techniques, shadow_map=shadow_map))
     bundle = out / "bundles" / f"{tag}.bundle"
     t0 = time.perf_counter()
     stats = bake(scene, bundle, force=True)
@@ -106,10 +106,10 @@ def _plot(rows: list[dict], path: Path) -> None:
 
 @click.command()
 @click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
-@click.option("--quick", is_flag=True, help="256x192 and the small molecules only (a smoke run).")
+@click.option("--quick", is_flag=True, help="256x192, 1024 shadow map, the small molecules only (a smoke run).")
 def main(out: Path, quick: bool):
     """Run the quadric benchmark and write OUT/quadrics.json, OUT/quadrics.md and OUT/quadrics.png."""
-    w, h = (256, 192) if quick else (1024, 768)
+    w, h, shadow_map = (256, 192, 1024) if quick else (1024, 768, SHADOW_MAP)
     mols = [m for m in MOLECULES if _available(m[1])][: 2 if quick else None]
     skipped = [m[0] for m in MOLECULES if not _available(m[1])]
     impostor = 'impostor = { shading = ["direct", "deferred", "outlines"] }'
@@ -118,13 +118,14 @@ def main(out: Path, quick: bool):
         largest = i == len(mols) - 1
         for distance in DISTANCES:
             techniques = impostor + (", tessellated = { levels = [1, 2, 3] }" if largest and distance == 3.0 else "")
-            for r in _one(out, name, path, distance, techniques, w, h, repeats=3):
+            for r in _one(out, name, path, distance, techniques, w, h, 3, shadow_map):
                 rows.append({**r, "atoms": atoms})
                 click.echo(f"{name:5} d={distance:g} {r['label']:18} {r['median_ms']:10.1f} ms  "
                            f"dLuv {r['mean_dluv']:.3f}  IoU {r['iou']:.4f}", err=True)
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
-    summary = {"device": device, "resolution": [w, h], "skipped (package not installed)": skipped, "rows": rows}
+    summary = {"device": device, "resolution": [w, h], "shadow_map": shadow_map,
+               "skipped (package not installed)": skipped, "rows": rows}
     (out / "quadrics.json").write_text(json.dumps(summary, indent=1) + "\n")
     (out / "quadrics.md").write_text(_markdown(rows, device))
     _plot(rows, out / "quadrics.png")

@@ -21,9 +21,7 @@ class Impostors:
         self.anchor, radius = q.bounding_sphere()
         self.faces = None
         corners = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
-        s = np.concatenate([q.spheres[:, :3] - self.anchor, q.spheres[:, 3:], q.sphere_rgb], 1)
-        c = np.concatenate([q.cylinders[:, :3] - self.anchor, q.cylinders[:, 3:6] - self.anchor,
-                            q.cylinders[:, 6:], q.cylinder_rgb], 1)
+        s, c = q.instances(self.anchor)
         self.buffers = [corners]
         self.draws = []   # (pass, vao, instances)
         passes = {"depth": ()} | ({"direct": ("DIRECT",)} if shading == "direct" else {"gbuffer": ("GBUFFER",)})

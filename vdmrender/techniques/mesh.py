@@ -1,31 +1,32 @@
 """Technique `mesh`: the full mesh rasterised with the shared shading and a shadow map."""
 from __future__ import annotations
 
-import numpy as np
-
 import moderngl
+import numpy as np
 
 from .. import gl
 from .shadowmap import ShadowMap, translation
 
 
-class RasterMesh:
-    """A triangle mesh drawn in two passes per frame: the shadow map, then the shaded frame."""
+class RasterPasses:
+    """Triangle meshes drawn in two passes per frame: the shadow map (depth.frag, with polygon
+    offset), then the shaded frame (mesh.frag). Subclasses fill `draws` with
+    (fragment stage, program, vertex array, instances) for both stages."""
 
     POLYGON_OFFSET = (2.0, 2.0)   # slope-scaled and constant depth bias of the shadow-map pass
 
-    def __init__(self, ctx, mesh, light, material, shadow_size: int):
-        self.ctx, self.light, self.material = ctx, light, material
-        self.anchor, radius = mesh.bounding_sphere()
-        self.faces = len(mesh.faces)
-        self.prog = gl.program(ctx, "mesh.vert", "mesh.frag")
-        self.depth_prog = gl.program(ctx, "mesh.vert", "depth.frag")
-        self.buffers = [ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
-                        ((mesh.vertices - self.anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4"))]
-        vbo, nbo, ibo = self.buffers
-        self.vao = ctx.vertex_array(self.prog, [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")], ibo)
-        self.depth_vao = ctx.vertex_array(self.depth_prog, [(vbo, "3f", "in_pos")], ibo)
+    def __init__(self, ctx, light, material, anchor, radius: float, shadow_size: int):
+        self.ctx, self.light, self.material, self.anchor = ctx, light, material, anchor
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, radius)
+        self.buffers, self.draws = [], []
+
+    def add(self, vertex: str, defines: tuple, buffers: list, attributes: list, depth_attributes: list,
+            index, instances: int = 1) -> None:
+        """One draw in both passes; the depth pass reads only `depth_attributes`."""
+        self.buffers += buffers
+        for frag, attrs in (("mesh.frag", attributes), ("depth.frag", depth_attributes)):
+            prog = gl.program(self.ctx, vertex, frag, defines)
+            self.draws.append((frag, prog, self.ctx.vertex_array(prog, attrs, index), instances))
 
     def render(self, camera, target) -> None:
         ctx = self.ctx
@@ -33,21 +34,38 @@ class RasterMesh:
         ctx.disable(moderngl.CULL_FACE)
         self.shadow.begin()
         ctx.polygon_offset = self.POLYGON_OFFSET
-        gl.set_uniforms(self.depth_prog, u_mvp=self.shadow.view_proj)
-        self.depth_vao.render()
+        for frag, prog, vao, n in self.draws:
+            if frag == "depth.frag":
+                gl.set_uniforms(prog, u_mvp=self.shadow.view_proj)
+                vao.render(instances=n)
         ctx.polygon_offset = (0.0, 0.0)
-
         target.begin()
-        p = self.prog
-        gl.set_shading(p, self.light, self.material)
-        gl.set_uniforms(p, u_mvp=camera.projection() @ camera.view() @ translation(self.anchor),
-                        u_eye=tuple(camera.eye - self.anchor))
-        self.shadow.bind(p)
-        self.vao.render()
+        mvp = camera.projection() @ camera.view() @ translation(self.anchor)
+        for frag, prog, vao, n in self.draws:
+            if frag == "mesh.frag":
+                gl.set_shading(prog, self.light, self.material)
+                gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(camera.eye - self.anchor))
+                self.shadow.bind(prog)
+                vao.render(instances=n)
 
     def release(self) -> None:
-        for o in (self.vao, self.depth_vao, self.shadow, *self.buffers):
+        for _, _, vao, _ in self.draws:
+            vao.release()
+        for o in (*self.buffers, self.shadow):
             o.release()
+
+
+class RasterMesh(RasterPasses):
+    """One triangle mesh with per-vertex normals and the material's albedo."""
+
+    def __init__(self, ctx, mesh, light, material, shadow_size: int):
+        anchor, radius = mesh.bounding_sphere()
+        super().__init__(ctx, light, material, anchor, radius, shadow_size)
+        self.faces = len(mesh.faces)
+        vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
+                         ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
+        self.add("mesh.vert", (), [vbo, nbo, ibo], [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")],
+                 [(vbo, "3f", "in_pos")], ibo)
 
 
 def variants(obj, entry, bundle, scene, options):
