@@ -84,16 +84,17 @@ def _plot(rows: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5))
-    for mode in ("direct", "deferred", "outlines"):
+    molecules = list(dict.fromkeys(r["object"] for r in rows))
+    for mode, style in (("direct", "o-"), ("deferred", "s--"), ("outlines", "^:")):
         pts = sorted((r["atoms"], r["median_ms"]) for r in rows if r["label"] == f"impostor@{mode}" and r["distance"] == 5)
-        a.plot(*zip(*pts), "o-", label=mode)
-        for mol in dict.fromkeys(r["object"] for r in rows):
+        a.plot(*zip(*pts), style, label=mode)
+        for k, mol in enumerate(molecules):
             d = sorted((r["distance"], r["median_ms"]) for r in rows if r["object"] == mol and r["label"] == f"impostor@{mode}")
-            b.plot(*zip(*d), "o-" if mode == "direct" else "s--", label=f"{mol} {mode}", alpha=0.8)
+            b.plot(*zip(*d), style, color=f"C{k}", label=f"{mol} {mode}" if mode == "direct" else None, alpha=0.85)
     a.set(xscale="log", yscale="log", xlabel="atoms", ylabel="median ms per frame",
           title="time against sphere count (distance 5, cf. paper Fig. 4)")
     b.set(yscale="log", xlabel="camera distance [bounding radii]", ylabel="median ms per frame",
-          title="time against camera distance (cf. paper Fig. 6)")
+          title="time against distance (o- direct, s-- deferred, ^: outlines; Fig. 6)")
     a.legend(fontsize=8)
     b.legend(fontsize=6, ncol=2)
     for ax in (a, b):
