@@ -12,3 +12,24 @@ CAMERA = """
 orbit = { count = 1 }
 """
 TINY_HEAD = RENDER + CAMERA
+
+
+def bake_and_render(tmp_path, scene_text: str, *render_args):
+    """Write scene_text, bake it, render it with --json; returns vdmrender's CliRunner result and
+    the output folder (the bake must succeed; the render's exit code is the caller's to check)."""
+    from click.testing import CliRunner
+
+    from vdmbake.cli import main as bake_main
+    from vdmrender.cli import main as render_main
+
+    scene, bundle, out = tmp_path / "scene.toml", tmp_path / "b.bundle", tmp_path / "out"
+    scene.write_text(scene_text)
+    r = CliRunner().invoke(bake_main, [str(scene), "-o", str(bundle)])
+    assert r.exit_code == 0, r.output
+    return CliRunner().invoke(render_main, [str(bundle), "-o", str(out), "--json", *render_args]), out
+
+
+def rows_by_label(result) -> dict:
+    import json
+
+    return {row["label"]: row for row in json.loads(result.stdout)["rows"]}

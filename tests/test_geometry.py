@@ -6,7 +6,7 @@ import types
 import numpy as np
 import pytest
 
-from vdmbake import coarse, meshes, primitives
+from vdmbake import coarse, primitives
 from vdmbake.embree import RayScene
 from vdmbake.meshes import TriMesh, rotation_xyz, transformed, vertex_normals
 from vdmbake.scene import Transform

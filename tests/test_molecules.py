@@ -10,7 +10,6 @@ import gemmi
 import numpy as np
 import pytest
 
-from vdmbake import molecules
 from vdmbake.errors import InputError
 from vdmbake.molecules import STYLES, find_bonds, load_molecule
 

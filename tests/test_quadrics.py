@@ -11,7 +11,8 @@ from click.testing import CliRunner
 from vdmbake.cli import main as bake_main
 from vdmrender import quadric_math as qm
 from vdmrender.camera import Camera
-from vdmrender.cli import main as render_main
+
+from scenes import bake_and_render, rows_by_label
 
 RNG = np.random.default_rng(7)
 
@@ -168,13 +169,9 @@ MOLECULE_LIKE = (
 
 
 def run(tmp_path, camera, spheres=MOLECULE_LIKE[0], cylinders=MOLECULE_LIKE[1], w=120, h=90):
-    scene = tmp_path / "q.toml"
-    scene.write_text(SCENE.format(w=w, h=h, camera=camera, spheres=spheres, cylinders=cylinders))
-    r = CliRunner().invoke(bake_main, [str(scene), "-o", str(tmp_path / "q.bundle")])
+    r, _ = bake_and_render(tmp_path, SCENE.format(w=w, h=h, camera=camera, spheres=spheres, cylinders=cylinders))
     assert r.exit_code == 0, r.output
-    r = CliRunner().invoke(render_main, [str(tmp_path / "q.bundle"), "-o", str(tmp_path / "out"), "--json"])
-    assert r.exit_code == 0, r.output
-    return {row["label"]: row for row in json.loads(r.stdout)["rows"]}
+    return rows_by_label(r)
 
 
 def assert_exact(rows):
@@ -240,7 +237,7 @@ def test_cylinder_along_the_view_axis_and_degenerate_input(tmp_path):
     c = "[[0, 0, -2, 0, 0, 2, 0.6], [1, 1, 1, 1, 1, 1, 0.4]]"       # along the view axis; zero length, dropped
     rows = run(tmp_path, camera, s, c)
     assert_exact(rows)
-    manifest = json.loads((tmp_path / "q.bundle" / "manifest.json").read_text())
+    manifest = json.loads((tmp_path / "b.bundle" / "manifest.json").read_text())
     assert manifest["objects"]["q"]["spheres_dropped"] == 1 and manifest["objects"]["q"]["cylinders_dropped"] == 1
 
 

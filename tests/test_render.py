@@ -2,7 +2,6 @@
 compare against the Embree reference, and the report's contract."""
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 import zipfile
@@ -16,6 +15,9 @@ from PIL import Image
 from vdmbake.cli import main as bake_main
 from vdmrender import gl
 from vdmrender.cli import main as render_main
+
+import scenes
+from scenes import rows_by_label
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -34,17 +36,7 @@ orbit = {{ count = 2, elevation_deg = 25, distance = 2.8, fov_deg = 40 }}
 
 
 def bake_and_render(tmp_path, obj, w=96, h=80, extra="", args=()):
-    scene = tmp_path / "scene.toml"
-    scene.write_text(SMALL.format(w=w, h=h, extra=extra, obj=obj))
-    bundle, out = tmp_path / "b.bundle", tmp_path / "out"
-    r = CliRunner().invoke(bake_main, [str(scene), "-o", str(bundle)])
-    assert r.exit_code == 0, r.output
-    r = CliRunner().invoke(render_main, [str(bundle), "-o", str(out), "--json", *args])
-    return r, out
-
-
-def rows_by_label(result):
-    return {row["label"]: row for row in json.loads(result.stdout)["rows"]}
+    return scenes.bake_and_render(tmp_path, SMALL.format(w=w, h=h, extra=extra, obj=obj), *args)
 
 
 def test_bunny_mesh_matches_traced_reference(tmp_path):
