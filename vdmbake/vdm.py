@@ -1,0 +1,246 @@
+"""View-dependent displacement mapping: the bake (Wang et al. 2003, sec. 3.1, 3.3 and Appendix).
+
+Units are texture units: one tile of the height field spans [0, 1) x [0, 1); the mesostructure
+lies inward of the reference surface z = 0, at z = -depth * (1 - h(x, y)), h in [0, 1] (1 = top).
+Curvatures are in 1 / texture unit. The viewing vector V = (sin t cos p, sin t sin p, cos t)
+points from the surface to the eye; the ray enters the surface at the texel along -V, and
+d_VDM is the distance along it to the first mesostructure hit, -1 where there is none.
+For curved surfaces d_VDM is the Appendix's extended definition l / sin(theta), l the arc
+length in texture space between the entry point and the hit, so that the real texture
+coordinate is always T' = T - d_VDM * V_xy.
+
+Table axes are sampled at bin centres (theta over [0, pi/2], phi over [0, 2 pi)), so the tables
+are textures whose hardware interpolation and clamp / wrap addressing are the lookups;
+curvatures are sampled endpoint-inclusive over the range the base mesh actually has.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .embree import RayScene
+
+
+@dataclass(frozen=True)
+class Sampling:
+    size: int                   # texels per side of the height field (the paper: 128)
+    n_phi: int = 32             # azimuths (the paper: 32)
+    n_theta: int = 8            # polar angles (the paper: 8)
+    curvatures: tuple = (0.0,)  # c samples (the paper: 16 in [-2, 3]); a plane needs only 0
+
+    @property
+    def thetas(self) -> np.ndarray:
+        return (np.arange(self.n_theta) + 0.5) / self.n_theta * (np.pi / 2)
+
+    @property
+    def phis(self) -> np.ndarray:
+        return (np.arange(self.n_phi) + 0.5) / self.n_phi * (2 * np.pi)
+
+
+def curvature_samples(lo: float, hi: float, count: int) -> tuple:
+    """Endpoint-inclusive samples of [lo, hi]; one sample (lo) when the range is a point."""
+    return (float(lo),) if hi <= lo or count < 2 else tuple(np.linspace(lo, hi, count).tolist())
+
+
+def view_vectors(thetas, phis) -> np.ndarray:
+    """(n_phi, n_theta, 3) unit viewing vectors in the local frame (z = surface normal)."""
+    t, p = np.meshgrid(thetas, phis)
+    return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1)
+
+
+def padding_texels(depth: float, sampling: Sampling) -> int:
+    """Texels to add around the tile so every sampled ray meets the mesostructure's floor before
+    leaving the patch: its horizontal reach is depth * tan(theta_max)."""
+    return int(np.ceil(depth * np.tan(sampling.thetas[-1]) * sampling.size)) + 1
+
+
+def mesostructure_mesh(heights: np.ndarray, depth: float, pad: int) -> tuple[np.ndarray, np.ndarray]:
+    """The zero-curvature mesostructure: vertices at texel centres, z = -depth (1 - h), over the
+    tile [0, 1)^2 plus `pad` texels of its periodic continuation on every side."""
+    n = heights.shape[0]
+    idx = np.arange(-pad, n + pad)
+    m = len(idx)
+    coord = (idx + 0.5) / n
+    h = heights[np.ix_(idx % n, idx % n)]
+    Y, X = np.meshgrid(coord, coord, indexing="ij")
+    v = np.stack([X, Y, -depth * (1.0 - h)], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(m - 1), np.arange(m - 1), indexing="ij")
+    a = (i * m + j).ravel()
+    f = np.concatenate([np.stack([a, a + 1, a + m + 1], 1), np.stack([a, a + m + 1, a + m], 1)])
+    return v, f
+
+
+def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RayScene | None = None):
+    """Zero-curvature VDM by ray casting (sec. 3.1): (N, N, n_phi, n_theta) float32 distances,
+    the ray count, and the Embree scene (reusable). Rows are y, columns x (image order)."""
+    n = sampling.size
+    if depth <= 0:
+        return np.zeros((n, n, sampling.n_phi, sampling.n_theta), np.float32), 0, scene
+    if scene is None:
+        scene = RayScene(*mesostructure_mesh(heights, depth, padding_texels(depth, sampling)))
+    # Rays start a hair above the reference surface (a ray starting on a top texel could slip
+    # under the one-sided sheet) and that extra length, eps / cos(theta), is taken off again.
+    eps = 1e-4 * depth
+    c = (np.arange(n) + 0.5) / n
+    Y, X = np.meshgrid(c, c, indexing="ij")
+    origins = np.stack([X, Y, np.full_like(X, eps)], -1).reshape(-1, 1, 3)
+    dirs = -view_vectors(sampling.thetas, sampling.phis).reshape(1, -1, 3)
+    o = np.broadcast_to(origins, (n * n, dirs.shape[1], 3)).reshape(-1, 3)
+    d = np.broadcast_to(dirs, (n * n, dirs.shape[1], 3)).reshape(-1, 3)
+    before = scene.rays_cast
+    t = scene.distances(o, d).reshape(n, n, sampling.n_phi, sampling.n_theta)
+    extra = (eps / np.cos(sampling.thetas)).astype(np.float32)
+    t = np.where(t >= 0, np.maximum(t - extra, 0.0), -1.0).astype(np.float32)
+    return t, scene.rays_cast - before, scene
+
+
+def bend(s: np.ndarray, h: np.ndarray, c: float) -> tuple[np.ndarray, np.ndarray]:
+    """A point at arc length s along the view's azimuth and depth h below the reference surface,
+    after bending the surface to curvature c about the entry point (origin, normal +z'):
+    returns its 2-D position (x along the azimuth, y up). Written with sinc so that c -> 0 is
+    exact: x = (1 - h c) sin(s c) / c, y = (cos(s c) - 1) / c - h cos(s c)."""
+    sc = s * c
+    x = (1.0 - h * c) * s * np.sinc(sc / np.pi)
+    y = -0.5 * c * s * s * np.sinc(sc / (2 * np.pi)) ** 2 - h * np.cos(sc)
+    return x, y
+
+
+def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float) -> np.ndarray:
+    """The Appendix's curvature resampling: bend the zero-curvature hit points to curvature c,
+    take their new viewing angles theta', drop those that became occluded (theta' not above
+    every earlier one), resample linearly at the uniform thetas; -1 past the last hit on a
+    convex surface (the ray leaves it). Values are the extended d = l / sin(theta)."""
+    th = sampling.thetas
+    valid = d_flat >= 0
+    dd = np.where(valid, d_flat, 0.0).astype(np.float64)
+    s, h = dd * np.sin(th), dd * np.cos(th)            # arc length and depth of each hit
+    x, y = bend(s, h, c)
+    th_new = np.arctan2(x, -y)                          # angle from the normal, toward the eye
+    th_new = np.where(dd > 0, th_new, th)               # a hit at the entry point keeps its angle
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ext = np.where(s > 0, s / np.sin(th_new), dd)   # extended displacement l / sin(theta')
+    # Occlusion after bending: keep a sample only if its angle exceeds every earlier one; the
+    # kept samples are then increasing in theta' in index order, so no sort is needed.
+    run = np.maximum.accumulate(np.where(valid, th_new, -np.inf), axis=-1)
+    earlier = np.concatenate([np.full(run[..., :1].shape, -np.inf), run[..., :-1]], -1)
+    keep = valid & (th_new > earlier)
+    # For every target theta_j (axis -2) and sample k (axis -1): the last kept sample at or below
+    # theta_j and the first kept one above it.
+    th_new, ext = th_new.astype(np.float32), ext.astype(np.float32)
+    t = th.astype(np.float32)[:, None]
+    ang, kept = th_new[..., None, :], keep[..., None, :]
+    k = np.arange(len(th), dtype=np.int8)
+    lo = np.where(kept & (ang <= t), k, np.int8(-1)).max(-1)
+    hi = np.where(kept & (ang > t), k, np.int8(len(th))).min(-1)
+    has_lo, has_hi = lo >= 0, hi < len(th)
+    pick = lambda a, i: np.take_along_axis(a, np.clip(i, 0, len(th) - 1), -1)  # noqa: E731
+    a0, a1, v0, v1 = pick(th_new, lo), pick(th_new, hi), pick(ext, lo), pick(ext, hi)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w = np.where(has_lo & has_hi, (th.astype(np.float32) - a0) / (a1 - a0), np.float32(0))
+    r = np.where(has_lo & has_hi, v0 + w * (v1 - v0), np.where(has_hi, v1, v0))  # clamp outside the samples
+    if c > 0:                                    # convex: past the last hit the ray leaves the surface
+        r = np.where(has_hi, r, -1.0)
+    return np.where(has_lo | has_hi, r, -1.0).astype(np.float32)
+
+
+def vdm_exact(heights: np.ndarray, depth: float, sampling: Sampling, c: float) -> np.ndarray:
+    """The curved VDM by ray casting the truly bent mesostructure (the test oracle for vdm_curved).
+
+    For each azimuth the patch is bent into a cylinder of curvature c along that azimuth, about
+    the tile centre; the cylinder's rotational symmetry makes the geometry seen from every entry
+    point the same as bending about that point. l is read from the hit's unbent coordinate.
+    Valid while |c| * (0.5 + reach) < pi / 2 (the bent patch must not wrap onto itself)."""
+    n = sampling.size
+    pad = padding_texels(depth, sampling)
+    v, f = mesostructure_mesh(heights, depth, pad)
+    flat_z = v[:, 2]
+    c_tex = (np.arange(n) + 0.5) / n
+    Y, X = np.meshgrid(c_tex, c_tex, indexing="ij")
+    out = np.empty((n, n, sampling.n_phi, sampling.n_theta), np.float32)
+    for pi_, phi in enumerate(sampling.phis):
+        cp, sp = np.cos(phi), np.sin(phi)
+        u = (v[:, 0] - 0.5) * cp + (v[:, 1] - 0.5) * sp          # along the azimuth, from the centre
+        w = -(v[:, 0] - 0.5) * sp + (v[:, 1] - 0.5) * cp
+        bx, by = bend(u, -flat_z, c)
+        scene = RayScene(np.stack([bx, w, by], 1), f)
+        up = ((X - 0.5) * cp + (Y - 0.5) * sp).ravel()           # entry points on the bent surface
+        wp = (-(X - 0.5) * sp + (Y - 0.5) * cp).ravel()
+        px, py = bend(up, np.zeros_like(up), c)
+        a = up * c                                               # the surface normal turned by u c
+        normal = np.stack([np.sin(a), np.zeros_like(a), np.cos(a)], 1)
+        tangent = np.stack([np.cos(a), np.zeros_like(a), -np.sin(a)], 1)
+        for ti, th in enumerate(sampling.thetas):
+            d = -(np.sin(th) * tangent + np.cos(th) * normal)    # -V in the local frame of each entry point
+            o = np.stack([px, wp, py], 1) + normal * 1e-4 * depth
+            hits = scene.intersect(o, d)
+            hit = hits.prim >= 0
+            tri = f[hits.prim[hit]]
+            wts = np.stack([1 - hits.u[hit] - hits.v[hit], hits.u[hit], hits.v[hit]], 1)
+            l = np.full(len(o), -1.0)
+            l[hit] = np.abs((wts * u[tri]).sum(1) - up[hit])
+            res = np.where(hit, l / np.sin(th), -1.0)
+            out[:, :, pi_, ti] = res.reshape(n, n)
+    return out
+
+
+def mvm(vdm: np.ndarray, sampling: Sampling) -> np.ndarray:
+    """Maximal View polar angle Map (sec. 3.3): theta_MVM(x, y, phi, c) = the largest sampled theta
+    with d != -1 (0 where none). vdm: (N, N, n_phi, n_theta, n_c) -> (N, N, n_phi, n_c)."""
+    ok = vdm >= 0
+    th = sampling.thetas[None, None, None, :, None]
+    return np.where(ok, th, 0.0).max(axis=3).astype(np.float32)
+
+
+@dataclass
+class Compressed:
+    W: np.ndarray        # (N, N, n_phi, k) weights of the eigenfunctions
+    E_vdm: np.ndarray    # (k, n_theta, n_c)
+    E_mvm: np.ndarray    # (k, n_c)
+    energy: float        # fraction of sum(sigma^2) kept
+    rms_vdm: float       # reconstruction RMS of d over the valid entries (texture units)
+    rms_mvm: float       # reconstruction RMS of theta_MVM (radians)
+    max_abs_vdm: float
+
+
+def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int) -> Compressed:
+    """SVD of A = [A_VDM, A_MVM] (sec. 3.3): rows (x, y, phi), columns (theta, c) then (c); the -1
+    entries of A_VDM are replaced by the MVM angle first. Computed from the Gram matrix A^T A
+    (columns are few), float64; W = A E. k is capped at the matrix rank."""
+    n, _, n_phi, n_theta, n_c = vdm.shape
+    filled = np.where(vdm >= 0, vdm, theta_mvm[:, :, :, None, :])
+    A = np.concatenate([filled.reshape(n * n * n_phi, n_theta * n_c),
+                        theta_mvm.reshape(n * n * n_phi, n_c)], 1).astype(np.float32)
+    gram = (A.T @ A).astype(np.float64)   # float32 sgemm over the long axis; the small eigenproblem in float64
+    sigma2, E = np.linalg.eigh(gram)
+    sigma2, E = sigma2[::-1].clip(min=0.0), E[:, ::-1]
+    rank = int((sigma2 > sigma2[0] * 1e-12).sum()) if sigma2[0] > 0 else 0
+    k = max(1, min(k, rank if rank else 1))
+    E = E[:, :k].astype(np.float32)
+    W = A @ E
+    R = W @ E.T
+    ok = (vdm >= 0).reshape(n * n * n_phi, n_theta * n_c)
+    err_vdm = (R[:, :n_theta * n_c] - A[:, :n_theta * n_c])[ok]
+    err_mvm = R[:, n_theta * n_c:] - A[:, n_theta * n_c:]
+    total = sigma2.sum()
+    return Compressed(
+        W=W.reshape(n, n, n_phi, k).astype(np.float32),
+        E_vdm=E[:n_theta * n_c].T.reshape(k, n_theta, n_c).astype(np.float32),
+        E_mvm=E[n_theta * n_c:].T.astype(np.float32),
+        energy=float(sigma2[:k].sum() / total) if total > 0 else 1.0,
+        rms_vdm=float(np.sqrt(np.mean(err_vdm ** 2))) if err_vdm.size else 0.0,
+        rms_mvm=float(np.sqrt(np.mean(err_mvm ** 2))),
+        max_abs_vdm=float(np.abs(err_vdm).max()) if err_vdm.size else 0.0)
+
+
+def bake_tables(heights: np.ndarray, depth: float, sampling: Sampling) -> tuple[np.ndarray, np.ndarray, int]:
+    """The full 5-D VDM (N, N, n_phi, n_theta, n_c) and the MVM (N, N, n_phi, n_c), and rays cast.
+    Curvatures are resampled in parallel threads (numpy releases the GIL in its kernels)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    flat, rays, _ = vdm_flat(heights, depth, sampling)
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        slices = list(pool.map(lambda c: flat if c == 0 else vdm_curved(flat, sampling, c), sampling.curvatures))
+    table = np.stack(slices, -1)
+    return table, mvm(table, sampling), rays
