@@ -107,7 +107,19 @@ def bend(s: np.ndarray, h: np.ndarray, c: float) -> tuple[np.ndarray, np.ndarray
     return x, y
 
 
+CHUNK_ROWS = 8192  # rows (x, y, phi) per block: the (rows, theta, sample) temporaries stay in cache
+
+
 def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float) -> np.ndarray:
+    """vdm_curved_rows over cache-sized blocks of rows (see there)."""
+    rows = d_flat.reshape(-1, d_flat.shape[-1])
+    out = np.empty(rows.shape, np.float32)
+    for s in range(0, len(rows), CHUNK_ROWS):
+        out[s:s + CHUNK_ROWS] = vdm_curved_rows(rows[s:s + CHUNK_ROWS], sampling, c)
+    return out.reshape(d_flat.shape)
+
+
+def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> np.ndarray:
     """The Appendix's curvature resampling: bend the zero-curvature hit points to curvature c,
     take their new viewing angles theta', drop those that became occluded (theta' not above
     every earlier one), resample linearly at the uniform thetas; -1 past the last hit on a
@@ -126,19 +138,28 @@ def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float) -> np.ndarray:
     run = np.maximum.accumulate(np.where(valid, th_new, -np.inf), axis=-1)
     earlier = np.concatenate([np.full(run[..., :1].shape, -np.inf), run[..., :-1]], -1)
     keep = valid & (th_new > earlier)
-    # For every target theta_j (axis -2) and sample k (axis -1): the last kept sample at or below
-    # theta_j and the first kept one above it.
+    # Kept samples, compacted by rank (they increase in theta' with their index), and for every
+    # target theta_j the number of kept samples at or below it: O(samples) work per row.
+    rows, n = th_new.shape
+    th32 = th.astype(np.float32)
     th_new, ext = th_new.astype(np.float32), ext.astype(np.float32)
-    t = th.astype(np.float32)[:, None]
-    ang, kept = th_new[..., None, :], keep[..., None, :]
-    k = np.arange(len(th), dtype=np.int8)
-    lo = np.where(kept & (ang <= t), k, np.int8(-1)).max(-1)
-    hi = np.where(kept & (ang > t), k, np.int8(len(th))).min(-1)
-    has_lo, has_hi = lo >= 0, hi < len(th)
-    pick = lambda a, i: np.take_along_axis(a, np.clip(i, 0, len(th) - 1), -1)  # noqa: E731
-    a0, a1, v0, v1 = pick(th_new, lo), pick(th_new, hi), pick(ext, lo), pick(ext, hi)
+    row = np.arange(rows)[:, None]
+    rank = np.cumsum(keep, axis=-1) - 1
+    m = keep.sum(-1, keepdims=True)
+    slot = (row * n + rank)[keep]
+    comp_ang = np.full(rows * n, np.inf, np.float32)
+    comp_val = np.zeros(rows * n, np.float32)
+    comp_ang[slot], comp_val[slot] = th_new[keep], ext[keep]
+    comp_ang, comp_val = comp_ang.reshape(rows, n), comp_val.reshape(rows, n)
+    first_target = np.searchsorted(th32, th_new, side="left")        # theta'_k <= theta_j iff j >= this
+    counts = np.bincount((row * (n + 1) + first_target)[keep], minlength=rows * (n + 1)).reshape(rows, n + 1)
+    below = np.cumsum(counts, axis=-1)[:, :n]                           # kept samples at or below theta_j
+    has_lo, has_hi = below >= 1, below < m
+    pick = lambda a, i: np.take_along_axis(a, np.clip(i, 0, n - 1), -1)  # noqa: E731
+    a0, a1 = pick(comp_ang, below - 1), pick(comp_ang, below)
+    v0, v1 = pick(comp_val, below - 1), pick(comp_val, below)
     with np.errstate(invalid="ignore", divide="ignore"):
-        w = np.where(has_lo & has_hi, (th.astype(np.float32) - a0) / (a1 - a0), np.float32(0))
+        w = np.where(has_lo & has_hi, (th32 - a0) / (a1 - a0), np.float32(0))
     r = np.where(has_lo & has_hi, v0 + w * (v1 - v0), np.where(has_hi, v1, v0))  # clamp outside the samples
     if c > 0:                                    # convex: past the last hit the ray leaves the surface
         r = np.where(has_hi, r, -1.0)
