@@ -230,9 +230,13 @@ def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int) -> Compressed:
     entries of A_VDM are replaced by the MVM angle first. Computed from the Gram matrix A^T A
     (columns are few), float64; W = A E. k is capped at the matrix rank."""
     n, _, n_phi, n_theta, n_c = vdm.shape
-    filled = np.where(vdm >= 0, vdm, theta_mvm[:, :, :, None, :])
-    A = np.concatenate([filled.reshape(n * n * n_phi, n_theta * n_c),
-                        theta_mvm.reshape(n * n * n_phi, n_c)], 1).astype(np.float32)
+    rows, cols = n * n * n_phi, n_theta * n_c
+    A = np.empty((rows, cols + n_c), np.float32)          # built in place: the tables are large
+    a_vdm = A[:, :cols].reshape(rows, n_theta, n_c)
+    invalid = (vdm < 0).reshape(rows, n_theta, n_c)
+    np.copyto(a_vdm, vdm.reshape(rows, n_theta, n_c))
+    np.copyto(a_vdm, np.broadcast_to(theta_mvm.reshape(rows, 1, n_c), a_vdm.shape), where=invalid)
+    A[:, cols:] = theta_mvm.reshape(rows, n_c)
     gram = (A.T @ A).astype(np.float64)   # float32 sgemm over the long axis; the small eigenproblem in float64
     sigma2, E = np.linalg.eigh(gram)
     sigma2, E = sigma2[::-1].clip(min=0.0), E[:, ::-1]
@@ -240,19 +244,21 @@ def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int) -> Compressed:
     k = max(1, min(k, rank if rank else 1))
     E = E[:, :k].astype(np.float32)
     W = A @ E
-    R = W @ E.T
-    ok = (vdm >= 0).reshape(n * n * n_phi, n_theta * n_c)
-    err_vdm = (R[:, :n_theta * n_c] - A[:, :n_theta * n_c])[ok]
-    err_mvm = R[:, n_theta * n_c:] - A[:, n_theta * n_c:]
+    err = W @ E.T
+    err -= A
+    err_vdm = err[:, :cols].reshape(rows, n_theta, n_c)
+    err_vdm[invalid] = 0.0                                # the -1 entries are the MVM's business
+    valid = invalid.size - np.count_nonzero(invalid)
     total = sigma2.sum()
     return Compressed(
-        W=W.reshape(n, n, n_phi, k).astype(np.float32),
-        E_vdm=E[:n_theta * n_c].T.reshape(k, n_theta, n_c).astype(np.float32),
-        E_mvm=E[n_theta * n_c:].T.astype(np.float32),
+        W=W.reshape(n, n, n_phi, k),
+        E_vdm=E[:cols].T.reshape(k, n_theta, n_c).copy(),
+        E_mvm=E[cols:].T.copy(),
         energy=float(sigma2[:k].sum() / total) if total > 0 else 1.0,
-        rms_vdm=float(np.sqrt(np.mean(err_vdm ** 2))) if err_vdm.size else 0.0,
-        rms_mvm=float(np.sqrt(np.mean(err_mvm ** 2))),
-        max_abs_vdm=float(np.abs(err_vdm).max()) if err_vdm.size else 0.0)
+        rms_vdm=float(np.sqrt(np.einsum("ij,ij->", err[:, :cols], err[:, :cols], dtype=np.float64) / valid))
+        if valid else 0.0,
+        rms_mvm=float(np.sqrt(np.mean(err[:, cols:].astype(np.float64) ** 2))),
+        max_abs_vdm=float(np.abs(err[:, :cols]).max()) if valid else 0.0)
 
 
 def bake_tables(heights: np.ndarray, depth: float, sampling: Sampling) -> tuple[np.ndarray, np.ndarray, int]:
