@@ -12,20 +12,38 @@ from .errors import InputError
 
 
 @dataclass
+class SurfaceFrame:
+    """Per-vertex differential geometry for mapping mesostructure onto a surface (VDM, sec. 3.2):
+    the texture tangents and the principal curvatures and directions."""
+    dpdu: np.ndarray    # (V, 3) world-space derivative of position along texture u
+    dpdv: np.ndarray    # (V, 3) ... along texture v
+    k1: np.ndarray      # (V,) principal curvature along d1, 1 / world units, > 0 where the surface
+    k2: np.ndarray      # (V,) ... along d2 = normal x d1      bends away from its normal (convex)
+    d1: np.ndarray      # (V, 3) unit principal direction of k1
+
+    @staticmethod
+    def concatenate(parts: list["SurfaceFrame"]) -> "SurfaceFrame":
+        return SurfaceFrame(*(np.concatenate([getattr(p, f) for p in parts])
+                              for f in ("dpdu", "dpdv", "k1", "k2", "d1")))
+
+
+@dataclass
 class TriMesh:
     vertices: np.ndarray            # (V, 3) float64
     faces: np.ndarray               # (F, 3) int64, counter-clockwise seen from outside
     normals: np.ndarray             # (V, 3) float64, unit
     uvs: np.ndarray | None = None   # (V, 2) float64
+    frame: SurfaceFrame | None = None
 
     @staticmethod
     def concatenate(parts: list["TriMesh"]) -> "TriMesh":
         offsets = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
-        uvs = [p.uvs for p in parts]
+        uvs, frames = [p.uvs for p in parts], [p.frame for p in parts]
         return TriMesh(np.concatenate([p.vertices for p in parts]),
                        np.concatenate([p.faces + o for p, o in zip(parts, offsets)]),
                        np.concatenate([p.normals for p in parts]),
-                       None if any(u is None for u in uvs) else np.concatenate(uvs))
+                       None if any(u is None for u in uvs) else np.concatenate(uvs),
+                       None if any(f is None for f in frames) else SurfaceFrame.concatenate(frames))
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre of the bounding box and the radius that encloses every vertex."""
@@ -62,7 +80,12 @@ def transformed(mesh: TriMesh, transform) -> TriMesh:
     n = mesh.normals @ np.linalg.inv(m)  # row vectors: n' = (M^-T n)^T = n^T M^-1
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     faces = mesh.faces if np.linalg.det(m) > 0 else mesh.faces[:, ::-1].copy()  # a mirror flips winding
-    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs)
+    frame = None
+    sx, sy, sz = transform.scale
+    if mesh.frame is not None and sx == sy == sz:   # a non-uniform scale changes curvatures otherwise: dropped
+        f = mesh.frame
+        frame = SurfaceFrame(f.dpdu @ m.T, f.dpdv @ m.T, f.k1 / sx, f.k2 / sx, f.d1 @ rotation_xyz(transform.rotate_deg).T)
+    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs, frame)
 
 
 def validate(mesh: TriMesh, origin: str) -> TriMesh:

@@ -5,12 +5,15 @@ Sphere, cylinder, torus and vase are surfaces of revolution about +Z: a profile
 dP/dphi x dP/dt = r (z' cos phi, z' sin phi, -r'), so the unit normal is
 (z' cos phi, z' sin phi, -r') / |(r', z')|, exact at every vertex, poles included.
 UVs: u = phi / 2pi (the seam column is duplicated), v = t.
+Principal curvatures are analytic too (do Carmo, sec. 3-3, surfaces of revolution): along the
+parallel k_p = z' / (r |(r', z')|), along the meridian k_m = (r' z'' - z' r'') / |(r', z')|^3,
+positive where the surface bends away from its normal; at a pole (r = 0) k_p takes the limit k_m.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .meshes import TriMesh
+from .meshes import SurfaceFrame, TriMesh
 
 
 def _grid_faces(rows: int, cols: int) -> np.ndarray:
@@ -22,17 +25,24 @@ def _grid_faces(rows: int, cols: int) -> np.ndarray:
 
 
 def revolve(profile, segments: int, rings: int) -> TriMesh:
-    """Sweep profile(t) -> (r, z, dr/dt, dz/dt) around +Z; rings along t, segments along phi."""
+    """Sweep profile(t) -> (r, z, r', z', r'', z'') around +Z; rings along t, segments along phi."""
     t = np.linspace(0.0, 1.0, rings + 1)
     phi = np.linspace(0.0, 2.0 * np.pi, segments + 1)
-    r, z, dr, dz = (np.broadcast_to(np.asarray(a, float), t.shape) for a in profile(t))
-    T, P = np.meshgrid(np.arange(rings + 1), phi, indexing="ij")
+    ring = np.repeat(np.arange(rings + 1), segments + 1)            # each vertex's ring (row-major grid)
+    r, z, dr, dz, ddr, ddz = (np.broadcast_to(np.asarray(a, float), t.shape)[ring] for a in profile(t))
+    P = np.tile(phi, rings + 1)
     c, s = np.cos(P), np.sin(P)
-    v = np.stack([r[T] * c, r[T] * s, z[T]], -1).reshape(-1, 3)
-    n = np.stack([dz[T] * c, dz[T] * s, -dr[T] * np.ones_like(c)], -1).reshape(-1, 3)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    uv = np.stack([P / (2 * np.pi), t[T]], -1).reshape(-1, 2)
-    return TriMesh(v, _grid_faces(rings, segments), n, uv)
+    speed = np.hypot(dr, dz)                                     # |dP/dt|
+    v = np.stack([r * c, r * s, z], -1)
+    n = np.stack([dz * c, dz * s, -dr], -1) / speed[:, None]
+    uv = np.stack([P / (2 * np.pi), t[ring]], -1)
+    k_m = (dr * ddz - dz * ddr) / speed ** 3
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k_p = np.where(r > 1e-12 * speed, dz / (r * speed), k_m)
+    parallel = np.stack([-s, c, np.zeros_like(c)], -1)
+    frame = SurfaceFrame(dpdu=2 * np.pi * r[:, None] * parallel,
+                         dpdv=np.stack([dr * c, dr * s, dz], -1), k1=k_p, k2=k_m, d1=parallel)
+    return TriMesh(v, _grid_faces(rings, segments), n, uv, frame)
 
 
 def _disk(radius: float, z: float, segments: int, up: bool) -> TriMesh:
@@ -44,7 +54,14 @@ def _disk(radius: float, z: float, segments: int, up: bool) -> TriMesh:
         f = f[:, ::-1]
     n = np.tile([0.0, 0.0, 1.0 if up else -1.0], (len(v), 1))
     uv = 0.5 + 0.5 * v[:, :2] / radius
-    return TriMesh(v, f.astype(np.int64), n, uv)
+    return TriMesh(v, f.astype(np.int64), n, uv, _flat_frame(len(v), 2 * radius))
+
+
+def _flat_frame(count: int, size: float) -> SurfaceFrame:
+    """A planar patch: u along +X, v along +Y, no curvature."""
+    zero = np.zeros(count)
+    return SurfaceFrame(np.tile([size, 0.0, 0.0], (count, 1)), np.tile([0.0, size, 0.0], (count, 1)),
+                        zero, zero.copy(), np.tile([1.0, 0.0, 0.0], (count, 1)))
 
 
 def plane(size: float, segments: int) -> TriMesh:
@@ -53,17 +70,19 @@ def plane(size: float, segments: int) -> TriMesh:
     V, U = np.meshgrid(u, u, indexing="ij")
     v = np.stack([(U - 0.5) * size, (V - 0.5) * size, np.zeros_like(U)], -1).reshape(-1, 3)
     n = np.tile([0.0, 0.0, 1.0], (len(v), 1))
-    return TriMesh(v, _grid_faces(segments, segments), n, np.stack([U, V], -1).reshape(-1, 2))
+    return TriMesh(v, _grid_faces(segments, segments), n, np.stack([U, V], -1).reshape(-1, 2),
+                   _flat_frame(len(v), size))
 
 
 def sphere(radius: float, segments: int, rings: int) -> TriMesh:
     a = np.pi
     return revolve(lambda t: (radius * np.sin(a * t), -radius * np.cos(a * t),
-                              radius * a * np.cos(a * t), radius * a * np.sin(a * t)), segments, rings)
+                              radius * a * np.cos(a * t), radius * a * np.sin(a * t),
+                              -radius * a * a * np.sin(a * t), radius * a * a * np.cos(a * t)), segments, rings)
 
 
 def cylinder(radius: float, height: float, segments: int, rings: int, caps: int) -> TriMesh:
-    side = revolve(lambda t: (radius, (t - 0.5) * height, 0.0, height), segments, rings)
+    side = revolve(lambda t: (radius, (t - 0.5) * height, 0.0, height, 0.0, 0.0), segments, rings)
     if not caps:
         return side
     return TriMesh.concatenate([side, _disk(radius, -0.5 * height, segments, False),
@@ -73,14 +92,16 @@ def cylinder(radius: float, height: float, segments: int, rings: int, caps: int)
 def torus(major: float, minor: float, segments: int, rings: int) -> TriMesh:
     a = 2.0 * np.pi
     return revolve(lambda t: (major + minor * np.cos(a * t), minor * np.sin(a * t),
-                              -minor * a * np.sin(a * t), minor * a * np.cos(a * t)), segments, rings)
+                              -minor * a * np.sin(a * t), minor * a * np.cos(a * t),
+                              -minor * a * a * np.cos(a * t), -minor * a * a * np.sin(a * t)), segments, rings)
 
 
 def vase(radius: float, height: float, segments: int, rings: int) -> TriMesh:
     """An open vase: r(t) = R (1 + 0.45 sin(1.6 pi t + 0.35) - 0.35 t), a belly, a neck and a lip."""
     w = 1.6 * np.pi
     return revolve(lambda t: (radius * (1.0 + 0.45 * np.sin(w * t + 0.35) - 0.35 * t), height * t,
-                              radius * (0.45 * w * np.cos(w * t + 0.35) - 0.35), height), segments, rings)
+                              radius * (0.45 * w * np.cos(w * t + 0.35) - 0.35), height,
+                              -radius * 0.45 * w * w * np.sin(w * t + 0.35), 0.0), segments, rings)
 
 
 def icosphere(level: int) -> TriMesh:
