@@ -23,7 +23,9 @@ from .camera import cameras_for
 from .metrics import compare
 from .techniques import variants
 
-BYTES_PER_PIXEL = 800  # peak working memory of the reference per pixel (rays, hits, shading), measured loosely
+# Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
+# (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
+BYTES_PER_PIXEL = 800
 
 
 @dataclass
@@ -143,6 +145,38 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     return result
 
 
+def _measure(ctx, v, target, cams, ref8, repeats, warmup, out, name, heat_max, background):
+    """One variant: time it, read its frames back, compare each with the reference, write its
+    frames and heat maps. Returns its report row and the frames and heat maps for the overview."""
+    renderer = v.build(ctx)
+    samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup)
+    faces = getattr(renderer, "faces", None)
+    renderer.release()
+    per_frame, dists, heats, enc = [], [], [], []
+    for k, (f, r8) in enumerate(zip(frames, ref8)):
+        f8 = images.encode(f, background)
+        c = compare(f8, r8)
+        heat = images.heatmap(c["dist"], heat_max)
+        images.save_rgb(out.file(f"frames/{name}/{v.label}/{k:03d}.png"), f8)
+        images.save_rgb(out.file(f"heatmaps/{name}/{v.label}/{k:03d}.png"), heat)
+        per_frame.append({"frame": k, "mean_dluv": round(c["mean"], 4), "iou": round(c["iou"], 6),
+                          "nonfinite": int((~np.isfinite(f)).any(-1).sum())})
+        dists.append(c["values"])
+        heats.append(heat)
+        enc.append(f8)
+    d = np.concatenate(dists)
+    row = {"object": name, "technique": v.technique, "knob": v.knob, "value": v.value, "label": v.label,
+           "faces": faces, "frames": len(cams),
+           "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3),
+           "mean_dluv": round(float(d.mean()), 4) if d.size else 0.0,
+           "p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else 0.0,
+           "max_dluv": round(float(d.max()), 4) if d.size else 0.0,
+           "iou": round(float(np.mean([p["iou"] for p in per_frame])), 6),
+           "coverage": round(float(np.mean([r8[..., 3].mean() / 255 for r8 in ref8])), 6),
+           "nonfinite": sum(p["nonfinite"] for p in per_frame), "per_frame": per_frame}
+    return row, enc, heats
+
+
 def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log) -> list[dict]:
     target = gl.Target(ctx, width, height)
     rows = []
@@ -156,35 +190,9 @@ def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, o
         ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
         sheet = [("reference", ref8)]
         for v in chosen:
-            renderer = v.build(ctx)
-            samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup)
-            faces = getattr(renderer, "faces", None)
-            renderer.release()
-            per_frame, dists, heats, enc = [], [], [], []
-            for k, (f, r8) in enumerate(zip(frames, ref8)):
-                nonfinite = int((~np.isfinite(f)).any(-1).sum())
-                f8 = images.encode(f, scene.render.background)
-                c = compare(f8, r8)
-                heat = images.heatmap(c["dist"], opts.heat_max)
-                images.save_rgb(out.file(f"frames/{obj.name}/{v.label}/{k:03d}.png"), f8)
-                images.save_rgb(out.file(f"heatmaps/{obj.name}/{v.label}/{k:03d}.png"), heat)
-                per_frame.append({"frame": k, "mean_dluv": round(c["mean"], 4), "iou": round(c["iou"], 6),
-                                  "nonfinite": nonfinite})
-                dists.append(c["values"])
-                heats.append(heat)
-                enc.append(f8)
-            d = np.concatenate(dists)
-            row = {"object": obj.name, "technique": v.technique, "knob": v.knob, "value": v.value,
-                   "label": v.label, "faces": faces, "frames": len(cams),
-                   "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3),
-                   "mean_dluv": round(float(d.mean()), 4) if d.size else 0.0,
-                   "p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else 0.0,
-                   "max_dluv": round(float(d.max()), 4) if d.size else 0.0,
-                   "iou": round(float(np.mean([p["iou"] for p in per_frame])), 6),
-                   "coverage": round(float(np.mean([r8[..., 3].mean() / 255 for r8 in ref8])), 6),
-                   "nonfinite": sum(p["nonfinite"] for p in per_frame), "device": device,
-                   "reference_cached": ref_info["cached"], "per_frame": per_frame}
-            rows.append(row)
+            row, enc, heats = _measure(ctx, v, target, cams, ref8, repeats, warmup, out, obj.name, opts.heat_max,
+                                       scene.render.background)
+            rows.append({**row, "device": device, "reference_cached": ref_info["cached"]})
             sheet += [(v.label, enc), (f"{v.label} error", heats)]
             log(f"{obj.name}: {v.label:>14}  {row['median_ms']:9.3f} ms/frame  mean dLuv {row['mean_dluv']:7.3f}  "
                 f"p95 {row['p95_dluv']:7.3f}  IoU {row['iou']:.4f}")
