@@ -142,7 +142,7 @@ class Object:
 
     @property
     def kind(self) -> str:
-        return "surface" if (self.mesh or self.primitive) else "quadrics"
+        return _kind(self.mesh, self.primitive)
 
 
 @dataclass(frozen=True)
@@ -197,7 +197,7 @@ class _Table:
         if isinstance(v, (int, float)) and not isinstance(v, bool) and n == 3 and key == "scale":
             v = [v, v, v]
         good = (isinstance(v, (list, tuple)) and len(v) == n and all(
-            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and lo <= x <= hi
+            _is_number(x) and lo <= x <= hi
             for x in v))
         if not good or (nonzero and not any(v)):
             self._fail(key, v, f"a list of {n} finite numbers in [{lo}, {hi}]" + (", not all zero" if nonzero else ""))
@@ -356,11 +356,16 @@ def _object(t: _Table, default_material: Material) -> Object:
                           tr.vector("translate", Transform.translate))
     tr.done()
     material = _material(t.table("material"), default_material)
-    kind = "surface" if (mesh or primitive) else "quadrics"
-    techniques = _techniques(t.table("techniques"), name, kind)
+    techniques = _techniques(t.table("techniques"), name, _kind(mesh, primitive))
     t.done()
     return Object(name, mesh, primitive, params, molecule, style, spheres, cylinders, transform, material,
                   techniques)
+
+
+def _kind(mesh, primitive) -> str:
+    """Surfaces (a mesh file or a primitive) and quadrics (molecules, inline spheres/cylinders)
+    are drawn by different techniques."""
+    return "surface" if (mesh or primitive) else "quadrics"
 
 
 def _path(t: _Table, key: str) -> str | None:

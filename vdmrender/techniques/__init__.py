@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
+from vdmbake.scene import TECHNIQUES
+
 from . import coarse, impostor, mesh, tessellated
 
 
@@ -31,9 +33,12 @@ REGISTRY = {"mesh": mesh.variants, "coarse": coarse.variants, "impostor": impost
 
 
 def variants(obj, entry: dict, bundle, scene, only=None) -> list[Variant]:
-    """The variants of every technique the object names (restricted to `only` if given), in scene order."""
+    """The variants of every technique the object names (restricted to `only` if given), in scene order.
+    Each technique module returns (knob value, build) pairs; the knob's name comes from its spec."""
     out = []
     for name, options in obj.techniques.items():
         if only is None or name in only:
-            out += [Variant(name, *v) for v in REGISTRY[name](obj, entry, bundle, scene, options)]
+            knob = TECHNIQUES[name].knob
+            out += [Variant(name, knob and knob.label, value, build)
+                    for value, build in REGISTRY[name](obj, entry, bundle, scene, options)]
     return out

@@ -7,4 +7,4 @@ from .mesh import RasterMesh
 def variants(obj, entry, bundle, scene, options):
     def builder(rel):
         return lambda ctx: RasterMesh(ctx, bundle.mesh(rel), scene.light, obj.material, scene.render.shadow_map)
-    return [("ratio", ratio, builder(entry["coarse"][f"{ratio:g}"])) for ratio in options["ratios"]]
+    return [(ratio, builder(entry["coarse"][f"{ratio:g}"])) for ratio in options["ratios"]]

@@ -105,4 +105,4 @@ def variants(obj, entry, bundle, scene, options):
     def builder(mode):
         return lambda ctx: Impostors(ctx, bundle.quadrics(entry["quadrics"]), scene.light, obj.material,
                                      scene.render.shadow_map, mode, options["silhouette"], options["crease"])
-    return [("shading", mode, builder(mode)) for mode in options["shading"]]
+    return [(mode, builder(mode)) for mode in options["shading"]]

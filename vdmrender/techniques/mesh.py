@@ -72,4 +72,4 @@ def variants(obj, entry, bundle, scene, options):
     """One variant: the full mesh."""
     def build(ctx):
         return RasterMesh(ctx, bundle.mesh(entry["mesh"]), scene.light, obj.material, scene.render.shadow_map)
-    return [(None, None, build)]
+    return [(None, build)]

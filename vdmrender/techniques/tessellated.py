@@ -36,4 +36,4 @@ def variants(obj, entry, bundle, scene, options):
     def builder(level):
         return lambda ctx: Tessellated(ctx, bundle.quadrics(entry["quadrics"]), scene.light, obj.material,
                                        scene.render.shadow_map, level)
-    return [("level", level, builder(level)) for level in options["levels"]]
+    return [(level, builder(level)) for level in options["levels"]]
