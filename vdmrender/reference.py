@@ -14,6 +14,14 @@ SHADOW_EPSILON = 1e-5  # shadow-ray origin offset along the geometric normal, in
 VERSION = 1            # bump when the reference's output for the same inputs changes (cache key)
 
 
+def _frame(camera, hit: np.ndarray, radiance: np.ndarray) -> np.ndarray:
+    """(H, W, 4) float32, row 0 at the top: linear RGB of the hit pixels, and coverage."""
+    out = np.zeros((camera.height * camera.width, 4))
+    out[hit, :3] = radiance
+    out[hit, 3] = 1.0
+    return out.reshape(camera.height, camera.width, 4).astype(np.float32)
+
+
 class MeshReference:
     """Traces one triangle mesh; the Embree scene is built once and reused for every camera."""
 
@@ -39,10 +47,7 @@ class MeshReference:
         to_eye = safe_normalize(camera.eye - p)
         L = np.broadcast_to(np.asarray(self.light.direction), p.shape)
         lit = ~self.scene.occluded(p + ng * self.eps, L)
-        out = np.zeros((camera.height * camera.width, 4), np.float64)
-        out[hit, :3] = shade(self.material.albedo, n, to_eye, lit, self.light, self.material)
-        out[hit, 3] = 1.0
-        return out.reshape(camera.height, camera.width, 4).astype(np.float32)
+        return _frame(camera, hit, shade(self.material.albedo, n, to_eye, lit, self.light, self.material))
 
 
 _BOX = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
@@ -74,8 +79,7 @@ class QuadricTracer:
                 + w[:, None] * half[:, None, None] * _BOX[None, :, 2:3])])
         faces = (np.arange(len(corners))[:, None, None] * 8 + _BOX_FACES[None]).reshape(-1, 3)
         self.scene = RayScene(corners.reshape(-1, 3), faces)
-        centre, radius = q.bounding_sphere()
-        self.step = 1e-6 * radius
+        self.step = 1e-6 * q.bounding_sphere()[1]
 
     def _test(self, o, d, idx, tmin):
         """Analytic first hit of rays (o, d unit) with quadric idx: (t, normal)."""
@@ -142,8 +146,6 @@ class QuadricReference:
         L = np.broadcast_to(np.asarray(self.light.direction, float), p.shape)
         ts, _, _ = self.tracer.first_hit(p + n * self.eps, np.ascontiguousarray(L), np.zeros(len(p)),
                                          np.full(len(p), np.inf), stop_at_any=True)
-        out = np.zeros((camera.height * camera.width, 4))
-        out[hit, :3] = shade(self.rgb[idx[hit]], n, safe_normalize(camera.eye - p), ~np.isfinite(ts),
-                             self.light, self.material)
-        out[hit, 3] = 1.0
-        return out.reshape(camera.height, camera.width, 4).astype(np.float32)
+        lit = ~np.isfinite(ts)
+        return _frame(camera, hit, shade(self.rgb[idx[hit]], n, safe_normalize(camera.eye - p), lit,
+                                         self.light, self.material))
