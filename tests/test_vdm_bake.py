@@ -47,7 +47,7 @@ def test_cliffs_stay_finite_and_hit():
 def test_zero_curvature_resampling_is_the_identity():
     s = vdm.Sampling(N, n_phi=8)
     flat, _, _ = vdm.vdm_flat(waves(), 0.05, s)
-    assert np.array_equal(vdm.vdm_curved(flat, s, 0.0), flat)
+    assert np.array_equal(vdm.vdm_curved(flat, s, 0.0)[0], flat)
 
 
 def test_appendix_resampling_against_bent_ray_casting():
@@ -59,7 +59,7 @@ def test_appendix_resampling_against_bent_ray_casting():
     assert np.abs(exact0 - flat).max() < 1e-3  # the oracle agrees with the flat bake at c = 0
     for c in (-1.0, 0.5, 1.0):
         exact = vdm.vdm_exact(h, 0.05, s, c)
-        approx = vdm.vdm_curved(flat, s, c)
+        approx = vdm.vdm_curved(flat, s, c)[0]
         both = (exact >= 0) & (approx >= 0)
         err = np.abs(exact - approx)[both]
         assert err.mean() < 0.15 * exact[exact >= 0].mean()     # measured: 5-10 % of the mean d
@@ -71,7 +71,7 @@ def test_appendix_resampling_against_bent_ray_casting():
 def test_convex_surfaces_have_silhouettes_at_grazing_angles():
     s = vdm.Sampling(N, n_phi=8)
     flat, _, _ = vdm.vdm_flat(waves(), 0.05, s)
-    d = vdm.vdm_curved(flat, s, 3.0)
+    d = vdm.vdm_curved(flat, s, 3.0)[0]
     invalid_by_theta = (d < 0).mean(axis=(0, 1, 2))
     assert invalid_by_theta[0] == 0 and invalid_by_theta[-1] > 0.5
     assert np.all(np.diff(invalid_by_theta) >= -1e-9)  # more grazing, more rays leave the surface
@@ -81,16 +81,28 @@ def test_mvm_and_compression():
     s = vdm.Sampling(16, n_phi=8, curvatures=vdm.curvature_samples(-1.0, 2.0, 4))
     table, theta_mvm, _ = vdm.bake_tables(waves(16), 0.05, s)
     assert table.shape == (16, 16, 8, 8, 4) and theta_mvm.shape == (16, 16, 8, 4)
-    # MVM: the largest theta with a valid displacement.
+    # MVM for c <= 0: the upper edge of the bin of the largest theta with a valid displacement.
     valid = table >= 0
     last = np.where(valid, np.arange(8)[None, None, None, :, None], -1).max(3)
-    assert np.allclose(theta_mvm, np.where(last >= 0, s.thetas[np.maximum(last, 0)], 0.0))
-    assert np.allclose(theta_mvm[..., 0], s.thetas[-1])  # c = -1: concave, every direction hits
-    energies = [vdm.compress(table, theta_mvm, k).energy for k in (1, 2, 4, 8)]
+    assert np.allclose(theta_mvm[..., :2], np.where(last >= 0, (last + 1) * np.pi / 16, 0.0)[..., :2])
+    assert np.allclose(theta_mvm[..., 0], np.pi / 2)  # c = -1: concave, every direction hits
+    # For c > 0 the exact horizon, bracketed by the last valid and the first invalid sample.
+    lo = np.where(last >= 0, s.thetas[np.maximum(last, 0)], 0.0)[..., 2:]
+    hi = np.where(last < 7, s.thetas[np.minimum(last + 1, 7)], np.pi / 2)[..., 2:]
+    assert np.all((theta_mvm[..., 2:] >= lo - 1e-6) & (theta_mvm[..., 2:] <= hi + 1e-6))
+    assert (theta_mvm[..., 2:] > lo + 1e-3).mean() > 0.5      # and it is a finer estimate than the samples
+    c8 = vdm.compress(table, theta_mvm, 8, report=(1, 2, 4))
+    assert sorted(c8.errors) == [1, 2, 4, 8] and c8.W.shape[-1] == 8
+    energies = [c8.errors[k].energy for k in (1, 2, 4, 8)]
+    rms = [c8.errors[k].rms_vdm for k in (1, 2, 4, 8)]
     assert all(a <= b + 1e-12 for a, b in zip(energies, energies[1:])) and energies[-1] > 0.99
+    assert all(a >= b - 1e-7 for a, b in zip(rms, rms[1:]))       # more eigenfunctions, less error
+    # The truncated errors are those of a separate decomposition at that k.
+    assert abs(vdm.compress(table, theta_mvm, 2).errors[2].rms_vdm - rms[1]) < 1e-6
     full = vdm.compress(table, theta_mvm, 10_000)   # k above the rank is capped, and reconstructs
-    assert full.W.shape[-1] <= 8 * 4 + 4
-    assert full.rms_vdm < 1e-4 and full.rms_mvm < 1e-4
+    assert full.W.shape[-1] == full.rank <= 8 * 4 + 4
+    e = full.errors[full.rank]
+    assert e.rms_vdm < 1e-4 and e.rms_mvm < 1e-4
 
 
 def test_curvature_samples():

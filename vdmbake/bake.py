@@ -2,6 +2,9 @@
 
 A surface object (mesh file or primitive) gets its full mesh: the reference traces it and
 the `mesh` technique draws it; `coarse` adds one simplified mesh per requested ratio.
+A surface object with a mesostructure also gets its height field, and, only if it names the
+`vdm` technique, the VDM/MVM tables: sampled over the curvature range its base mesh has, ray
+cast, compressed to the largest k the scene renders.
 A quadrics object (molecule or inline spheres/cylinders) gets only its quadric list:
 nothing is ray cast at bake time. Each part is baked only when a technique asks for it.
 """
@@ -12,7 +15,9 @@ import json
 import time
 from pathlib import Path
 
-from . import __version__, coarse, primitives, quadrics
+import numpy as np
+
+from . import __version__, coarse, heightfields, primitives, quadrics, texspace, vdm
 from .bundle import FORMAT_VERSION, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
@@ -43,10 +48,15 @@ def object_quadrics(obj: Object, base: Path) -> tuple[quadrics.QuadricSet, dict]
 def input_hash(scene: Scene, base: Path) -> tuple[str, dict]:
     """One hash over the resolved scene, the input files' contents and the format/tool versions."""
     files = [f for o in scene.objects for f in (o.mesh, o.molecule) if f]
+    files += [o.mesostructure.height for o in scene.objects if o.mesostructure and _is_file(o.mesostructure.height)]
     inputs = {f: file_sha256(resolve_path(f, base)) for f in files}
     key = json.dumps({"format_version": FORMAT_VERSION, "tool_version": __version__,
                       "scene": scene.to_dict(), "inputs": inputs}, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest(), inputs
+
+
+def _is_file(height: str) -> bool:
+    return height not in heightfields.PATTERNS and not height.startswith("skimage:")
 
 
 def up_to_date(out: Path, digest: str) -> bool:
@@ -73,23 +83,25 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
         return {"up_to_date": True, "bundle": str(out)}
     writer = BundleWriter(out)
     try:
-        objects, timing, t_all = {}, {}, time.perf_counter()
+        objects, timing, steps, t_all = {}, {}, {}, time.perf_counter()
         for obj in scene.objects:
             t0 = time.perf_counter()
-            objects[obj.name] = _bake_object(writer, obj, base, log)
+            objects[obj.name] = _bake_object(writer, obj, base, log, steps.setdefault(obj.name, {}))
             timing[obj.name] = round(time.perf_counter() - t0, 4)
         stats = {"objects": len(objects), "parts": len(writer.parts),
                  "bytes": sum(p["bytes"] for p in writer.parts.values())}
         writer.commit({"scene": scene.to_dict(), "input_hash": digest, "inputs": inputs,
                        "objects": objects, "stats": stats},
-                      {"bake_s": round(time.perf_counter() - t_all, 4), "objects_s": timing})
+                      {"bake_s": round(time.perf_counter() - t_all, 4), "objects_s": timing,
+                       "steps_s": {k: v for k, v in steps.items() if v}})
     except BaseException:
         writer.abort()
         raise
     return {"up_to_date": False, "bundle": str(out), **stats, "bake_s": round(time.perf_counter() - t_all, 3)}
 
 
-def _bake_object(writer: BundleWriter, obj: Object, base: Path, log) -> dict:
+def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict) -> dict:
+    """The object's parts and manifest entry; wall times of long steps go into `steps` (timing.json)."""
     if obj.kind == "quadrics":
         q, dropped = object_quadrics(obj, base)
         centre, radius = q.bounding_sphere()
@@ -109,4 +121,46 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log) -> dict:
             c = coarse.simplify(mesh, ratio)
             entry["coarse"][f"{ratio:g}"] = writer.add_mesh(f"objects/{obj.name}/coarse-{ratio:g}.ply", c, "coarse")
             log(f"{obj.name}: coarse {ratio:g} -> {len(c.faces)} faces")
+    if obj.mesostructure:
+        entry["mesostructure"] = _bake_mesostructure(writer, obj, mesh, base, log, steps)
     return entry
+
+
+def _bake_mesostructure(writer: BundleWriter, obj: Object, mesh: TriMesh, base: Path, log, steps: dict) -> dict:
+    """The height field and, if `vdm` is rendered, the compressed VDM/MVM tables (sec. 3.1-3.3)."""
+    m = obj.mesostructure
+    if mesh.uvs is None or mesh.frame is None:
+        raise InputError(f"object {obj.name!r}: a mesostructure needs a base mesh with UVs and a surface frame "
+                         "(the built-in primitives have both; a non-uniform scale drops the frame).")
+    heights = heightfields.from_spec(m.height, m.size, base)
+    name = obj.name
+    out = {"height": writer.add_exr(f"objects/{name}/height.exr", {"height": {"h": heights.astype(np.float32)}},
+                                    "height")}
+    if "vdm" not in obj.techniques:
+        return out
+    lo, hi = texspace.curvature_range(mesh.frame, mesh.normals, m.tiling)
+    sampling = vdm.Sampling(m.size, m.phi, m.theta, vdm.curvature_samples(lo, hi, m.curvatures))
+    t0 = time.perf_counter()
+    table, theta_mvm, rays = vdm.bake_tables(heights, m.depth, sampling)
+    t1 = time.perf_counter()
+    ks = obj.techniques["vdm"]["k"]
+    k = table.shape[3] * table.shape[4] + table.shape[4] if "all" in ks else max(ks)
+    comp = vdm.compress(table, theta_mvm, k, report=[x for x in ks if x != "all"])
+    t2 = time.perf_counter()
+    n, k = m.size, comp.W.shape[-1]
+    W = comp.W.transpose(2, 0, 1, 3).reshape(m.phi * n, n, k)          # rows: phi-major blocks of y
+    parts = {"W": {f"W.{i:03d}": W[..., i] for i in range(k)},
+             "E_vdm": {f"E.{i:03d}": comp.E_vdm[i].T for i in range(k)},   # rows c, columns theta
+             "E_mvm": {f"E.{i:03d}": comp.E_mvm[i][None] for i in range(k)}}
+    rel = writer.add_exr(f"objects/{name}/vdm.exr", parts, "vdm")
+    out.update({
+        "vdm": rel, "k": k, "rank": comp.rank, "curvatures": list(sampling.curvatures), "rays": rays,
+        "table_bytes": table.nbytes + theta_mvm.nbytes,
+        "compressed_bytes": comp.W.nbytes + comp.E_vdm.nbytes + comp.E_mvm.nbytes,
+        "errors": {str(kk): {f: round(getattr(e, f), 6) for f in ("energy", "rms_vdm", "rms_mvm", "max_abs_vdm")}
+                   for kk, e in comp.errors.items()}})
+    steps.update(vdm_tables_s=round(t1 - t0, 3), vdm_svd_s=round(t2 - t1, 3))
+    log(f"{name}: VDM {n}^2 x {m.phi} phi x {m.theta} theta x {len(sampling.curvatures)} curvatures "
+        f"[{lo:.3g}, {hi:.3g}], {rays:,} rays in {t1 - t0:.2f} s; SVD k = {k} (rank {comp.rank}) in {t2 - t1:.2f} s, "
+        f"{out['table_bytes'] / 2**20:.1f} MB -> {out['compressed_bytes'] / 2**20:.2f} MB")
+    return out

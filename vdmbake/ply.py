@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .meshes import TriMesh
+from .meshes import SurfaceFrame, TriMesh
 
 _TYPES = {"<f8": "double", "<f4": "float", "|u1": "uchar", "<i4": "int"}
 _DTYPES = {v: k for k, v in _TYPES.items()}
@@ -70,12 +70,17 @@ def to_bytes(mesh: TriMesh) -> bytes:
     fields = [(n, "<f8") for n in "xyz"] + [(n, "<f4") for n in ("nx", "ny", "nz")]
     if mesh.uvs is not None:
         fields += [("texture_u", "<f4"), ("texture_v", "<f4")]
+    if mesh.frame is not None:
+        fields += [(n, "<f4") for n in _FRAME_NAMES]
     v = np.zeros(len(mesh.vertices), fields)
     for k, name in enumerate("xyz"):
         v[name] = mesh.vertices[:, k]
         v["n" + name] = mesh.normals[:, k]
     if mesh.uvs is not None:
         v["texture_u"], v["texture_v"] = mesh.uvs[:, 0], mesh.uvs[:, 1]
+    if mesh.frame is not None:
+        for name, column in zip(_FRAME_NAMES, _frame_columns(mesh.frame)):
+            v[name] = column
     f = np.zeros(len(mesh.faces), _FACE)
     f["n"], f["vertex_indices"] = 3, mesh.faces
     return elements_to_bytes({"vertex": v, "face": f}, "vdmbake mesh")
@@ -87,8 +92,21 @@ def from_bytes(data: bytes, origin: str) -> TriMesh:
         raise InputError(f"{origin}: PLY file lacks vertex or face elements.")
     v, f = e["vertex"], e["face"]
     uvs = np.stack([v["texture_u"], v["texture_v"]], 1).astype(np.float64) if "texture_u" in v.dtype.names else None
+    frame = None
+    if set(_FRAME_NAMES) <= set(v.dtype.names):
+        col = {n: v[n].astype(np.float64) for n in _FRAME_NAMES}
+        vec = lambda p: np.stack([col[f"{p}_x"], col[f"{p}_y"], col[f"{p}_z"]], 1)  # noqa: E731
+        frame = SurfaceFrame(vec("dpdu"), vec("dpdv"), col["k1"], col["k2"], vec("d1"))
     return TriMesh(np.stack([v["x"], v["y"], v["z"]], 1), f["vertex_indices"].astype(np.int64),
-                   np.stack([v["nx"], v["ny"], v["nz"]], 1).astype(np.float64), uvs)
+                   np.stack([v["nx"], v["ny"], v["nz"]], 1).astype(np.float64), uvs, frame)
+
+
+# The surface frame (meshes.SurfaceFrame) as extra vertex properties, for VDM base meshes.
+_FRAME_NAMES = tuple(f"{p}_{a}" for p in ("dpdu", "dpdv") for a in "xyz") + ("k1", "k2", "d1_x", "d1_y", "d1_z")
+
+
+def _frame_columns(f: SurfaceFrame) -> list[np.ndarray]:
+    return [*f.dpdu.T, *f.dpdv.T, f.k1, f.k2, *f.d1.T]
 
 
 def write(path: Path, mesh: TriMesh) -> None:

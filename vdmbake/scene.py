@@ -15,6 +15,7 @@ from typing import Callable
 from pathlib import Path
 
 from .errors import InputError
+from .heightfields import PATTERNS, SKIMAGE_PHOTOS
 from .molecules import STYLES
 
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
@@ -40,6 +41,11 @@ class TechniqueSpec:
     kinds: tuple[str, ...]                 # object kinds it draws: "surface" (mesh, primitive), "quadrics"
     knob: Knob | None = None
     options: tuple[tuple[str, float, float, float], ...] = ()   # scalar options: (name, default, lo, hi)
+    mesostructure: bool = False            # draws the object's [objects.mesostructure] (which it then needs)
+
+
+def _int_in(lo: int, hi: int) -> Callable[[object], bool]:
+    return lambda x: isinstance(x, int) and not isinstance(x, bool) and lo <= x <= hi
 
 
 TECHNIQUES: dict[str, TechniqueSpec] = {
@@ -55,9 +61,22 @@ TECHNIQUES: dict[str, TechniqueSpec] = {
                                                    "'direct', 'deferred', 'outlines'"),
                               (("silhouette", 1.0, 0.0, 100.0), ("crease", 1.0, 0.0, 100.0))),
     # instanced tessellated spheres (icosphere subdivision level) and cylinders (4 * 2^level sides)
-    "tessellated": TechniqueSpec(("quadrics",), Knob("levels", "level", (0, 1, 2, 3),
-                                                      lambda x: isinstance(x, int) and not isinstance(x, bool)
-                                                      and 0 <= x <= 6, "integers in [0, 6]")),
+    "tessellated": TechniqueSpec(("quadrics",), Knob("levels", "level", (0, 1, 2, 3), _int_in(0, 6),
+                                                      "integers in [0, 6]")),
+    # view-dependent displacement mapping (Wang et al. 2003) reconstructed from k eigenfunctions of the
+    # SVD; "all" keeps every one (the uncompressed table, up to float32 rounding)
+    "vdm": TechniqueSpec(("surface",), Knob("k", "k", (1, 2, 4, 8), lambda x: x == "all" or _int_in(1, 256)(x),
+                                            "integers in [1, 256] or 'all'"), mesostructure=True),
+    # the base mesh with the mesostructure's normals only (Blinn 1978)
+    "bump": TechniqueSpec(("surface",), mesostructure=True),
+    # parallax occlusion mapping: a linear search of this many steps plus one secant step, and the same
+    # search towards the light for shadows
+    "pom": TechniqueSpec(("surface",), Knob("steps", "steps", (8, 16, 32), _int_in(2, 1024),
+                                            "integers in [2, 1024]"), mesostructure=True),
+    # conventional displacement mapping: the base mesh subdivided this many times (4^level faces per
+    # face), displaced, rasterised
+    "displaced": TechniqueSpec(("surface",), Knob("levels", "level", (1, 2, 3), _int_in(0, 8),
+                                                  "integers in [0, 8]"), mesostructure=True),
 }
 
 # Built-in primitives -> parameters with their defaults (all lengths in scene units).
@@ -127,6 +146,20 @@ class Transform:
 
 
 @dataclass(frozen=True)
+class Mesostructure:
+    """Detail geometry over a surface object's UVs (VDM, sec. 3): a height field tiled `tiling` times
+    over the UV square, lying inward of the surface, `depth` deep in tile units (a tile spans 1 x 1);
+    the VDM tables sample it `size`^2 texels x `phi` x `theta` views x `curvatures`."""
+    height: str                                  # a pattern (PATTERNS), skimage:NAME, or a PNG/EXR path
+    size: int = 128
+    depth: float = 0.05
+    tiling: tuple[float, float] = (1.0, 1.0)
+    phi: int = 32
+    theta: int = 8
+    curvatures: int = 16
+
+
+@dataclass(frozen=True)
 class Object:
     name: str
     mesh: str | None                 # a file trimesh reads, relative to the scene, or pkg:PACKAGE/PATH
@@ -139,6 +172,7 @@ class Object:
     transform: Transform
     material: Material
     techniques: dict                  # technique -> options, defaults filled in, in scene order
+    mesostructure: Mesostructure | None = None
 
     @property
     def kind(self) -> str:
@@ -356,10 +390,30 @@ def _object(t: _Table, default_material: Material) -> Object:
                           tr.vector("translate", Transform.translate))
     tr.done()
     material = _material(t.table("material"), default_material)
-    techniques = _techniques(t.table("techniques"), name, _kind(mesh, primitive))
+    meso = _mesostructure(t) if t.has("mesostructure") else None
+    if meso and not (mesh or primitive):
+        t._fail("mesostructure", t.data["mesostructure"], "a mesostructure only on mesh or primitive objects")
+    techniques = _techniques(t.table("techniques"), name, _kind(mesh, primitive), meso is not None)
     t.done()
     return Object(name, mesh, primitive, params, molecule, style, spheres, cylinders, transform, material,
-                  techniques)
+                  techniques, meso)
+
+
+def _mesostructure(parent: _Table) -> Mesostructure:
+    t, d = parent.table("mesostructure"), Mesostructure("")
+    height = t.raw("height")
+    if not isinstance(height, str) or not height:
+        t._fail("height", height, f"a pattern ({', '.join(PATTERNS)}), skimage:NAME ({', '.join(SKIMAGE_PHOTOS)}) "
+                "or a PNG/EXR path (relative to the scene, or pkg:PACKAGE/PATH)")
+    m = Mesostructure(height=height,
+                      size=t.number("size", d.size, 4, 1024, integer=True),
+                      depth=t.number("depth", d.depth, 0.0, 1.0),
+                      tiling=t.vector("tiling", d.tiling, n=2, lo=1e-3, hi=1e4),
+                      phi=t.number("phi", d.phi, 1, 256, integer=True),
+                      theta=t.number("theta", d.theta, 1, 64, integer=True),
+                      curvatures=t.number("curvatures", d.curvatures, 1, 64, integer=True))
+    t.done()
+    return m
 
 
 def _kind(mesh, primitive) -> str:
@@ -387,7 +441,7 @@ def _rows(t: _Table, key: str, n: int, shape: str) -> tuple:
     return tuple(tuple(float(x) for x in r) for r in rows)
 
 
-def _techniques(t: _Table, name: str, kind: str) -> dict:
+def _techniques(t: _Table, name: str, kind: str, has_meso: bool) -> dict:
     fitting = [k for k, spec in TECHNIQUES.items() if kind in spec.kinds]
     if not t.data:
         raise InputError(f"{t.origin}: object {name!r} has no [{t.where}]; name at least one of "
@@ -401,6 +455,10 @@ def _techniques(t: _Table, name: str, kind: str) -> dict:
         if kind not in spec.kinds:
             raise InputError(f"{t.origin}: technique '{tech}' in [{t.where}] does not draw {kind} objects "
                              f"like {name!r}; techniques for them: {', '.join(fitting)}.")
+        if spec.mesostructure and not has_meso:
+            raise InputError(f"{t.origin}: technique '{tech}' in [{t.where}] draws a mesostructure, but object "
+                             f"{name!r} has none; add [objects.mesostructure] with height = PATTERN or PATH "
+                             f"(patterns: {', '.join(PATTERNS)}).")
         opts = t.table(tech)
         out[tech] = {}
         if spec.knob:

@@ -72,6 +72,17 @@ def mesostructure_mesh(heights: np.ndarray, depth: float, pad: int) -> tuple[np.
     return v, f
 
 
+def height_normals(heights: np.ndarray, depth: float) -> np.ndarray:
+    """(N, N, 3) texture-space unit normals of the mesostructure mesh at its vertices (the texel
+    centres), area-weighted over the six incident triangles: the shading normals of every
+    mesostructure technique, and what the displaced reference's vertex normals converge to."""
+    from .meshes import vertex_normals
+
+    n = heights.shape[0]
+    v, f = mesostructure_mesh(heights, depth, 1)
+    return vertex_normals(v, f).reshape(n + 2, n + 2, 3)[1:-1, 1:-1]
+
+
 def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RayScene | None = None):
     """Zero-curvature VDM by ray casting (sec. 3.1): (N, N, n_phi, n_theta) float32 distances,
     the ray count, and the Embree scene (reusable). Rows are y, columns x (image order)."""
@@ -110,20 +121,23 @@ def bend(s: np.ndarray, h: np.ndarray, c: float) -> tuple[np.ndarray, np.ndarray
 CHUNK_ROWS = 8192  # rows (x, y, phi) per block: the (rows, theta, sample) temporaries stay in cache
 
 
-def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float) -> np.ndarray:
+def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
     """vdm_curved_rows over cache-sized blocks of rows (see there)."""
     rows = d_flat.reshape(-1, d_flat.shape[-1])
     out = np.empty(rows.shape, np.float32)
+    horizon = np.empty(len(rows), np.float32)
     for s in range(0, len(rows), CHUNK_ROWS):
-        out[s:s + CHUNK_ROWS] = vdm_curved_rows(rows[s:s + CHUNK_ROWS], sampling, c)
-    return out.reshape(d_flat.shape)
+        out[s:s + CHUNK_ROWS], horizon[s:s + CHUNK_ROWS] = vdm_curved_rows(rows[s:s + CHUNK_ROWS], sampling, c)
+    return out.reshape(d_flat.shape), horizon.reshape(d_flat.shape[:-1])
 
 
-def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> np.ndarray:
+def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
     """The Appendix's curvature resampling: bend the zero-curvature hit points to curvature c,
     take their new viewing angles theta', drop those that became occluded (theta' not above
     every earlier one), resample linearly at the uniform thetas; -1 past the last hit on a
-    convex surface (the ray leaves it). Values are the extended d = l / sin(theta)."""
+    convex surface (the ray leaves it). Values are the extended d = l / sin(theta).
+    Also returns each row's horizon: the largest theta' of a kept hit (at most pi / 2, 0 if
+    none), the exact edge of the valid range that the uniform samples only bracket."""
     th = sampling.thetas
     valid = d_flat >= 0
     dd = np.where(valid, d_flat, 0.0).astype(np.float64)
@@ -163,7 +177,8 @@ def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> np.ndar
     r = np.where(has_lo & has_hi, v0 + w * (v1 - v0), np.where(has_hi, v1, v0))  # clamp outside the samples
     if c > 0:                                    # convex: past the last hit the ray leaves the surface
         r = np.where(has_hi, r, -1.0)
-    return np.where(has_lo | has_hi, r, -1.0).astype(np.float32)
+    horizon = np.minimum(np.where(keep, th_new, 0.0).max(-1), np.float32(np.pi / 2))
+    return np.where(has_lo | has_hi, r, -1.0).astype(np.float32), horizon
 
 
 def vdm_exact(heights: np.ndarray, depth: float, sampling: Sampling, c: float) -> np.ndarray:
@@ -206,12 +221,18 @@ def vdm_exact(heights: np.ndarray, depth: float, sampling: Sampling, c: float) -
     return out
 
 
-def mvm(vdm: np.ndarray, sampling: Sampling) -> np.ndarray:
-    """Maximal View polar angle Map (sec. 3.3): theta_MVM(x, y, phi, c) = the largest sampled theta
-    with d != -1 (0 where none). vdm: (N, N, n_phi, n_theta, n_c) -> (N, N, n_phi, n_c)."""
+def mvm(vdm: np.ndarray, sampling: Sampling, horizons: dict | None = None) -> np.ndarray:
+    """Maximal View polar angle Map (sec. 3.3): theta_MVM(x, y, phi, c), the largest theta with
+    d != -1. The uniform samples only bracket it: the upper edge of the last valid sample's bin
+    is taken (pi / 2 where every sample is valid, so a flat or concave patch never clips grazing
+    views; 0 where none is), or, for the convex curvatures in `horizons` (c index -> (N, N, n_phi)
+    from vdm_curved), the exact angle of the last visible hit. (N, N, n_phi, n_theta, n_c) -> (N, N, n_phi, n_c)."""
     ok = vdm >= 0
-    th = sampling.thetas[None, None, None, :, None]
-    return np.where(ok, th, 0.0).max(axis=3).astype(np.float32)
+    edge = sampling.thetas + 0.25 * np.pi / sampling.n_theta
+    out = np.where(ok, edge[None, None, None, :, None], 0.0).max(axis=3).astype(np.float32)
+    for i, h in (horizons or {}).items():
+        out[..., i] = np.where(ok[..., i].any(-1), h, 0.0)
+    return out
 
 
 @dataclass
@@ -219,16 +240,24 @@ class Compressed:
     W: np.ndarray        # (N, N, n_phi, k) weights of the eigenfunctions
     E_vdm: np.ndarray    # (k, n_theta, n_c)
     E_mvm: np.ndarray    # (k, n_c)
+    rank: int            # numerical rank of A (k is capped at it)
+    errors: dict         # k -> Truncation, for k itself and every k asked for in `report`
+
+
+@dataclass
+class Truncation:
     energy: float        # fraction of sum(sigma^2) kept
     rms_vdm: float       # reconstruction RMS of d over the valid entries (texture units)
     rms_mvm: float       # reconstruction RMS of theta_MVM (radians)
-    max_abs_vdm: float
+    max_abs_vdm: float   # largest |error| of d over the valid entries
 
 
-def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int) -> Compressed:
+def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int, report=()) -> Compressed:
     """SVD of A = [A_VDM, A_MVM] (sec. 3.3): rows (x, y, phi), columns (theta, c) then (c); the -1
     entries of A_VDM are replaced by the MVM angle first. Computed from the Gram matrix A^T A
-    (columns are few), float64; W = A E. k is capped at the matrix rank."""
+    (columns are few), float64; W = A E. k is capped at the matrix rank; the reconstruction
+    error is measured for k and for every smaller k in `report` (the first k columns of E are
+    the best rank-k approximation, so one decomposition serves them all)."""
     n, _, n_phi, n_theta, n_c = vdm.shape
     rows, cols = n * n * n_phi, n_theta * n_c
     A = np.empty((rows, cols + n_c), np.float32)          # built in place: the tables are large
@@ -244,21 +273,23 @@ def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int) -> Compressed:
     k = max(1, min(k, rank if rank else 1))
     E = E[:, :k].astype(np.float32)
     W = A @ E
-    err = W @ E.T
-    err -= A
-    err_vdm = err[:, :cols].reshape(rows, n_theta, n_c)
-    err_vdm[invalid] = 0.0                                # the -1 entries are the MVM's business
+    invalid = invalid.reshape(rows, cols)
     valid = invalid.size - np.count_nonzero(invalid)
     total = sigma2.sum()
-    return Compressed(
-        W=W.reshape(n, n, n_phi, k),
-        E_vdm=E[:cols].T.reshape(k, n_theta, n_c).copy(),
-        E_mvm=E[cols:].T.copy(),
-        energy=float(sigma2[:k].sum() / total) if total > 0 else 1.0,
-        rms_vdm=float(np.sqrt(np.einsum("ij,ij->", err[:, :cols], err[:, :cols], dtype=np.float64) / valid))
-        if valid else 0.0,
-        rms_mvm=float(np.sqrt(np.mean(err[:, cols:].astype(np.float64) ** 2))),
-        max_abs_vdm=float(np.abs(err[:, :cols]).max()) if valid else 0.0)
+    errors = {}
+    for kk in sorted({min(max(1, int(r)), k) for r in report} | {k}):
+        err = W[:, :kk] @ E[:, :kk].T
+        err -= A
+        err_vdm = err[:, :cols]
+        err_vdm[invalid] = 0.0                            # the -1 entries are the MVM's business
+        errors[kk] = Truncation(
+            energy=float(sigma2[:kk].sum() / total) if total > 0 else 1.0,
+            rms_vdm=float(np.sqrt(np.einsum("ij,ij->", err_vdm, err_vdm, dtype=np.float64) / valid)) if valid else 0.0,
+            rms_mvm=float(np.sqrt(np.mean(err[:, cols:].astype(np.float64) ** 2))),
+            max_abs_vdm=float(np.abs(err_vdm).max()) if valid else 0.0)
+        del err, err_vdm
+    return Compressed(W=W.reshape(n, n, n_phi, k), E_vdm=E[:cols].T.reshape(k, n_theta, n_c).copy(),
+                      E_mvm=E[cols:].T.copy(), rank=rank, errors=errors)
 
 
 def bake_tables(heights: np.ndarray, depth: float, sampling: Sampling) -> tuple[np.ndarray, np.ndarray, int]:
@@ -268,6 +299,8 @@ def bake_tables(heights: np.ndarray, depth: float, sampling: Sampling) -> tuple[
 
     flat, rays, _ = vdm_flat(heights, depth, sampling)
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        slices = list(pool.map(lambda c: flat if c == 0 else vdm_curved(flat, sampling, c), sampling.curvatures))
-    table = np.stack(slices, -1)
-    return table, mvm(table, sampling), rays
+        slices = list(pool.map(lambda c: (flat, None) if c == 0 else vdm_curved(flat, sampling, c),
+                               sampling.curvatures))
+    table = np.stack([t for t, _ in slices], -1)
+    horizons = {i: h for i, ((_, h), c) in enumerate(zip(slices, sampling.curvatures)) if c > 0}
+    return table, mvm(table, sampling, horizons), rays

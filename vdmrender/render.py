@@ -21,7 +21,7 @@ from vdmbake.scene import TECHNIQUES, parse_scene_dict
 from . import gl, images, reference, report
 from .camera import cameras_for
 from .metrics import compare
-from .techniques import variants
+from .techniques import mesostructure, variants
 
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
 # (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
@@ -49,8 +49,8 @@ def check_memory(width: int, height: int, available: int | None = None) -> None:
                          "or --resolution.")
 
 
-def _reference_key(mesh_sha: str, cams, light, material, background) -> str:
-    blob = {"version": reference.VERSION, "mesh": mesh_sha, "light": asdict(light), "material": asdict(material),
+def _reference_key(geometry: dict, cams, light, material, background) -> str:
+    blob = {"version": reference.VERSION, "geometry": geometry, "light": asdict(light), "material": asdict(material),
             "background": list(background),
             "cameras": [[c.eye.tolist(), c.target.tolist(), c.up.tolist(), c.fov_deg, c.width, c.height,
                          c.near, c.far] for c in cams]}
@@ -61,8 +61,11 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     """The reference frames (linear RGBA float32), traced or taken from the previous run's cache."""
     folder = f"reference/{obj.name}"
     part = entry.get("mesh") or entry["quadrics"]
-    key = _reference_key(bundle.manifest["parts"][part]["sha256"], cams, scene.light, obj.material,
-                         scene.render.background)
+    geometry = {"part": bundle.manifest["parts"][part]["sha256"]}
+    if obj.mesostructure:   # the truly displaced geometry: the base mesh, the heights and how they are mapped
+        geometry.update(height=bundle.manifest["parts"][entry["mesostructure"]["height"]]["sha256"],
+                        mesostructure=asdict(obj.mesostructure))
+    key = _reference_key(geometry, cams, scene.light, obj.material, scene.render.background)
     prev_key = out.previous(f"{folder}/key.txt")
     names = [f"{folder}/{k:03d}" for k in range(len(cams))]
     if prev_key.is_file() and prev_key.read_text().strip() == key and all(
@@ -71,8 +74,12 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
         info = {"cached": True, "trace_s": 0.0}
     else:
         t0 = time.perf_counter()
-        ref = (reference.MeshReference(bundle.mesh(part), scene.light, obj.material) if obj.kind == "surface"
-               else reference.QuadricReference(bundle.quadrics(part), scene.light, obj.material))
+        if obj.mesostructure:
+            ref = reference.MeshReference(mesostructure.displaced_mesh(bundle, obj, entry), scene.light, obj.material)
+        elif obj.kind == "surface":
+            ref = reference.MeshReference(bundle.mesh(part), scene.light, obj.material)
+        else:
+            ref = reference.QuadricReference(bundle.quadrics(part), scene.light, obj.material)
         frames = [ref.render(c) for c in cams]
         info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
     for n, f in zip(names, frames):

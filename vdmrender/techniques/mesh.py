@@ -10,8 +10,8 @@ from .shadowmap import ShadowMap, translation
 
 class RasterPasses:
     """Triangle meshes drawn in two passes per frame: the shadow map (depth.frag, with polygon
-    offset), then the shaded frame (mesh.frag). Subclasses fill `draws` with
-    (fragment stage, program, vertex array, instances) for both stages."""
+    offset), then the shaded frame (mesh.frag, or a subclass's fragment stage, whose extra
+    uniforms and textures `bind_frame` sets). Subclasses fill `draws` through `add`."""
 
     POLYGON_OFFSET = (2.0, 2.0)   # slope-scaled and constant depth bias of the shadow-map pass
 
@@ -21,12 +21,20 @@ class RasterPasses:
         self.buffers, self.draws = [], []
 
     def add(self, vertex: str, defines: tuple, buffers: list, attributes: list, depth_attributes: list,
-            index, instances: int = 1) -> None:
-        """One draw in both passes; the depth pass reads only `depth_attributes`."""
+            index, instances: int = 1, frag: str = "mesh.frag", depth_vertex: str | None = None,
+            optional: bool = False) -> None:
+        """One draw in both passes; the depth pass reads only `depth_attributes` (through
+        `depth_vertex` if given). optional: attributes the fragment stage does not read may be
+        compiled away (one vertex layout serves several fragment stages)."""
         self.buffers += buffers
-        for frag, attrs in (("mesh.frag", attributes), ("depth.frag", depth_attributes)):
-            prog = gl.program(self.ctx, vertex, frag, defines)
-            self.draws.append((frag, prog, self.ctx.vertex_array(prog, attrs, index), instances))
+        for stage, vert, fs, attrs in (("frame", vertex, frag, attributes),
+                                       ("shadow", depth_vertex or vertex, "depth.frag", depth_attributes)):
+            prog = gl.program(self.ctx, vert, fs, defines)
+            vao = self.ctx.vertex_array(prog, attrs, index, skip_errors=optional and stage == "frame")
+            self.draws.append((stage, prog, vao, instances))
+
+    def bind_frame(self, prog, camera) -> None:
+        """Extra uniforms and textures of the frame pass (none for plain meshes)."""
 
     def render(self, camera, target) -> None:
         ctx = self.ctx
@@ -34,18 +42,19 @@ class RasterPasses:
         ctx.disable(moderngl.CULL_FACE)
         self.shadow.begin()
         ctx.polygon_offset = self.POLYGON_OFFSET
-        for frag, prog, vao, n in self.draws:
-            if frag == "depth.frag":
+        for stage, prog, vao, n in self.draws:
+            if stage == "shadow":
                 gl.set_uniforms(prog, u_mvp=self.shadow.view_proj)
                 vao.render(instances=n)
         ctx.polygon_offset = (0.0, 0.0)
         target.begin()
         mvp = camera.projection() @ camera.view() @ translation(self.anchor)
-        for frag, prog, vao, n in self.draws:
-            if frag == "mesh.frag":
+        for stage, prog, vao, n in self.draws:
+            if stage == "frame":
                 gl.set_shading(prog, self.light, self.material)
                 gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(camera.eye - self.anchor))
                 self.shadow.bind(prog)
+                self.bind_frame(prog, camera)
                 vao.render(instances=n)
 
     def release(self) -> None:

@@ -1,0 +1,78 @@
+// Mesostructure texture space per pixel (VDM sec. 3.2), the GLSL twin of vdmbake/texspace.py.
+// A tile spans 1 x 1 texture units; the mesostructure lies u_depth (texture units) below the
+// reference surface. Near the pixel, texture space maps to world space by M = [J | s_n N].
+uniform vec2 u_tiling;          // tiles over the UV square
+uniform float u_depth;          // mesostructure depth, texture units
+uniform sampler2D u_height;     // heights in [0, 1] (1 = reference surface), repeat, mip-mapped
+uniform sampler2D u_normals;    // texture-space unit normals of the mesostructure, repeat, mip-mapped
+uniform mat4 u_mvp;
+
+in vec3 v_pos;
+in vec3 v_normal;
+in vec2 v_uv;
+in vec3 v_dpdu;
+in vec3 v_dpdv;
+in vec2 v_curv;
+in vec3 v_d1;
+
+struct Frame {
+    vec3 N;        // unit normal
+    vec3 Ju, Jv;   // world length per tile along u and v, in the tangent plane
+    vec3 Iu, Iv;   // rows of J+ = (J^T J)^-1 J^T: world tangent vector -> texture units
+    float sn;      // world length of one texture unit of depth
+    vec3 d1, d2;   // principal directions, re-orthonormalised against N
+};
+
+// The interpolated frame, re-orthonormalised (interpolation shortens and tilts the vectors).
+// A degenerate map (e.g. at a pole, J^T J singular) keeps finite values through the clamped determinant.
+Frame surface_frame(vec3 N) {
+    Frame F;
+    F.N = N;
+    F.Ju = (v_dpdu - dot(v_dpdu, N) * N) / u_tiling.x;
+    F.Jv = (v_dpdv - dot(v_dpdv, N) * N) / u_tiling.y;
+    float a = dot(F.Ju, F.Ju), b = dot(F.Ju, F.Jv), c = dot(F.Jv, F.Jv);
+    float det = max(a * c - b * b, 1e-12 * (a + c) * (a + c) + 1e-30);
+    F.Iu = (c * F.Ju - b * F.Jv) / det;
+    F.Iv = (a * F.Jv - b * F.Ju) / det;
+    F.sn = sqrt(sqrt(det));
+    vec3 d1 = v_d1 - dot(v_d1, N) * N;
+    F.d1 = dot(d1, d1) > 1e-12 ? normalize(d1) : normalize(F.Ju + 1e-30);
+    F.d2 = cross(N, F.d1);
+    return F;
+}
+
+// A world direction in texture space, unit length (z along the normal).
+vec3 to_texture(Frame F, vec3 w) {
+    return normalize(vec3(dot(F.Iu, w), dot(F.Iv, w), dot(F.N, w) / F.sn));
+}
+
+// World length of a texture-space vector t (the affine map M applied to it).
+float world_length(Frame F, vec3 t) {
+    return length(F.Ju * t.x + F.Jv * t.y + F.N * (F.sn * t.z));
+}
+
+// Curvature in texture units along the texture direction of t (c(e) = II(J e, J e) / s_n, Euler's
+// formula): the paper's c_V without its 0/0 at V = N, where any direction will do.
+float texture_curvature(Frame F, vec3 t) {
+    float l = length(t.xy);
+    vec2 e = l > 1e-6 ? t.xy / l : vec2(1.0, 0.0);
+    vec3 x = F.Ju * e.x + F.Jv * e.y;
+    float a = dot(x, F.d1), b = dot(x, F.d2);
+    return (v_curv.x * a * a + v_curv.y * b * b) / F.sn;
+}
+
+// A texture-space normal (from u_normals) in world space: M^-T n.
+vec3 world_normal(Frame F, vec3 n) {
+    return normalize(F.Iu * n.x + F.Iv * n.y + F.N * (n.z / F.sn));
+}
+
+// Depth below the reference surface at tile coordinate T, texture units.
+float depth_at(vec2 T, vec2 dx, vec2 dy) {
+    return u_depth * (1.0 - textureGrad(u_height, T, dx, dy).r);
+}
+
+// Window-space depth of an anchor-relative point, for gl_FragDepth.
+float window_depth(vec3 p) {
+    vec4 c = u_mvp * vec4(p, 1.0);
+    return clamp(0.5 + 0.5 * c.z / c.w, 0.0, 1.0);
+}
