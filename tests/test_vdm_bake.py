@@ -109,3 +109,22 @@ def test_curvature_samples():
     assert vdm.curvature_samples(0.0, 0.0, 16) == (0.0,)
     c = vdm.curvature_samples(-2.0, 3.0, 16)
     assert len(c) == 16 and c[0] == -2.0 and c[-1] == 3.0
+
+
+def test_bench_quick_smoke(tmp_path):
+    """make bench's VDM script runs end to end (small tables, bricks on a torus at 96x96) and writes its report."""
+    import json
+
+    from click.testing import CliRunner
+
+    from vdmrender.bench_vdm import main as bench_main
+
+    r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
+    assert r.exit_code == 0, r.output
+    report = json.loads((tmp_path / "vdm.json").read_text())
+    labels = {row["label"] for row in report["rows"]}
+    assert {"vdm@1", "vdm@8", "vdm@all", "pom@16", "bump", "displaced@1", "mesh"} <= labels
+    assert all(row["nonfinite"] == 0 for row in report["rows"])
+    paper = report["paper_bake"]
+    assert paper["rays"] == 32 * 32 * 8 * 8 and paper["compressed"]["all"]["rms_vdm"] < 1e-4
+    assert (tmp_path / "vdm.md").read_text().count("\n") > 20 and (tmp_path / "vdm.png").is_file()

@@ -83,6 +83,19 @@ def height_normals(heights: np.ndarray, depth: float) -> np.ndarray:
     return vertex_normals(v, f).reshape(n + 2, n + 2, 3)[1:-1, 1:-1]
 
 
+def flat_rays(sampling: Sampling, eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Origins and directions of the zero-curvature bake: for every texel centre (rows y, columns x)
+    and view (phi, theta), a ray along -V. Rays start eps above the reference surface (a ray
+    starting on a top texel could slip under the one-sided sheet); vdm_flat takes eps / cos(theta) off."""
+    n = sampling.size
+    c = (np.arange(n) + 0.5) / n
+    Y, X = np.meshgrid(c, c, indexing="ij")
+    origins = np.stack([X, Y, np.full_like(X, eps)], -1).reshape(-1, 1, 3)
+    dirs = -view_vectors(sampling.thetas, sampling.phis).reshape(1, -1, 3)
+    return (np.broadcast_to(origins, (n * n, dirs.shape[1], 3)).reshape(-1, 3),
+            np.broadcast_to(dirs, (n * n, dirs.shape[1], 3)).reshape(-1, 3))
+
+
 def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RayScene | None = None):
     """Zero-curvature VDM by ray casting (sec. 3.1): (N, N, n_phi, n_theta) float32 distances,
     the ray count, and the Embree scene (reusable). Rows are y, columns x (image order)."""
@@ -91,15 +104,8 @@ def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RaySc
         return np.zeros((n, n, sampling.n_phi, sampling.n_theta), np.float32), 0, scene
     if scene is None:
         scene = RayScene(*mesostructure_mesh(heights, depth, padding_texels(depth, sampling)))
-    # Rays start a hair above the reference surface (a ray starting on a top texel could slip
-    # under the one-sided sheet) and that extra length, eps / cos(theta), is taken off again.
     eps = 1e-4 * depth
-    c = (np.arange(n) + 0.5) / n
-    Y, X = np.meshgrid(c, c, indexing="ij")
-    origins = np.stack([X, Y, np.full_like(X, eps)], -1).reshape(-1, 1, 3)
-    dirs = -view_vectors(sampling.thetas, sampling.phis).reshape(1, -1, 3)
-    o = np.broadcast_to(origins, (n * n, dirs.shape[1], 3)).reshape(-1, 3)
-    d = np.broadcast_to(dirs, (n * n, dirs.shape[1], 3)).reshape(-1, 3)
+    o, d = flat_rays(sampling, eps)
     before = scene.rays_cast
     t = scene.distances(o, d).reshape(n, n, sampling.n_phi, sampling.n_theta)
     extra = (eps / np.cos(sampling.thetas)).astype(np.float32)

@@ -1,0 +1,172 @@
+"""make bench, VDM part: the measurements too slow for the tests, written to JSON and markdown, never asserted.
+
+1. The bake of the paper's configuration (Wang et al. 2003, sec. 4: 128^2 texels, 32 x 8 views,
+   16 curvatures in [-2, 3]): seconds per step, and the table bake's rays per second against raw
+   Embree on the same rays in the same run; sizes raw and compressed, and the error each k adds.
+2. Error against time on a torus and a vase with brick and gravel heights at 512^2: VDM at several
+   k and uncompressed, POM at several step counts, bump mapping, displacement mapping at several
+   subdivision levels, and the plain base mesh, against the displaced geometry traced by Embree.
+
+    python -m vdmrender.bench_vdm -o out/bench [--quick]
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+
+from vdmbake import heightfields, vdm
+from vdmbake.bake import bake
+
+from .render import Options, run
+
+# (name, primitive, params, tiling): tilings keep a tile about as long as it is wide
+SURFACES = [("torus", "torus", "{ segments = 256, rings = 64 }", (16, 4)),
+            ("vase", "vase", "{ segments = 128, rings = 128 }", (8, 6))]
+HEIGHTS = [("bricks", "bricks"), ("gravel", "skimage:gravel")]
+
+SCENE = """
+[render]
+resolution = [{w}, {h}]
+repeats = 3
+warmup = 1
+[camera]
+orbit = {{ count = 2, elevation_deg = 30, azimuth_deg = 30, distance = 2.4, fov_deg = 40 }}
+[[objects]]
+name = "{name}"
+primitive = "{primitive}"
+params = {params}
+mesostructure = {{ height = "{height}", size = {size}, depth = 0.06, tiling = [{tu}, {tv}], phi = {phi}, theta = 8, curvatures = {n_c} }}
+techniques = {{ vdm = {{ k = [1, 2, 4, 8, "all"] }}, pom = {{ steps = [8, 16, 32] }}, bump = {{}}, displaced = {{ levels = {levels} }}, mesh = {{}} }}
+"""
+
+
+def paper_bake(size: int, n_phi: int, n_c: int) -> dict:
+    """The paper's configuration on the bricks pattern; raw Embree timed on the same rays."""
+    h = heightfields.pattern("bricks", size)
+    depth = 0.06
+    s = vdm.Sampling(size, n_phi, 8, vdm.curvature_samples(-2.0, 3.0, n_c))
+    t0 = time.perf_counter()
+    flat, rays, scene = vdm.vdm_flat(h, depth, s)
+    t1 = time.perf_counter()
+    o, d = vdm.flat_rays(s, 1e-4 * depth)
+    o, d = np.ascontiguousarray(o), np.ascontiguousarray(d)
+    t2 = time.perf_counter()
+    scene.distances(o, d)                       # raw Embree: the same rays, nothing else
+    t3 = time.perf_counter()
+    t4 = time.perf_counter()
+    table, theta_mvm, _ = vdm.bake_tables(h, depth, s)
+    t5 = time.perf_counter()
+    ks = (1, 2, 4, 8, 16)
+    comp = vdm.compress(table, theta_mvm, 10_000, report=ks)
+    t6 = time.perf_counter()
+    n_cols = s.n_theta * n_c
+    per_k = {}
+    for k, e in comp.errors.items():
+        weights = size * size * n_phi * k * 4
+        per_k[str(k) if k in ks else "all"] = {"k": k, "bytes": weights + (n_cols + n_c) * k * 4, **e.__dict__}
+    return {"size": size, "n_phi": n_phi, "n_theta": 8, "curvatures": n_c, "depth": depth, "rays": rays,
+            "flat_s": round(t1 - t0, 3), "raw_embree_s": round(t3 - t2, 3),
+            "flat_mrays_per_s": round(rays / (t1 - t0) / 1e6, 3), "raw_mrays_per_s": round(rays / (t3 - t2) / 1e6, 3),
+            "throughput_ratio": round((t3 - t2) / (t1 - t0), 3),
+            "tables_s": round(t5 - t4, 3), "svd_s": round(t6 - t5, 3), "bake_s": round(t6 - t4, 3),
+            "rank": comp.rank, "raw_bytes": table.nbytes + theta_mvm.nbytes, "compressed": per_k}
+
+
+def _scene_rows(out: Path, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c, levels) -> list[dict]:
+    tag = f"{name}-{hname}"
+    scene = out / "scenes" / f"vdm-{tag}.toml"
+    scene.parent.mkdir(parents=True, exist_ok=True)
+    scene.write_text(SCENE.format(w=w, h=h, name=tag, primitive=primitive, params=params, height=height, size=size,
+                                  tu=tiling[0], tv=tiling[1], phi=n_phi, n_c=n_c, levels=list(levels)))
+    bundle = out / "bundles" / f"vdm-{tag}.bundle"
+    t0 = time.perf_counter()
+    stats = bake(scene, bundle, force=True)
+    bake_s = time.perf_counter() - t0
+    result = run(bundle, out / "renders" / f"vdm-{tag}", Options())
+    meso = json.loads((bundle / "manifest.json").read_text())["objects"][tag]["mesostructure"]
+    return [{**r, "surface": name, "height": hname, "bake_s": round(bake_s, 3), "bundle_bytes": stats["bytes"],
+             "curvature_range": [meso["curvatures"][0], meso["curvatures"][-1]]} for r in result["rows"]]
+
+
+def _markdown(paper: dict, rows: list[dict], device: str) -> str:
+    p = paper
+    lines = [f"# VDM benchmark ({device})", "",
+             f"## Bake, the paper's configuration ({p['size']}^2, {p['n_phi']} x {p['n_theta']} views, "
+             f"{p['curvatures']} curvatures in [-2, 3], bricks)", "",
+             f"- total {p['bake_s']:.2f} s: tables {p['tables_s']:.2f} s, SVD {p['svd_s']:.2f} s",
+             f"- zero-curvature ray cast: {p['rays']:,} rays in {p['flat_s']:.2f} s = {p['flat_mrays_per_s']:.2f} Mrays/s; "
+             f"raw Embree on the same rays {p['raw_mrays_per_s']:.2f} Mrays/s (ratio {p['throughput_ratio']:.2f})",
+             f"- raw tables (VDM + MVM, float32): {p['raw_bytes'] / 2**20:.1f} MB; rank {p['rank']}", "",
+             "| k | size MB | energy kept | RMS d (texture units) | max abs d | RMS theta_MVM (rad) |",
+             "|---|---:|---:|---:|---:|---:|"]
+    for key, c in p["compressed"].items():
+        lines.append(f"| {key} ({c['k']}) | {c['bytes'] / 2**20:.2f} | {c['energy']:.5f} | {c['rms_vdm']:.4f} | "
+                     f"{c['max_abs_vdm']:.3f} | {c['rms_mvm']:.4f} |")
+    lines += ["", "## Error against time (mean ΔLuv against the displaced geometry traced by Embree)", "",
+              "| surface | height | variant | faces | median ms | ratio to mesh | mean ΔLuv | p95 | IoU |",
+              "|---|---|---|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['surface']} | {r['height']} | {r['label']} | {r['faces'] or ''} | {r['median_ms']:.1f} | "
+                     f"{r.get('ratio_to_baseline', 1.0):.2f} | {r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
+    return "\n".join(lines) + "\n"
+
+
+def _plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = list(dict.fromkeys((r["surface"], r["height"]) for r in rows))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(4.5 * len(scenes), 4.2), squeeze=False)
+    for ax, (surface, height) in zip(axes[0], scenes):
+        mine = [r for r in rows if (r["surface"], r["height"]) == (surface, height)]
+        for k, tech in enumerate(("vdm", "pom", "displaced", "bump", "mesh")):
+            pts = [(r["median_ms"], r["mean_dluv"], r["label"]) for r in mine if r["technique"] == tech]
+            if not pts:
+                continue
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", color=f"C{k}", label=tech)
+            for x, y, label in pts:
+                ax.annotate(label.split("@")[-1] if "@" in label else "", (x, y), fontsize=6,
+                            textcoords="offset points", xytext=(3, 3))
+        ax.set(xscale="log", xlabel="median ms per frame", ylabel="mean ΔLuv", title=f"{surface}, {height}")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"error against time, 512x512 ({rows[0]['device']})", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+@click.command()
+@click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
+@click.option("--quick", is_flag=True, help="Small tables, 96x96 frames, bricks on the torus only (a smoke run).")
+def main(out: Path, quick: bool):
+    """Run the VDM benchmark and write OUT/vdm.json, OUT/vdm.md and OUT/vdm.png."""
+    size, n_phi, n_c, (w, h) = (32, 8, 4, (96, 96)) if quick else (128, 32, 16, (512, 512))
+    paper = paper_bake(size, n_phi, n_c)
+    click.echo(f"paper configuration: {paper['bake_s']:.2f} s, {paper['flat_mrays_per_s']:.2f} Mrays/s "
+               f"(raw Embree {paper['raw_mrays_per_s']:.2f})", err=True)
+    rows = []
+    for name, primitive, params, tiling in SURFACES[:1] if quick else SURFACES:
+        for hname, height in HEIGHTS[:1] if quick else HEIGHTS:
+            for r in _scene_rows(out, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c,
+                                 (0, 1) if quick else (1, 2, 3)):
+                rows.append(r)
+                click.echo(f"{name:5} {hname:6} {r['label']:13} {r['median_ms']:9.1f} ms  dLuv {r['mean_dluv']:.3f}  "
+                           f"IoU {r['iou']:.4f}", err=True)
+    out.mkdir(parents=True, exist_ok=True)
+    device = rows[0]["device"]
+    (out / "vdm.json").write_text(json.dumps({"device": device, "resolution": [w, h], "paper_bake": paper,
+                                              "rows": rows}, indent=1) + "\n")
+    (out / "vdm.md").write_text(_markdown(paper, rows, device))
+    _plot(rows, out / "vdm.png")
+    click.echo(f"wrote {out / 'vdm.json'}, {out / 'vdm.md'}, {out / 'vdm.png'}")
+
+
+if __name__ == "__main__":
+    main()
