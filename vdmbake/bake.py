@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, coarse, heightfields, primitives, quadrics, texspace, vdm
+from . import __version__, coarse, curvature, heightfields, primitives, quadrics, texspace, vdm
 from .bundle import FORMAT_VERSION, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
@@ -111,6 +111,12 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
             + (f" (dropped without volume: {dropped})" if any(dropped.values()) else ""))
         return {"quadrics": rel, "centre": centre.tolist(), "radius": radius, **dropped}
     mesh = object_mesh(obj, base)
+    if obj.mesostructure:
+        if mesh.uvs is None:
+            raise InputError(f"object {obj.name!r}: a mesostructure needs a base mesh with texture coordinates "
+                             "(the built-in primitives have them; export a mesh file with UVs, e.g. OBJ vt).")
+        if mesh.frame is None:   # a mesh file, or a primitive under a non-uniform scale: estimated, world space
+            mesh.frame = curvature.estimate_frame(mesh.vertices, mesh.faces, mesh.normals, mesh.uvs)
     centre, radius = mesh.bounding_sphere()
     entry = {"mesh": writer.add_mesh(f"objects/{obj.name}/mesh.ply", mesh),
              "centre": centre.tolist(), "radius": radius}
@@ -129,9 +135,6 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
 def _bake_mesostructure(writer: BundleWriter, obj: Object, mesh: TriMesh, base: Path, log, steps: dict) -> dict:
     """The height field and, if `vdm` is rendered, the compressed VDM/MVM tables (sec. 3.1-3.3)."""
     m = obj.mesostructure
-    if mesh.uvs is None or mesh.frame is None:
-        raise InputError(f"object {obj.name!r}: a mesostructure needs a base mesh with UVs and a surface frame "
-                         "(the built-in primitives have both; a non-uniform scale drops the frame).")
     heights = heightfields.from_spec(m.height, m.size, base)
     name = obj.name
     out = {"height": writer.add_exr(f"objects/{name}/height.exr", {"height": {"h": heights.astype(np.float32)}},

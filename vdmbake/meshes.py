@@ -141,8 +141,14 @@ def load_mesh_file(path: Path) -> TriMesh:
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
     validate(TriMesh(vertices, faces, np.zeros_like(vertices)), str(path))
-    # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces.
+    # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces; vertices
+    # with different texture coordinates stay apart (UV seams), and the UVs are kept.
+    uv = getattr(getattr(loaded, "visual", None), "uv", None)
+    uv = np.asarray(uv, np.float64) if uv is not None and len(uv) == len(vertices) else None
     merged = trimesh.Trimesh(vertices, faces, process=False)
+    if uv is not None:
+        merged.visual = trimesh.visual.TextureVisuals(uv=uv)
     merged.merge_vertices()
     v, f = np.asarray(merged.vertices, np.float64), np.asarray(merged.faces, np.int64)
-    return TriMesh(v, f, vertex_normals(v, f))
+    uvs = np.asarray(merged.visual.uv, np.float64) if uv is not None else None
+    return TriMesh(v, f, vertex_normals(v, f), uvs)
