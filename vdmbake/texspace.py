@@ -44,14 +44,18 @@ def world_normals(J: np.ndarray, N: np.ndarray, n_tex: np.ndarray) -> np.ndarray
 
 def texture_curvature(frame: SurfaceFrame, normals: np.ndarray, tiling, e: np.ndarray) -> np.ndarray:
     """(V, D) curvature in texture units along the unit texture directions e (D, 2) at every vertex;
-    0 where the texture map is degenerate (s_n = 0, e.g. at a pole)."""
+    0 where the texture map is degenerate (e.g. at a pole)."""
     J = jacobian(frame, tiling)
     x = np.einsum("vij,dj->vdi", J, e)                       # world tangent vectors J e
     d2 = np.cross(normals, frame.d1)
     ii = frame.k1[:, None] * np.einsum("vdi,vi->vd", x, frame.d1) ** 2 \
         + frame.k2[:, None] * np.einsum("vdi,vi->vd", x, d2) ** 2
     s = normal_scale(J)[:, None]
-    return np.where(s > 0, ii / np.where(s > 0, s, 1.0), 0.0)
+    # A (nearly) singular map, e.g. a pole where dP/du vanishes, has no texture-space curvature; the
+    # same relative threshold as the GLSL twin's determinant clamp (|J_u x J_v|^2 vs (|J_u|^2 + |J_v|^2)^2).
+    scale2 = (np.einsum("vi,vi->v", J[..., 0], J[..., 0]) + np.einsum("vi,vi->v", J[..., 1], J[..., 1]))[:, None]
+    ok = s ** 4 > 1e-12 * scale2 ** 2
+    return np.where(ok, ii / np.where(ok, s, 1.0), 0.0)
 
 
 def curvature_range(frame: SurfaceFrame, normals: np.ndarray, tiling, directions: int = 64) -> tuple[float, float]:

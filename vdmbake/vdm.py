@@ -142,8 +142,8 @@ def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[n
     take their new viewing angles theta', drop those that became occluded (theta' not above
     every earlier one), resample linearly at the uniform thetas; -1 past the last hit on a
     convex surface (the ray leaves it). Values are the extended d = l / sin(theta).
-    Also returns each row's horizon: the largest theta' of a kept hit (at most pi / 2, 0 if
-    none), the exact edge of the valid range that the uniform samples only bracket."""
+    Also returns each row's horizon: the largest theta' of a kept hit (pi / 2 for a hit at the entry
+    point; 0 if none), the exact edge of the valid range that the uniform samples only bracket."""
     th = sampling.thetas
     valid = d_flat >= 0
     dd = np.where(valid, d_flat, 0.0).astype(np.float64)
@@ -182,8 +182,10 @@ def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[n
         w = np.where(has_lo & has_hi, (th32 - a0) / (a1 - a0), np.float32(0))
     r = np.where(has_lo & has_hi, v0 + w * (v1 - v0), np.where(has_hi, v1, v0))  # clamp outside the samples
     if c > 0:                                    # convex: past the last hit the ray leaves the surface
-        r = np.where(has_hi, r, -1.0)
-    horizon = np.minimum(np.where(keep, th_new, 0.0).max(-1), np.float32(np.pi / 2))
+        r = np.where(has_hi | (a0 >= th32), r, -1.0)
+    # A hit at the entry point (d = 0: the mesostructure touches the reference surface) is hit from every
+    # angle up to the horizon.
+    horizon = np.minimum(np.where(keep, np.where(dd > 0, th_new, np.pi / 2), 0.0).max(-1), np.float32(np.pi / 2))
     return np.where(has_lo | has_hi, r, -1.0).astype(np.float32), horizon
 
 

@@ -1,0 +1,227 @@
+"""Enhanced billboards, the render side (Vichitvejpaisal 2005, sec. 3.3, 3.4 and 4.1).
+
+Each billboard of the bake (vdmbake.billboards: origin, axes u v w, size, alpha, depth and normal
+maps) is drawn as its bounding box (one instance per billboard, back faces: shaders/billboard.vert);
+per pixel the ray is clipped to the box and marches the depth map as a height field
+(shaders/include/billboard.glsl), method "thesis" (100 fixed steps, hit range e, sec. 4.1) or
+"improved" (a step per texel crossed, sign change, refinement, alpha test). The hit is shaded with
+the shared model and writes its exact depth.
+
+Texture layout: all maps of a size in two texture arrays, one layer per billboard: RGBA32F normal
+(world, xyz) + depth (w), linear filtering, with empty texels padded from their covered neighbours
+(PAD rings) so that filtering at a map's silhouette stays on the surface; and R8 alpha, read per texel.
+
+Passes per frame: the shadow map, then the frame. The shadow map holds what the frame draws: the
+billboards ray-marched with the same method from the light's orthographic camera (gl_FragDepth), and
+the coarse mesh when there is one. The shadows thus carry the method's own errors and nothing of the
+full mesh, the fair comparison against the reference, which shadows by the full mesh.
+
+Hole filling (sec. 3.4): with a coarse mesh, it is drawn too (mesh.vert / mesh.frag) in both passes,
+depth-tested with the billboards, which win wherever they hit in front of it.
+
+Coordinates are anchor-relative (float64 on the CPU, float32 on the GPU), as in the other techniques.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import moderngl
+import numpy as np
+
+from vdmbake.errors import InputError
+
+from .. import gl
+from .mesh import RasterPasses
+from .shadowmap import ShadowMap, translation
+
+METHODS = ("thesis", "improved")
+NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels (as impostors)
+EXTRA = ()
+ALPHA_FILTER = moderngl.NEAREST
+PAD = 2                      # rings of empty texels padded around the covered ones (bilinear reaches 1)
+
+# The unit cube [0, 1]^3 as 12 triangles, counter-clockwise seen from outside.
+_CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], np.float32)
+_CUBE = _CORNERS[np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                           [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])].reshape(-1, 3)
+
+
+class Board(NamedTuple):
+    """One billboard as plain arrays (vdmbake.billboards.Billboard has the same fields)."""
+    origin: np.ndarray   # (3,) world corner of the box at texel (0, 0), depth 0
+    axes: np.ndarray     # (3, 3) rows u, v, w (w: the view direction into the model)
+    size: np.ndarray     # (3,) box extent along u, v, w
+    alpha: np.ndarray    # (R, R) coverage; [row, col] = texel (v, u)
+    depth: np.ndarray    # (R, R) in [0, 1] along w
+    normal: np.ndarray   # (R, R, 3) world unit normal
+
+
+def surface_points(b) -> np.ndarray:
+    """(covered texels, 3) world positions of a billboard's covered texel centres at their depth."""
+    res = b.alpha.shape[0]
+    i, j = np.nonzero(np.asarray(b.alpha) > 0.5)
+    s = np.stack([(j + 0.5) / res, (i + 0.5) / res, np.asarray(b.depth, np.float64)[i, j]], -1)
+    return np.asarray(b.origin, np.float64) + (s * np.asarray(b.size, np.float64)) @ np.asarray(b.axes, np.float64)
+
+
+def pad(values: np.ndarray, valid: np.ndarray, rings: int = PAD) -> np.ndarray:
+    """Empty texels within `rings` of covered ones, filled by linear extrapolation from them: each
+    covered 8-neighbour n1 with a covered n2 beyond it (same direction) proposes 2 n1 - n2 (n1 alone
+    otherwise); the proposals are averaged. Bilinear filtering between a covered texel and an empty one
+    then continues the surface's slope (a steep rim stays steep), instead of bending it to depth 1."""
+    h, w = valid.shape
+    big = 2 * rings + 2
+    v = values.astype(np.float32).copy()
+    ok = valid.copy()
+    for _ in range(rings):
+        vp = np.pad(v, ((big, big), (big, big), (0, 0)))
+        op = np.pad(ok, big)
+        acc, cnt = np.zeros_like(v), np.zeros((h, w), np.float32)
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                if di == dj == 0:
+                    continue
+                n1 = vp[big + di:big + di + h, big + dj:big + dj + w]
+                n2 = vp[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
+                ok1 = op[big + di:big + di + h, big + dj:big + dj + w]
+                ok2 = op[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
+                acc += np.where(ok1[..., None], np.where(ok2[..., None], 2 * n1 - n2, n1), 0.0)
+                cnt += ok1
+        fill = ~ok & (cnt > 0)
+        v[fill] = acc[fill] / cnt[fill, None]
+        ok |= fill
+    return v
+
+
+def map_texels(b) -> tuple[np.ndarray, np.ndarray]:
+    """(R+2, R+2, 4) normal + depth with a one-texel border, and (R, R) coverage. The border and the
+    empty texels near covered ones are extrapolated (pad): bilinear filtering in the outer half texel
+    of the map then follows the surface's slope rather than the clamped edge texel."""
+    covered = np.asarray(b.alpha) > 0.5
+    res = covered.shape[0]
+    values = np.zeros((res + 2, res + 2, 4), np.float32)
+    values[..., 3] = 1.0
+    values[1:-1, 1:-1, :3] = np.asarray(b.normal, np.float32)
+    values[1:-1, 1:-1, 3] = np.asarray(b.depth, np.float32)
+    valid = np.zeros((res + 2, res + 2), bool)
+    valid[1:-1, 1:-1] = covered
+    return pad(values, valid), covered
+
+
+def infinite_far(projection: np.ndarray) -> np.ndarray:
+    """A perspective projection with its far plane at infinity: same x, y, w and near plane."""
+    p = projection.copy()
+    n = p[2, 3] / (p[2, 2] - 1.0)        # from (f + n) / (n - f) and 2 f n / (n - f)
+    p[2, 2], p[2, 3] = -1.0, -2.0 * n
+    return p
+
+
+class Billboards:
+    def __init__(self, ctx, boards, light, material, shadow_size: int, method: str = "improved",
+                 hit_range: float = 0.01, coarse=None, bounds=None):
+        """boards: objects with origin, axes, size, alpha, depth, normal (Board, or the bake's Billboard);
+        coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of the model, which fits
+        the shadow map (default: the box of the covered texels' points, and of the coarse mesh)."""
+        if method not in METHODS:
+            raise InputError(f"billboards: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
+        if not hit_range > 0:
+            raise InputError(f"billboards: hit_range = {hit_range}; it must be > 0.")
+        boards = list(boards)
+        sizes = {np.asarray(b.alpha).shape for b in boards}
+        if len(sizes) > 1 or any(s[0] != s[1] for s in sizes):
+            raise InputError(f"billboards: the maps must all be square and of one size; got {sorted(sizes)}.")
+        self.ctx, self.light, self.material, self.method = ctx, light, material, method
+        self.hit_range = float(hit_range)
+        self.faces = len(coarse.faces) if coarse is not None else 0
+        if bounds is None:
+            pts = [surface_points(b) for b in boards] + ([coarse.vertices] if coarse is not None else [])
+            pts = np.concatenate(pts + [np.zeros((0, 3))])
+            if not len(pts):
+                raise InputError("billboards: nothing to draw (no covered texel and no coarse mesh).")
+            lo, hi = pts.min(0), pts.max(0)
+            centre = 0.5 * (lo + hi)
+            texel = max((np.linalg.norm(b.size) / b.alpha.shape[0] for b in boards), default=0.0)
+            bounds = (centre, float(np.linalg.norm(pts - centre, axis=1).max()) + texel)
+        self.anchor, radius = np.asarray(bounds[0], np.float64), float(bounds[1])
+        self.shadow = ShadowMap(ctx, shadow_size, light.direction, radius)
+        self.objects, self.draws = [], []   # GL objects to release; (pass, program, vao, kind)
+
+        defines = (("THESIS",) if method == "thesis" else ("IMPROVED",)) + EXTRA
+        self.count = len(boards)
+        self.shadow_raster = self.shadow.view_proj
+        if boards:
+            o = np.array([np.asarray(b.origin, np.float64) - self.anchor for b in boards])
+            edges = np.array([np.asarray(b.axes, np.float64) * np.asarray(b.size, np.float64)[:, None]
+                              for b in boards])
+            inst = np.concatenate([o, edges.reshape(-1, 9)], 1)
+            # The light's raster matrix: the shadow map's, its depth range widened to hold every box corner.
+            far = max(np.linalg.norm(o[:, None] + _CORNERS[None] @ edges, axis=2).max(), radius)
+            self.shadow_raster = np.diag([1.0, 1.0, min(1.0, radius / far), 1.0]) @ self.shadow.view_proj
+            res = boards[0].alpha.shape[0]
+            maps, covered = zip(*(map_texels(b) for b in boards))
+            self.maps = ctx.texture_array((res + 2, res + 2, len(boards)), 4, np.stack(maps).tobytes(), dtype="f4")
+            self.maps.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            self.alpha = ctx.texture_array((res, res, len(boards)), 1,
+                                           (np.stack(covered) * 255).astype(np.uint8).tobytes(), dtype="f1")
+            self.alpha.filter = (ALPHA_FILTER, ALPHA_FILTER)
+            for t in (self.maps, self.alpha):
+                t.repeat_x = t.repeat_y = False
+            cube = ctx.buffer(_CUBE.tobytes())
+            ibuf = ctx.buffer(np.ascontiguousarray(inst, np.float32).tobytes())
+            self.objects += [self.maps, self.alpha, cube, ibuf]
+            for stage, extra in (("shadow", ("SHADOW",)), ("frame", ())):
+                prog = gl.program(ctx, "billboard.vert", "billboard.frag", defines + extra)
+                vao = ctx.vertex_array(prog, [(cube, "3f", "in_corner"),
+                                              (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
+                self.draws.append((stage, prog, vao, "boards"))
+        if coarse is not None:   # sec. 3.4: the coarse mesh, drawn like RasterMesh
+            vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
+                             ((coarse.vertices - self.anchor, "f4"), (coarse.normals, "f4"), (coarse.faces, "i4")))
+            self.objects += [vbo, nbo, ibo]
+            for stage, frag, attrs in (("shadow", "depth.frag", [(vbo, "3f", "in_pos")]),
+                                       ("frame", "mesh.frag", [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")])):
+                prog = gl.program(ctx, "mesh.vert", frag)
+                self.draws.append((stage, prog, ctx.vertex_array(prog, attrs, ibo), "mesh"))
+
+    def _draw(self, stage: str, view_proj, raster, viewport, **uniforms) -> None:
+        ctx = self.ctx
+        for name, prog, vao, kind in self.draws:
+            if name != stage:
+                continue
+            if stage == "frame":
+                gl.set_shading(prog, self.light, self.material)
+                self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
+            if kind == "boards":
+                self.maps.use(1)
+                self.alpha.use(2)
+                gl.set_uniforms(prog, u_maps=1, u_alpha=2, u_hit_range=self.hit_range, u_raster=raster,
+                                u_tolerance=2 * self.hit_range if self.method == "thesis" else 0.0,
+                                u_view_proj=view_proj, u_inv_view_proj=np.linalg.inv(view_proj),
+                                u_viewport=tuple(float(x) for x in viewport), **uniforms)
+                ctx.enable(moderngl.CULL_FACE)
+                ctx.cull_face = "front"       # back faces only (billboard.vert)
+                vao.render(instances=self.count)
+                ctx.cull_face = "back"
+                ctx.disable(moderngl.CULL_FACE)
+            else:
+                gl.set_uniforms(prog, u_mvp=view_proj, **uniforms)
+                ctx.polygon_offset = RasterPasses.POLYGON_OFFSET if stage == "shadow" else (0.0, 0.0)
+                vao.render()
+                ctx.polygon_offset = (0.0, 0.0)
+
+    def render(self, camera, target) -> None:
+        ctx = self.ctx
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        self.shadow.begin()
+        self._draw("shadow", self.shadow.view_proj, self.shadow_raster, self.shadow.texture.size)
+        target.begin()
+        to_anchor = camera.view() @ translation(self.anchor)
+        self._draw("frame", camera.projection() @ to_anchor, infinite_far(camera.projection()) @ to_anchor,
+                   target.size, u_eye=tuple(camera.eye - self.anchor))
+
+    def release(self) -> None:
+        for _, _, vao, _ in self.draws:
+            vao.release()
+        for o in (*self.objects, self.shadow):
+            o.release()
