@@ -52,19 +52,23 @@ def _available(path: str) -> bool:
     return importlib.util.find_spec(path[4:].split("/")[0]) is not None
 
 
-def _one(out: Path, name, path, distance, techniques, w, h, repeats, shadow_map) -> list[dict]:
-    tag = f"{name}-d{distance:g}"
+def measure_scene(out: Path, tag: str, text: str) -> list[dict]:
+    """Write a benchmark scene, bake it (forced) and render it; its report rows with the bake's time and size."""
     scene = out / "scenes" / f"{tag}.toml"
     scene.parent.mkdir(parents=True, exist_ok=True)
-    scene.write_text(SCENE.format(w=w, h=h, repeats=repeats, distance=distance, name=name, path=path,
-                                  techniques=techniques, shadow_map=shadow_map))
+    scene.write_text(text)
     bundle = out / "bundles" / f"{tag}.bundle"
     t0 = time.perf_counter()
     stats = bake(scene, bundle, force=True)
     bake_s = time.perf_counter() - t0
     result = run(bundle, out / "renders" / tag, Options())
-    return [{**r, "distance": distance, "bake_s": round(bake_s, 3), "bundle_bytes": stats["bytes"]}
-            for r in result["rows"]]
+    return [{**r, "bake_s": round(bake_s, 3), "bundle_bytes": stats["bytes"]} for r in result["rows"]]
+
+
+def _one(out: Path, name, path, distance, techniques, w, h, repeats, shadow_map) -> list[dict]:
+    text = SCENE.format(w=w, h=h, repeats=repeats, distance=distance, name=name, path=path, techniques=techniques,
+                        shadow_map=shadow_map)
+    return [{**r, "distance": distance} for r in measure_scene(out, f"{name}-d{distance:g}", text)]
 
 
 def _markdown(rows: list[dict], device: str) -> str:

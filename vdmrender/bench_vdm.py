@@ -19,9 +19,9 @@ import click
 import numpy as np
 
 from vdmbake import heightfields, vdm
-from vdmbake.bake import bake
 
-from .render import Options, run
+from . import report
+from .bench import measure_scene
 
 # (name, primitive, params, tiling): tilings keep a tile about as long as it is wide
 SURFACES = [("torus", "torus", "{ segments = 256, rings = 64 }", (16, 4)),
@@ -79,18 +79,12 @@ def paper_bake(size: int, n_phi: int, n_c: int) -> dict:
 
 def _scene_rows(out: Path, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c, levels) -> list[dict]:
     tag = f"{name}-{hname}"
-    scene = out / "scenes" / f"vdm-{tag}.toml"
-    scene.parent.mkdir(parents=True, exist_ok=True)
-    scene.write_text(SCENE.format(w=w, h=h, name=tag, primitive=primitive, params=params, height=height, size=size,
-                                  tu=tiling[0], tv=tiling[1], phi=n_phi, n_c=n_c, levels=list(levels)))
-    bundle = out / "bundles" / f"vdm-{tag}.bundle"
-    t0 = time.perf_counter()
-    stats = bake(scene, bundle, force=True)
-    bake_s = time.perf_counter() - t0
-    result = run(bundle, out / "renders" / f"vdm-{tag}", Options())
-    meso = json.loads((bundle / "manifest.json").read_text())["objects"][tag]["mesostructure"]
-    return [{**r, "surface": name, "height": hname, "bake_s": round(bake_s, 3), "bundle_bytes": stats["bytes"],
-             "curvature_range": [meso["curvatures"][0], meso["curvatures"][-1]]} for r in result["rows"]]
+    rows = measure_scene(out, f"vdm-{tag}", SCENE.format(
+        w=w, h=h, name=tag, primitive=primitive, params=params, height=height, size=size, tu=tiling[0],
+        tv=tiling[1], phi=n_phi, n_c=n_c, levels=list(levels)))
+    meso = json.loads((out / "bundles" / f"vdm-{tag}.bundle" / "manifest.json").read_text())["objects"][tag]
+    c = meso["mesostructure"]["curvatures"]
+    return [{**r, "surface": name, "height": hname, "curvature_range": [c[0], c[-1]]} for r in rows]
 
 
 def _markdown(paper: dict, rows: list[dict], device: str) -> str:
@@ -116,33 +110,6 @@ def _markdown(paper: dict, rows: list[dict], device: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    scenes = list(dict.fromkeys((r["surface"], r["height"]) for r in rows))
-    fig, axes = plt.subplots(1, len(scenes), figsize=(4.5 * len(scenes), 4.2), squeeze=False)
-    for ax, (surface, height) in zip(axes[0], scenes):
-        mine = [r for r in rows if (r["surface"], r["height"]) == (surface, height)]
-        for k, tech in enumerate(("vdm", "pom", "displaced", "bump", "mesh")):
-            pts = [(r["median_ms"], r["mean_dluv"], r["label"]) for r in mine if r["technique"] == tech]
-            if not pts:
-                continue
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", color=f"C{k}", label=tech)
-            for x, y, label in pts:
-                ax.annotate(label.split("@")[-1] if "@" in label else "", (x, y), fontsize=6,
-                            textcoords="offset points", xytext=(3, 3))
-        ax.set(xscale="log", xlabel="median ms per frame", ylabel="mean ΔLuv", title=f"{surface}, {height}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle(f"error against time, 512x512 ({rows[0]['device']})", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 @click.command()
 @click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
 @click.option("--quick", is_flag=True, help="Small tables, 96x96 frames, bricks on the torus only (a smoke run).")
@@ -165,7 +132,7 @@ def main(out: Path, quick: bool):
     (out / "vdm.json").write_text(json.dumps({"device": device, "resolution": [w, h], "paper_bake": paper,
                                               "rows": rows}, indent=1) + "\n")
     (out / "vdm.md").write_text(_markdown(paper, rows, device))
-    _plot(rows, out / "vdm.png")
+    report.plot(out / "vdm.png", {"rows": rows, "resolution": [w, h], "device": device})
     click.echo(f"wrote {out / 'vdm.json'}, {out / 'vdm.md'}, {out / 'vdm.png'}")
 
 
