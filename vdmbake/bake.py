@@ -129,7 +129,40 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
             log(f"{obj.name}: coarse {ratio:g} -> {len(c.faces)} faces")
     if obj.mesostructure:
         entry["mesostructure"] = _bake_mesostructure(writer, obj, mesh, base, log, steps)
+    if "billboards" in obj.techniques:
+        entry["billboards"] = _bake_billboards(writer, obj, mesh, log, steps)
     return entry
+
+
+def _bake_billboards(writer: BundleWriter, obj: Object, mesh: TriMesh, log, steps: dict) -> dict:
+    """Enhanced billboards (thesis ch. 3) for each projection the variants name, and the coarse mesh
+    only if a variant fills holes with it. Maps: alpha, depth (0..1 of the box depth), world normal."""
+    from . import billboards
+
+    opts = obj.techniques["billboards"]
+    variants = opts["variants"]
+    out = {}
+    for mode in ("greedy", "axis"):
+        if not any(v.startswith(mode + "-") for v in variants):
+            continue
+        t0 = time.perf_counter()
+        res = billboards.bake(mesh, billboards.Settings(mode=mode, resolution=int(opts["resolution"])),
+                              log=lambda m: log(f"{obj.name}: {mode} billboards: {m}"))
+        steps[f"billboards_{mode}_s"] = round(time.perf_counter() - t0, 3)
+        parts = {f"bb{i:03d}": {"A": b.alpha, "depth.Z": b.depth, **{f"normal.{a}": b.normal[..., k]
+                                                                      for k, a in enumerate("XYZ")}}
+                 for i, b in enumerate(res.billboards)}
+        rel = writer.add_exr(f"objects/{obj.name}/billboards-{mode}.exr", parts, "billboards")
+        out[mode] = {"maps": rel, "leftover": res.leftover, "candidates": res.candidates, "rays": res.rays,
+                     "boards": [{"origin": b.origin.tolist(), "axes": b.axes.tolist(), "size": b.size.tolist(),
+                                 "faces": len(b.faces)} for b in res.billboards]}
+        log(f"{obj.name}: {mode} billboards: {len(res.billboards)} from {res.candidates} candidate directions, "
+            f"{writer.parts[rel]['bytes'] / 2**20:.2f} MB; faces left out {res.leftover}")
+    if any(v.endswith("+coarse") for v in variants):
+        c = coarse.simplify(mesh, opts["coarse_ratio"])
+        out["coarse"] = writer.add_mesh(f"objects/{obj.name}/billboards-coarse.ply", c, "coarse")
+        log(f"{obj.name}: billboards' coarse mesh {len(c.faces)} faces")
+    return out
 
 
 def _bake_mesostructure(writer: BundleWriter, obj: Object, mesh: TriMesh, base: Path, log, steps: dict) -> dict:

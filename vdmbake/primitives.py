@@ -89,6 +89,12 @@ def cylinder(radius: float, height: float, segments: int, rings: int, caps: int)
                                 _disk(radius, 0.5 * height, segments, True)])
 
 
+def cone(radius: float, height: float, segments: int, rings: int, caps: int) -> TriMesh:
+    """A right circular cone on the XY plane's centre, apex up (+Z), closed by a base disk if caps."""
+    side = revolve(lambda t: (radius * (1.0 - t), (t - 0.5) * height, -radius, height, 0.0, 0.0), segments, rings)
+    return side if not caps else TriMesh.concatenate([side, _disk(radius, -0.5 * height, segments, False)])
+
+
 def torus(major: float, minor: float, segments: int, rings: int) -> TriMesh:
     a = 2.0 * np.pi
     return revolve(lambda t: (major + minor * np.cos(a * t), minor * np.sin(a * t),
@@ -125,7 +131,7 @@ def icosphere(level: int) -> TriMesh:
     return TriMesh(v, f.astype(np.int64), v.copy())
 
 
-BUILDERS = {"plane": plane, "sphere": sphere, "cylinder": cylinder, "torus": torus, "vase": vase}
+BUILDERS = {"plane": plane, "sphere": sphere, "cylinder": cylinder, "cone": cone, "torus": torus, "vase": vase}
 
 
 def build(name: str, params: dict) -> TriMesh:

@@ -77,6 +77,16 @@ TECHNIQUES: dict[str, TechniqueSpec] = {
     # face), displaced, rasterised
     "displaced": TechniqueSpec(("surface",), Knob("levels", "level", (1, 2, 3), _int_in(0, 8),
                                                   "integers in [0, 8]"), mesostructure=True),
+    # enhanced billboards (Vichitvejpaisal 2005): PROJECTION-METHOD[+coarse]; projection greedy (sec. 3.2) or
+    # axis (+-X, +-Y, +-Z); method hit0.01 / hit0.02 (the thesis's 100-step march with that hit range) or
+    # improved (footprint steps, refinement); +coarse fills holes with the coarse mesh (sec. 3.4).
+    # resolution: map side in texels; coarse_ratio: faces kept by the coarse mesh
+    "billboards": TechniqueSpec(("surface",), Knob(
+        "variants", "variant", ("greedy-hit0.01", "greedy-hit0.02", "greedy-improved", "greedy-hit0.01+coarse",
+                                "greedy-improved+coarse"),
+        lambda x: isinstance(x, str) and re.fullmatch(r"(greedy|axis)-(hit0\.01|hit0\.02|improved)(\+coarse)?", x)
+        is not None, "'greedy-' or 'axis-', then 'hit0.01', 'hit0.02' or 'improved', optionally '+coarse'"),
+        (("resolution", 512, 8, 4096), ("coarse_ratio", 0.1, 1e-4, 1.0))),
 }
 
 # Built-in primitives -> parameters with their defaults (all lengths in scene units).
@@ -84,6 +94,7 @@ PRIMITIVES: dict[str, dict[str, float]] = {
     "plane": {"size": 2.0, "segments": 8},
     "sphere": {"radius": 1.0, "segments": 96, "rings": 48},
     "cylinder": {"radius": 0.5, "height": 2.0, "segments": 96, "rings": 8, "caps": 1},
+    "cone": {"radius": 0.6, "height": 1.5, "segments": 96, "rings": 8, "caps": 1},
     "torus": {"major": 1.0, "minor": 0.35, "segments": 128, "rings": 64},
     "vase": {"radius": 0.5, "height": 2.0, "segments": 96, "rings": 64},
 }

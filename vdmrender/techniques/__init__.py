@@ -11,7 +11,7 @@ from typing import Callable
 
 from vdmbake.scene import TECHNIQUES
 
-from . import coarse, impostor, mesh, mesostructure, tessellated
+from . import billboards, coarse, impostor, mesh, mesostructure, tessellated
 
 
 @dataclass
@@ -30,7 +30,8 @@ class Variant:
 
 REGISTRY = {"mesh": mesh.variants, "coarse": coarse.variants, "impostor": impostor.variants,
             "tessellated": tessellated.variants, "vdm": mesostructure.vdm_variants, "bump": mesostructure.bump_variants,
-            "pom": mesostructure.pom_variants, "displaced": mesostructure.displaced_variants}
+            "pom": mesostructure.pom_variants, "displaced": mesostructure.displaced_variants,
+            "billboards": billboards.variants}
 
 
 def variants(obj, entry: dict, bundle, scene, only=None) -> list[Variant]:
