@@ -209,3 +209,21 @@ techniques = { billboards = { variants = ["greedy-hit0.02", "greedy-improved+coa
     # measured at 32x32: improved+coarse 0.89 (IoU 0.9935), the thesis's march at hit range 0.02 5.22 (0.9457)
     assert rows["billboards@greedy-improved+coarse"]["mean_dluv"] < 1.0
     assert rows["billboards@greedy-improved+coarse"]["mean_dluv"] < rows["billboards@greedy-hit0.02"]["mean_dluv"]
+
+
+def test_bench_quick_smoke(tmp_path):
+    """make bench's billboard script runs end to end (a sphere at 200x150, 64-texel maps) and writes its report."""
+    import json
+
+    from click.testing import CliRunner
+
+    from vdmrender.bench_billboards import main as bench_main
+
+    r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
+    assert r.exit_code == 0, r.output
+    report = json.loads((tmp_path / "billboards.json").read_text())
+    labels = {row["label"] for row in report["rows"]}
+    assert {"mesh", "coarse@0.1", "billboards@greedy-hit0.01", "billboards@greedy-improved+coarse"} <= labels
+    assert all(row["nonfinite"] == 0 for row in report["rows"])
+    assert report["bakes"]["sphere"]["greedy"] >= 1 and report["bakes"]["sphere"]["axis"] >= 1
+    assert "| sphere |" in (tmp_path / "billboards.md").read_text()
