@@ -14,6 +14,7 @@ class RasterPasses:
     uniforms and textures `bind_frame` sets). Subclasses fill `draws` through `add`."""
 
     POLYGON_OFFSET = (2.0, 2.0)   # slope-scaled and constant depth bias of the shadow-map pass
+    NORMAL_OFFSET_TEXELS = 0.0    # shadow lookups move this far along the normal, in shadow-map texels
 
     def __init__(self, ctx, light, material, anchor, radius: float, shadow_size: int):
         self.ctx, self.light, self.material, self.anchor = ctx, light, material, anchor
@@ -53,7 +54,7 @@ class RasterPasses:
             if stage == "frame":
                 gl.set_shading(prog, self.light, self.material)
                 gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(camera.eye - self.anchor))
-                self.shadow.bind(prog)
+                self.shadow.bind(prog, normal_offset=self.NORMAL_OFFSET_TEXELS * self.shadow.texel)
                 self.bind_frame(prog, camera)
                 vao.render(instances=n)
 

@@ -13,7 +13,6 @@ from vdmbake import displace, vdm
 from .. import gl
 from .mesh import RasterMesh, RasterPasses
 
-NORMAL_OFFSET_TEXELS = 1.5   # base-mesh shadow lookups move this far along the normal, in shadow-map texels
 # VDM shadow test (sec. 3.2): P' is shadowed if d_L < h / cos(theta_L) - eps, eps = this x depth + this
 # texels. Torus, bricks 64^2, 32 x 16 views, 256^2, vdm@all: eps 0 -> 5.89 dLuv, 0.25 texel -> 3.12,
 # 0.1 depth + 1 texel -> 2.05, 0.2 depth + 2 texels -> 2.05 (vdm@8 2.20), 0.5 depth + 1 texel -> 2.05. With the
@@ -35,7 +34,7 @@ def displaced_mesh(bundle, obj, entry, levels: int | None = None):
     return displace.displaced(base, heights(bundle, entry["mesostructure"]), m.depth, m.tiling, levels)
 
 
-def _texture(ctx, tex, repeat: bool, mipmaps: bool):
+def _texture(tex, repeat: bool, mipmaps: bool):
     tex.repeat_x = tex.repeat_y = repeat
     if mipmaps:
         tex.build_mipmaps()
@@ -57,6 +56,8 @@ def _groups(a: np.ndarray, axis: int) -> np.ndarray:
 class MesostructurePass(RasterPasses):
     """The base mesh with its frame, drawn by one mesostructure fragment stage."""
 
+    NORMAL_OFFSET_TEXELS = 1.5   # the lookups are at the base surface, which the shadow map also holds
+
     def __init__(self, ctx, obj, entry, bundle, scene, frag: str, **uniforms):
         mesh = bundle.mesh(entry["mesh"])
         anchor, radius = mesh.bounding_sphere()
@@ -75,12 +76,11 @@ class MesostructurePass(RasterPasses):
         h = heights(bundle, entry["mesostructure"])
         n = vdm.height_normals(h, m.depth)
         self.textures = {
-            "u_height": _texture(ctx, ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"), True, True),
-            "u_normals": _texture(ctx, ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, True)}
+            "u_height": _texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"), True, True),
+            "u_normals": _texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, True)}
         self.uniforms = {"u_tiling": tuple(m.tiling), "u_depth": m.depth, **uniforms}
 
     def bind_frame(self, prog, camera) -> None:
-        self.shadow.bind(prog, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
         for unit, (name, tex) in enumerate(self.textures.items(), start=1):
             tex.use(unit)
             gl.set_uniforms(prog, **{name: unit})
@@ -112,12 +112,12 @@ class VDMPass(MesostructurePass):
                          u_curv_axis=tuple(float(x) for x in axis),
                          u_shadow_eps=SHADOW_EPS_DEPTH * m.depth + SHADOW_EPS_TEXELS / m.size)
         g = W.shape[0]
-        self.textures["u_W"] = _texture(ctx, ctx.texture_array(
+        self.textures["u_W"] = _texture(ctx.texture_array(
             (m.size, m.size, g * m.phi), 4, np.ascontiguousarray(W, "f4").tobytes(), dtype="f4"), True, True)
-        self.textures["u_E_vdm"] = _texture(ctx, ctx.texture_array(
+        self.textures["u_E_vdm"] = _texture(ctx.texture_array(
             (m.theta, n_c, g), 4, np.ascontiguousarray(E_vdm.transpose(0, 2, 3, 1), "f4").tobytes(), dtype="f4"),
             False, False)
-        self.textures["u_E_mvm"] = _texture(ctx, ctx.texture(
+        self.textures["u_E_mvm"] = _texture(ctx.texture(
             (n_c, g), 4, np.ascontiguousarray(E_mvm.transpose(0, 2, 1), "f4").tobytes(), dtype="f4"), False, False)
 
 
