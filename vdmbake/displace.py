@@ -14,25 +14,10 @@ import numpy as np
 from . import texspace
 from .errors import InputError
 from .heightfields import sample
-from .meshes import TriMesh
+from .meshes import TriMesh, subdivide
 from .vdm import height_normals
 
 MAX_FACES = 16_000_000   # a reference finer than this would not fit a 24 GiB machine's Embree build
-
-
-def subdivide(faces: np.ndarray, attrs: dict[str, np.ndarray]) -> tuple[np.ndarray, dict]:
-    """One level of midpoint subdivision (every triangle into four) of per-vertex attributes,
-    interpolated linearly ("normal" renormalised). Shared edges get one midpoint, so the mesh
-    stays watertight."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    uniq, inv = np.unique(np.sort(e, axis=1), axis=0, return_inverse=True)
-    a, b = uniq[:, 0], uniq[:, 1]
-    out = {k: np.concatenate([v, 0.5 * (v[a] + v[b])]) for k, v in attrs.items()}
-    out["normal"] /= np.maximum(np.linalg.norm(out["normal"], axis=1, keepdims=True), 1e-300)
-    m = len(attrs["pos"]) + inv.reshape(3, -1).T          # midpoints of edges 01, 12, 20 per face
-    f = np.concatenate([np.stack([faces[:, 0], m[:, 0], m[:, 2]], 1), np.stack([faces[:, 1], m[:, 1], m[:, 0]], 1),
-                        np.stack([faces[:, 2], m[:, 2], m[:, 1]], 1), m])
-    return f, out
 
 
 def edge_texels(mesh: TriMesh, size: int, tiling) -> float:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .meshes import SurfaceFrame, TriMesh
+from .meshes import SurfaceFrame, TriMesh, subdivide
 
 
 def _grid_faces(rows: int, cols: int) -> np.ndarray:
@@ -119,15 +119,9 @@ def icosphere(level: int) -> TriMesh:
                   [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
                   [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
     v /= np.linalg.norm(v, axis=1, keepdims=True)
-    for _ in range(level):
-        edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        uniq, inv = np.unique(edges, axis=0, return_inverse=True)
-        mid = v[uniq].sum(1)
-        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
-        m = len(v) + inv.reshape(3, -1).T          # midpoints of edges (01, 12, 20) per face
-        v = np.concatenate([v, mid])
-        f = np.concatenate([np.stack([f[:, 0], m[:, 0], m[:, 2]], 1), np.stack([f[:, 1], m[:, 1], m[:, 0]], 1),
-                            np.stack([f[:, 2], m[:, 2], m[:, 1]], 1), m])
+    for _ in range(level):   # midpoints pushed out to the sphere: on the unit sphere position = normal
+        f, a = subdivide(f, {"pos": v, "normal": v})
+        v = a["normal"]
     return TriMesh(v, f.astype(np.int64), v.copy())
 
 
