@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from vdmbake.bundle import FORMAT_VERSION
 from vdmbake.cli import main as vdmbake_main
 from vdmbake.errors import InputError
 from vdmrender.cli import main as vdmrender_main
@@ -226,7 +227,7 @@ def test_render_future_format_version(bundle, tmp_path):
     m["format_version"] = 999
     mf.write_text(json.dumps(m))
     out = tmp_path / "r"
-    assert_input_error(render(bundle, "-o", out), ["manifest.json", "version 999", "version 1"], out)
+    assert_input_error(render(bundle, "-o", out), ["manifest.json", "version 999", f"version {FORMAT_VERSION}"], out)
 
 
 def test_render_corrupted_part(bundle, tmp_path, gl_context_ok):

@@ -13,7 +13,9 @@ from vdmbake.meshes import TriMesh
 from vdmbake.scene import Light, Material
 from vdmrender import gl, images, metrics, reference
 from vdmrender.camera import Camera, clip_planes
-from vdmrender.techniques.billboards import Billboards, Board
+from vdmbake import parts
+from vdmbake.parts import Billboard
+from vdmrender.techniques.billboards import Billboards
 
 BG = (0.05, 0.05, 0.06)
 SHADOW = 512
@@ -162,12 +164,11 @@ def test_far_from_origin(ctx):
     assert same["iou"] == 1.0 and same["mean"] < 0.05, same["mean"]   # measured 0.0
 
 
-def test_plain_arrays_and_bounds(ctx):
-    """The renderer takes plain arrays (Board) as well as the bake's Billboard, and given bounds."""
+def test_bundle_round_trip_and_bounds(ctx):
+    """Billboards read back from their bundle part render as the bake's own, and given bounds."""
     mesh, baked, co = model("sphere", 64)
     cam = orbit_camera(mesh, 60, 10, size=64)
-    boards = [Board(b.origin.tolist(), b.axes.tolist(), b.size.tolist(), b.alpha, b.depth, b.normal)
-              for b in baked.billboards]
+    boards = parts.stored(parts.BILLBOARDS, baked.billboards)
     a = render(ctx, baked.billboards, cam, coarse_mesh=co)
     b = render(ctx, boards, cam, coarse_mesh=co)
     assert np.array_equal(a, b)
@@ -180,7 +181,9 @@ def test_plain_arrays_and_bounds(ctx):
     with pytest.raises(InputError):
         Billboards(ctx, boards, LIGHT, MATERIAL, SHADOW, method="linear")
     with pytest.raises(InputError):
-        Billboards(ctx, boards[:1] + [Board(*boards[1][:3], np.zeros((8, 8)), np.ones((8, 8)), np.zeros((8, 8, 3)))],
+        b1 = boards[1]
+        Billboards(ctx, boards[:1] + [Billboard(b1.origin, b1.axes, b1.size, np.zeros((8, 8)), np.ones((8, 8)),
+                                                np.zeros((8, 8, 3)))],
                    LIGHT, MATERIAL, SHADOW)
 
 
@@ -203,9 +206,10 @@ techniques = { billboards = { variants = ["greedy-hit0.02", "greedy-improved+coa
     rows = rows_by_label(r)
     assert set(rows) == {"billboards@greedy-hit0.02", "billboards@greedy-improved+coarse"}
     assert all(row["nonfinite"] == 0 for row in rows.values())
-    entry = json.loads((tmp_path / "b.bundle" / "manifest.json").read_text())["objects"]["torus"]["billboards"]
+    m = json.loads((tmp_path / "b.bundle" / "manifest.json").read_text())
+    entry = m["objects"]["torus"]["techniques"]["billboards"]
     assert set(entry) == {"greedy", "coarse"}                     # no axis projection was asked for
-    assert entry["greedy"]["leftover"]["hidden"] == 0 and len(entry["greedy"]["boards"]) >= 2
+    assert entry["greedy"]["leftover"]["hidden"] == 0 and len(m["parts"][entry["greedy"]["maps"]]["boards"]) >= 2
     # measured at 32x32: improved+coarse 0.89 (IoU 0.9935), the thesis's march at hit range 0.02 5.22 (0.9457)
     assert rows["billboards@greedy-improved+coarse"]["mean_dluv"] < 1.0
     assert rows["billboards@greedy-improved+coarse"]["mean_dluv"] < rows["billboards@greedy-hit0.02"]["mean_dluv"]

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 import vdmbake
 import vdmbake.bake as bake_mod
 import vdmbake.coarse as coarse_mod
-from vdmbake import exr, ply
+from vdmbake import exr, parts, ply
 from vdmbake.bundle import FORMAT, FORMAT_VERSION, Bundle
 from vdmbake.cli import main as vdmbake_main
 from vdmbake.errors import InputError
@@ -96,7 +96,7 @@ def test_manifest_fields_and_part_hashes(tmp_path):
     bake_ok(scene, "-o", out)
     m = manifest(out)
     assert m["format"] == FORMAT == "vdm-bundle"
-    assert m["format_version"] == FORMAT_VERSION == 1
+    assert m["format_version"] == FORMAT_VERSION == 2
     assert m["tool_version"] == vdmbake.__version__
     expected_hash = bake_mod.input_hash(load_scene(scene), tmp_path)[0]
     assert len(m["input_hash"]) == 64 and m["input_hash"] == expected_hash
@@ -202,15 +202,15 @@ def test_coarse_ratios_give_exactly_those_parts(tmp_path):
     bake_ok(scene, "-o", out)
     bundle = verify_all(out)
     m = bundle.manifest
-    coarse = {rel for rel, p in m["parts"].items() if p["kind"] == "coarse"}
-    assert coarse == {"objects/ball/coarse-0.5.ply", "objects/ball/coarse-0.25.ply"}
-    assert m["objects"]["ball"]["coarse"] == {"0.5": "objects/ball/coarse-0.5.ply",
-                                              "0.25": "objects/ball/coarse-0.25.ply"}
-    full = len(bundle.mesh("objects/ball/mesh.ply").faces)
+    meshes = {rel for rel, p in m["parts"].items() if p["kind"] == "mesh"}
+    assert meshes == {"objects/ball/mesh.ply", "objects/ball/coarse-0.5.ply", "objects/ball/coarse-0.25.ply"}
+    assert m["objects"]["ball"]["techniques"]["coarse"] == {"meshes": [
+        {"ratio": 0.5, "mesh": "objects/ball/coarse-0.5.ply"}, {"ratio": 0.25, "mesh": "objects/ball/coarse-0.25.ply"}]}
+    full = len(bundle.read("objects/ball/mesh.ply", parts.MESH).faces)
     assert full == 1024
     for ratio in (0.5, 0.25):
         rel = f"objects/ball/coarse-{ratio:g}.ply"
-        faces = len(bundle.mesh(rel).faces)
+        faces = len(bundle.read(rel, parts.MESH).faces)
         assert m["parts"][rel]["faces"] == faces
         assert abs(faces - ratio * full) <= 0.05 * ratio * full, (ratio, faces, full)
 
@@ -272,7 +272,7 @@ def test_interrupted_bake_keeps_previous_bundle(tmp_path, monkeypatch, where):
         bake_mod.bake(scene, out)
     assert {rel: p.read_bytes() for rel, p in files(out).items()} == old_files
     bundle = verify_all(out)
-    assert bundle.mesh("objects/ball/mesh.ply").faces.shape == (256, 3)
+    assert bundle.read("objects/ball/mesh.ply", parts.MESH).faces.shape == (256, 3)
     assert leftovers(out) == []
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake.scene import Camera as SceneCamera, Orbit, Pose
+from vdmbake.scene import Cameras as SceneCamera, Orbit, Pose
 from vdmrender.camera import Camera, cameras_for, clip_planes, orbit
 
 CENTRE = np.array([0.3, -1.2, 0.8])

@@ -204,6 +204,6 @@ def test_mesh_file_with_uvs_gets_an_estimated_frame(tmp_path):
         (tmp_path / "s.toml").write_text(f'[[objects]]\nname = "t"\n{source}\n{meso}\ntechniques = {{ vdm = {{ k = [1] }} }}\n')
         r = runner.invoke(bake_main, [str(tmp_path / "s.toml"), "-o", str(tmp_path / "b.bundle"), "--force"])
         assert r.exit_code == 0, r.output
-        c = json.loads((tmp_path / "b.bundle" / "manifest.json").read_text())["objects"]["t"]["mesostructure"]["curvatures"]
+        c = json.loads((tmp_path / "b.bundle" / "manifest.json").read_text())["objects"]["t"]["techniques"]["vdm"]["curvatures"]
         ranges[source[:4]] = (c[0], c[-1])
     assert np.allclose(ranges["mesh"], ranges["prim"], rtol=0.02, atol=0.01)

@@ -26,7 +26,7 @@ PRIMS = {
 
 def _build(key) -> TriMesh:
     name, params = PRIMS[key]
-    return primitives.build(name, params)
+    return primitives.build(name, primitives.PRIMITIVES[name][1](**params))
 
 
 def _angle_deg(a, b):

@@ -9,6 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from vdmbake.cli import main as bake_main
+from vdmbake.geometry import onb
 from vdmrender import quadric_math as qm
 from vdmrender.camera import Camera
 
@@ -93,7 +94,7 @@ def test_cylinder_any_axis_matches_brute_force():
 def test_frames_orthonormal_everywhere():
     axes = unit(np.concatenate([RNG.normal(size=(1000, 3)), [[0, 0, 1], [0, 0, -1], [0, 0, -1 + 1e-12],
                                                              [1e-300, 0, -1]]]))
-    u, v = qm.frames(axes)
+    u, v = onb(axes)
     for a, b in ((u, v), (u, axes), (v, axes)):
         assert np.abs((a * b).sum(1)).max() < 1e-12
     assert np.abs(np.linalg.norm(u, axis=1) - 1).max() < 1e-12
@@ -130,7 +131,7 @@ def test_disk_bounds_contain_the_cap():
     phi = np.linspace(0, 2 * np.pi, 4001)
     for _ in range(20):
         c, w, r = RNG.uniform(-2, 2, size=3), unit(RNG.normal(size=3)), RNG.uniform(0.1, 1.0)
-        u, v = qm.frames(w[None])
+        u, v = onb(w[None])
         box = qm.projected_bounds(vp, qm.disk_variance(c, u[0], v[0], r))
         rim = c + r * (np.outer(np.cos(phi), u[0]) + np.outer(np.sin(phi), v[0]))
         p = np.c_[rim, np.ones(len(rim))] @ vp.T

@@ -37,7 +37,7 @@ def test_curvatures_match_the_normals_rate_of_turn(name):
     """Shape operator check: along a principal direction, dN/ds = k * direction (finite differences
     of the analytic normals between neighbouring vertices of the grid)."""
     seg, rings = 400, 400
-    m = primitives.BUILDERS[name](**{"vase": dict(radius=0.5, height=2.0),
+    m = primitives.PRIMITIVES[name][0](**{"vase": dict(radius=0.5, height=2.0),
                                      "torus": dict(major=1.0, minor=0.35),
                                      "sphere": dict(radius=1.0)}[name], segments=seg, rings=rings)
     grid = lambda a: a.reshape(rings + 1, seg + 1, *a.shape[1:])  # noqa: E731

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake import displace, primitives, texspace, vdm
+from vdmbake import geometry, primitives, texspace, vdm
 from vdmbake.errors import InputError
 from vdmbake.meshes import TriMesh
 
@@ -213,7 +213,7 @@ def test_subdivision_keeps_a_closed_torus_watertight():
     f, a = faces, {"pos": pos, "normal": normals}
     for level in range(1, 4):
         v_before, e_before = len(a["pos"]), len(edge_use(f))
-        f, a = displace.subdivide(f, a)
+        f, a = geometry.subdivide(f, a)
         counts = edge_use(f)
         assert (counts == 2).all(), f"level {level}: an edge is not shared by exactly two faces"
         assert len(f) == 8 * 12 * 2 * 4 ** level
@@ -226,7 +226,7 @@ def test_subdivision_keeps_a_closed_torus_watertight():
 def test_subdivision_interpolates_uvs_and_positions():
     m = primitives.torus(1.0, 0.35, 8, 6)
     attrs = {"pos": m.vertices, "normal": m.normals, "uv": m.uvs}
-    f, a = displace.subdivide(m.faces, attrs)
+    f, a = geometry.subdivide(m.faces, attrs)
     e = np.sort(np.concatenate([m.faces[:, [0, 1]], m.faces[:, [1, 2]], m.faces[:, [2, 0]]]), axis=1)
     uniq = np.unique(e, axis=0)
     n = len(m.vertices)
@@ -261,9 +261,9 @@ def test_zero_depth_or_all_top_heights_leave_the_base(levels):
     rnd = RNG.uniform(size=(8, 8))
     base_f, base = m.faces, {"pos": m.vertices}
     for _ in range(levels):
-        base_f, base = displace.subdivide(base_f, {**base, "normal": np.ones_like(base["pos"])})
+        base_f, base = geometry.subdivide(base_f, {**base, "normal": np.ones_like(base["pos"])})
     for heights, depth in ((rnd, 0.0), (np.ones((8, 8)), 0.1)):
-        d = displace.displaced(m, heights, depth, (4.0, 2.0), levels)
+        d = geometry.displaced(m, heights, vdm.height_normals(heights, depth), depth, (4.0, 2.0), levels)
         assert np.array_equal(d.faces, base_f)
         assert np.allclose(d.vertices, base["pos"], atol=1e-15)
         assert np.isfinite(d.normals).all()
@@ -274,17 +274,18 @@ def test_constant_height_moves_every_vertex_along_its_normal(levels):
     """h constant: the offset surface, depth * s_n * (1 - h) inward along the normal."""
     tiling, depth, h = (4.0, 2.0), 0.05, 0.3
     m = primitives.torus(1.0, 0.35, 16, 8)
-    d = displace.displaced(m, np.full((8, 8), h), depth, tiling, levels)
+    flat = np.full((8, 8), h)
+    d = geometry.displaced(m, flat, vdm.height_normals(flat, depth), depth, tiling, levels)
     f, a = m.faces, {"pos": m.vertices, "normal": m.normals, "uv": m.uvs}
     for _ in range(levels):
-        f, a = displace.subdivide(f, a)
+        f, a = geometry.subdivide(f, a)
     shift = a["pos"] - d.vertices
     dist = np.linalg.norm(shift, axis=1)
     assert np.allclose(shift, a["normal"] * dist[:, None], atol=1e-12)       # along the (interpolated) normal
     if levels == 0:
         assert np.allclose(dist, depth * torus_s_n(m, tiling) * (1 - h), rtol=1e-12)
     else:   # midpoints: s_n of the interpolated, tangent-projected J (not the analytic one of the torus)
-        _, a2 = displace.subdivide(m.faces, {"pos": m.vertices, "normal": m.normals,
+        _, a2 = geometry.subdivide(m.faces, {"pos": m.vertices, "normal": m.normals,
                                               "dpdu": m.frame.dpdu, "dpdv": m.frame.dpdv})
         J = np.stack([a2["dpdu"] / tiling[0], a2["dpdv"] / tiling[1]], -1)
         J -= a2["normal"][:, :, None] * np.einsum("vi,vij->vj", a2["normal"], J)[:, None, :]
@@ -299,30 +300,31 @@ def test_constant_height_moves_every_vertex_along_its_normal(levels):
                                                (4, (1.0, 1.0), "torus")])
 def test_reference_levels_bring_edges_under_half_a_texel(size, tiling, shape):
     m = primitives.plane(2.0, 4) if shape == "plane" else primitives.torus(1.0, 0.35, 32, 16)
-    levels = displace.reference_levels(m, size, tiling)
+    levels = geometry.reference_levels(m, size, tiling)
     f, a = m.faces, {"pos": m.vertices, "normal": m.normals, "uv": m.uvs}
     coarser = None
     for _ in range(levels):
         coarser = TriMesh(a["pos"], f, a["normal"], a["uv"])
-        f, a = displace.subdivide(f, a)
-    assert displace.edge_texels(TriMesh(a["pos"], f, a["normal"], a["uv"]), size, tiling) <= 0.5
+        f, a = geometry.subdivide(f, a)
+    assert geometry.edge_texels(TriMesh(a["pos"], f, a["normal"], a["uv"]), size, tiling) <= 0.5
     if levels:   # and no more levels than needed
-        assert displace.edge_texels(coarser, size, tiling) > 0.5
+        assert geometry.edge_texels(coarser, size, tiling) > 0.5
     else:
-        assert displace.edge_texels(m, size, tiling) <= 0.5
+        assert geometry.edge_texels(m, size, tiling) <= 0.5
 
 
 def test_reference_levels_figures():
     """Plane of 4 segments, 16 texels x 3 tiles: edges of 12 texels -> 5 levels (12 / 32 <= 0.5 < 12 / 16)."""
     m = primitives.plane(2.0, 4)
-    assert displace.edge_texels(m, 16, (3.0, 2.0)) == pytest.approx(12.0)
-    assert displace.reference_levels(m, 16, (3.0, 2.0)) == 5
+    assert geometry.edge_texels(m, 16, (3.0, 2.0)) == pytest.approx(12.0)
+    assert geometry.reference_levels(m, 16, (3.0, 2.0)) == 5
 
 
 def test_too_many_faces_is_an_input_error_before_any_work():
     m = primitives.plane(2.0, 64)                    # 8192 faces
-    levels = next(L for L in range(12) if len(m.faces) * 4 ** L > displace.MAX_FACES)
+    levels = next(L for L in range(12) if len(m.faces) * 4 ** L > geometry.MAX_FACES)
     assert levels == 6                               # 8192 * 4^6 = 33.5 M > 16 M
+    up = np.broadcast_to([0.0, 0.0, 1.0], (8, 8, 3))
     with pytest.raises(InputError, match="limit"):
-        displace.displaced(m, np.ones((8, 8)), 0.1, (1.0, 1.0), levels)
-    assert len(displace.displaced(m, np.ones((8, 8)), 0.1, (1.0, 1.0), 0).faces) == 8192
+        geometry.displaced(m, np.ones((8, 8)), up, 0.1, (1.0, 1.0), levels)
+    assert len(geometry.displaced(m, np.ones((8, 8)), up, 0.1, (1.0, 1.0), 0).faces) == 8192

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from vdmbake import vdm
+from vdmbake import parts, vdm
 from vdmbake.bundle import Bundle
 from vdmrender.metrics import delta_luv
 
@@ -108,7 +108,7 @@ def test_torus_bricks_baseline(tmp_path):
     # the displaced mesh has the reference's silhouette, and is the closest
     assert rows["displaced@1"]["iou"] >= 0.998                        # 0.9995
     assert mean(rows, "displaced@1") < min(vdms)                      # 2.775
-    meso = manifest(tmp_path)["objects"]["p"]["mesostructure"]
+    meso = manifest(tmp_path)["objects"]["p"]["techniques"]["vdm"]
     assert meso["k"] == meso["rank"] <= 8 * 4 + 4                     # "all": every eigenfunction, 31 of 36 columns
     assert len(meso["curvatures"]) == 4
     errors = meso["errors"]
@@ -132,7 +132,7 @@ def test_view_along_the_normal_on_a_plane(tmp_path):
     assert mean(rows, "vdm@all") < mean(rows, "bump") < mean(rows, "mesh")
     assert centre_dluv(out, "vdm@all") <= 0.5                          # 0.0
     # the 'leave out' rule: a plane's table has the one curvature 0
-    assert manifest(tmp_path)["objects"]["p"]["mesostructure"]["curvatures"] == [0.0]
+    assert manifest(tmp_path)["objects"]["p"]["techniques"]["vdm"]["curvatures"] == [0.0]
 
 
 def test_view_along_the_normal_on_a_curved_surface(tmp_path):
@@ -181,7 +181,7 @@ def test_curvature_outside_the_table(tmp_path):
     texture curvature), every other curvature clamps to it. Measured 64^2: vdm@all 1.868, pom@16
     1.762, bump 2.233, mesh 4.218 (with curvatures = 4 instead: vdm@all 2.161, see the report)."""
     rows, _ = render(tmp_path, scene(ORBIT.format(count=2), TORUS, tiling=(8, 2), curvatures=1, res=64))
-    meso = manifest(tmp_path)["objects"]["p"]["mesostructure"]
+    meso = manifest(tmp_path)["objects"]["p"]["techniques"]["vdm"]
     assert meso["curvatures"] == [pytest.approx(-0.5351586, abs=1e-6)]
     assert mean(rows, "vdm@all") <= 2.1                               # 1.868
     assert mean(rows, "vdm@all") < mean(rows, "bump")                 # 2.233
@@ -255,7 +255,7 @@ def test_all_zero_heights(tmp_path):
     rows, _ = render(tmp_path, scene(ORBIT.format(count=2), TORUS, ALL + ", displaced = { levels = [1] }",
                                      height="zeros.png", tiling=(8, 2)))
     bundle = Bundle(tmp_path / "b.bundle")
-    assert not bundle.exr(bundle.manifest["objects"]["p"]["mesostructure"]["height"])["height"]["h"].any()
+    assert not bundle.read(bundle.manifest["objects"]["p"]["mesostructure"], parts.MESOSTRUCTURE).heights.any()
     assert mean(rows, "vdm@all") <= 5.0                               # 4.379
     assert rows["vdm@all"]["iou"] >= 0.96                             # 0.9702
     assert mean(rows, "vdm@all") < 0.5 * mean(rows, "pom@16")         # 9.922: pom has no silhouettes
@@ -268,7 +268,7 @@ def test_k_above_the_rank(tmp_path):
     """k = 256 asks for more eigenfunctions than A has columns (theta x c + c = 36): the bake keeps
     rank of them, and the render uses those. Measured: rank 27, vdm@256 2.295 = vdm@all's (48^2)."""
     rows, _ = render(tmp_path, scene(ORBIT.format(count=2), TORUS, 'vdm = { k = [256] }, bump = {}', tiling=(8, 2)))
-    meso = manifest(tmp_path)["objects"]["p"]["mesostructure"]
+    meso = manifest(tmp_path)["objects"]["p"]["techniques"]["vdm"]
     assert meso["k"] == meso["rank"] <= 8 * 4 + 4
     assert list(meso["errors"]) == [str(meso["rank"])]
     assert meso["errors"][str(meso["rank"])]["rms_vdm"] < 1e-4
@@ -280,8 +280,8 @@ def test_object_without_vdm_gets_no_tables(tmp_path):
     """The 'leave out' rule: a mesostructure drawn only by bump bakes the height field and nothing of VDM."""
     rows, _ = render(tmp_path, scene(OBLIQUE, PLANE, "bump = {}"))
     m = manifest(tmp_path)
-    meso = m["objects"]["p"]["mesostructure"]
-    assert set(meso) == {"height"}
+    obj = m["objects"]["p"]
+    assert obj["mesostructure"] == "objects/p/mesostructure.exr" and obj["techniques"] == {}
     assert "vdm" not in {p["kind"] for p in m["parts"].values()}
     assert not (tmp_path / "b.bundle" / "objects" / "p" / "vdm.exr").exists()
     assert list(rows) == ["bump"] and mean(rows, "bump") <= 2.0       # measured 1.339 (oblique bricks)

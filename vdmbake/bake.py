@@ -1,27 +1,28 @@
 """The bake: what each object's techniques need, and nothing more, written as a bundle.
 
-A surface object (mesh file or primitive) gets its full mesh: the reference traces it and
-the `mesh` technique draws it; `coarse` adds one simplified mesh per requested ratio.
-A surface object with a mesostructure also gets its height field, and, only if it names the
-`vdm` technique, the VDM/MVM tables: sampled over the curvature range its base mesh has, ray
-cast, compressed to the largest k the scene renders.
-A quadrics object (molecule or inline spheres/cylinders) gets only its quadric list:
-nothing is ray cast at bake time. Each part is baked only when a technique asks for it.
+Every object gets what its reference needs: a surface object (mesh file or primitive) its full
+mesh, a quadrics object (molecule or inline spheres/cylinders) its quadric list, and an object
+with a mesostructure its height field and normal map. Then each technique it names bakes its own
+parts through its declaration (vdmbake/techniques/): coarse meshes, VDM tables, displaced meshes,
+billboards. Nothing else is baked or ray cast.
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
-from . import __version__, coarse, curvature, heightfields, primitives, quadrics, texspace, vdm
+from . import __version__, curvature, heightfields, parts, primitives, quadrics, vdm
 from .bundle import FORMAT_VERSION, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
 from .scene import Object, Scene, load_scene
+from .techniques import REGISTRY
 
 
 def object_mesh(obj: Object, base: Path) -> TriMesh:
@@ -72,6 +73,24 @@ def up_to_date(out: Path, digest: str) -> bool:
         return False
 
 
+@dataclass
+class Job:
+    """What a technique's bake step gets (vdmbake.schema.Technique.bake): its object and settings,
+    what the object's own bake made, and where to write."""
+    obj: Object
+    options: Any                            # the technique's settings (its Options dataclass)
+    mesh: TriMesh | None                    # surface objects: the full mesh, world space (with its frame
+                                            # under a mesostructure)
+    maps: parts.MesostructureMaps | None    # objects with a mesostructure: as stored in the bundle
+    writer: BundleWriter
+    log: Callable[[str], None]
+    steps: dict                             # wall seconds of long steps, for timing.json
+
+    def write(self, name: str, kind: parts.PartKind, value) -> str:
+        """Store `value` as the object's part `name` (suffix added); returns its path in the bundle."""
+        return self.writer.add(f"objects/{self.obj.name}/{name}", kind, value)
+
+
 def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None) -> dict:
     """Bake the scene into the bundle at `out`; returns the manifest's statistics (or that it was up to date)."""
     scene_path = Path(scene_path)
@@ -101,102 +120,37 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
 
 
 def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict) -> dict:
-    """The object's parts and manifest entry; wall times of long steps go into `steps` (timing.json)."""
+    """The object's manifest entry: what its reference needs, then each technique's own parts."""
+    say = lambda m: log(f"{obj.name}: {m}")  # noqa: E731
+    mesh = maps = None
     if obj.kind == "quadrics":
         q, dropped = object_quadrics(obj, base)
         centre, radius = q.bounding_sphere()
-        rel = writer.add_bytes(f"objects/{obj.name}/quadrics.ply", quadrics.to_bytes(q), "quadrics",
-                               spheres=len(q.spheres), cylinders=len(q.cylinders))
-        log(f"{obj.name}: {len(q.spheres)} spheres, {len(q.cylinders)} cylinders"
+        entry = {"kind": obj.kind, "centre": centre.tolist(), "radius": radius,
+                 "quadrics": writer.add(f"objects/{obj.name}/quadrics", parts.QUADRICS, q), **dropped}
+        say(f"{len(q.spheres)} spheres, {len(q.cylinders)} cylinders"
             + (f" (dropped without volume: {dropped})" if any(dropped.values()) else ""))
-        return {"quadrics": rel, "centre": centre.tolist(), "radius": radius, **dropped}
-    mesh = object_mesh(obj, base)
-    if obj.mesostructure:
-        if mesh.uvs is None:
-            raise InputError(f"object {obj.name!r}: a mesostructure needs a base mesh with texture coordinates "
-                             "(the built-in primitives have them; export a mesh file with UVs, e.g. OBJ vt).")
-        if mesh.frame is None:   # a mesh file, or a primitive under a non-uniform scale: estimated, world space
-            mesh.frame = curvature.estimate_frame(mesh.vertices, mesh.faces, mesh.normals, mesh.uvs)
-    centre, radius = mesh.bounding_sphere()
-    entry = {"mesh": writer.add_mesh(f"objects/{obj.name}/mesh.ply", mesh),
-             "centre": centre.tolist(), "radius": radius}
-    log(f"{obj.name}: {len(mesh.faces)} faces")
-    if "coarse" in obj.techniques:
-        entry["coarse"] = {}
-        for ratio in obj.techniques["coarse"]["ratios"]:
-            c = coarse.simplify(mesh, ratio)
-            entry["coarse"][f"{ratio:g}"] = writer.add_mesh(f"objects/{obj.name}/coarse-{ratio:g}.ply", c, "coarse")
-            log(f"{obj.name}: coarse {ratio:g} -> {len(c.faces)} faces")
-    if obj.mesostructure:
-        entry["mesostructure"] = _bake_mesostructure(writer, obj, mesh, base, log, steps)
-    if "billboards" in obj.techniques:
-        entry["billboards"] = _bake_billboards(writer, obj, mesh, log, steps)
+    else:
+        mesh = object_mesh(obj, base)
+        if obj.mesostructure:
+            if mesh.uvs is None:
+                raise InputError(f"object {obj.name!r}: a mesostructure needs a base mesh with texture coordinates "
+                                 "(the built-in primitives have them; export a mesh file with UVs, e.g. OBJ vt).")
+            if mesh.frame is None:   # a mesh file, or a primitive under a non-uniform scale: estimated, world space
+                mesh.frame = curvature.estimate_frame(mesh.vertices, mesh.faces, mesh.normals, mesh.uvs)
+        centre, radius = mesh.bounding_sphere()
+        entry = {"kind": obj.kind, "centre": centre.tolist(), "radius": radius,
+                 "mesh": writer.add(f"objects/{obj.name}/mesh", parts.MESH, mesh)}
+        say(f"{len(mesh.faces)} faces")
+        if obj.mesostructure:
+            m = obj.mesostructure
+            heights = heightfields.from_spec(m.height, m.size, base).astype(np.float32)
+            maps = parts.MesostructureMaps(heights, vdm.height_normals(heights.astype(np.float64), m.depth)
+                                           .astype(np.float32))
+            entry["mesostructure"] = writer.add(f"objects/{obj.name}/mesostructure", parts.MESOSTRUCTURE, maps)
+    entry["techniques"] = {}
+    for name, options in obj.techniques.items():
+        technique = REGISTRY[name]
+        if technique.bake is not None:
+            entry["techniques"][name] = technique.bake(Job(obj, options, mesh, maps, writer, say, steps))
     return entry
-
-
-def _bake_billboards(writer: BundleWriter, obj: Object, mesh: TriMesh, log, steps: dict) -> dict:
-    """Enhanced billboards (thesis ch. 3) for each projection the variants name, and the coarse mesh
-    only if a variant fills holes with it. Maps: alpha, depth (0..1 of the box depth), world normal."""
-    from . import billboards
-
-    opts = obj.techniques["billboards"]
-    variants = opts["variants"]
-    out = {}
-    for mode in ("greedy", "axis"):
-        if not any(v.startswith(mode + "-") for v in variants):
-            continue
-        t0 = time.perf_counter()
-        res = billboards.bake(mesh, billboards.Settings(mode=mode, resolution=int(opts["resolution"])),
-                              log=lambda m: log(f"{obj.name}: {mode} billboards: {m}"))
-        steps[f"billboards_{mode}_s"] = round(time.perf_counter() - t0, 3)
-        parts = {f"bb{i:03d}": {"A": b.alpha, "depth.Z": b.depth, **{f"normal.{a}": b.normal[..., k]
-                                                                      for k, a in enumerate("XYZ")}}
-                 for i, b in enumerate(res.billboards)}
-        rel = writer.add_exr(f"objects/{obj.name}/billboards-{mode}.exr", parts, "billboards")
-        out[mode] = {"maps": rel, "leftover": res.leftover, "candidates": res.candidates, "rays": res.rays,
-                     "boards": [{"origin": b.origin.tolist(), "axes": b.axes.tolist(), "size": b.size.tolist(),
-                                 "faces": len(b.faces)} for b in res.billboards]}
-        log(f"{obj.name}: {mode} billboards: {len(res.billboards)} from {res.candidates} candidate directions, "
-            f"{writer.parts[rel]['bytes'] / 2**20:.2f} MB; faces left out {res.leftover}")
-    if any(v.endswith("+coarse") for v in variants):
-        c = coarse.simplify(mesh, opts["coarse_ratio"])
-        out["coarse"] = writer.add_mesh(f"objects/{obj.name}/billboards-coarse.ply", c, "coarse")
-        log(f"{obj.name}: billboards' coarse mesh {len(c.faces)} faces")
-    return out
-
-
-def _bake_mesostructure(writer: BundleWriter, obj: Object, mesh: TriMesh, base: Path, log, steps: dict) -> dict:
-    """The height field and, if `vdm` is rendered, the compressed VDM/MVM tables (sec. 3.1-3.3)."""
-    m = obj.mesostructure
-    heights = heightfields.from_spec(m.height, m.size, base)
-    name = obj.name
-    out = {"height": writer.add_exr(f"objects/{name}/height.exr", {"height": {"h": heights.astype(np.float32)}},
-                                    "height")}
-    if "vdm" not in obj.techniques:
-        return out
-    lo, hi = texspace.curvature_range(mesh.frame, mesh.normals, m.tiling)
-    sampling = vdm.Sampling(m.size, m.phi, m.theta, vdm.curvature_samples(lo, hi, m.curvatures))
-    t0 = time.perf_counter()
-    table, theta_mvm, rays = vdm.bake_tables(heights, m.depth, sampling)
-    t1 = time.perf_counter()
-    ks = obj.techniques["vdm"]["k"]
-    k = table.shape[3] * table.shape[4] + table.shape[4] if "all" in ks else max(ks)
-    comp = vdm.compress(table, theta_mvm, k, report=[x for x in ks if x != "all"])
-    t2 = time.perf_counter()
-    n, k = m.size, comp.W.shape[-1]
-    W = comp.W.transpose(2, 0, 1, 3).reshape(m.phi * n, n, k)          # rows: phi-major blocks of y
-    parts = {"W": {f"W.{i:03d}": W[..., i] for i in range(k)},
-             "E_vdm": {f"E.{i:03d}": comp.E_vdm[i].T for i in range(k)},   # rows c, columns theta
-             "E_mvm": {f"E.{i:03d}": comp.E_mvm[i][None] for i in range(k)}}
-    rel = writer.add_exr(f"objects/{name}/vdm.exr", parts, "vdm")
-    out.update({
-        "vdm": rel, "k": k, "rank": comp.rank, "curvatures": list(sampling.curvatures), "rays": rays,
-        "table_bytes": table.nbytes + theta_mvm.nbytes,
-        "compressed_bytes": comp.W.nbytes + comp.E_vdm.nbytes + comp.E_mvm.nbytes,
-        "errors": {str(kk): {f: round(getattr(e, f), 6) for f in ("energy", "rms_vdm", "rms_mvm", "max_abs_vdm")}
-                   for kk, e in comp.errors.items()}})
-    steps.update(vdm_tables_s=round(t1 - t0, 3), vdm_svd_s=round(t2 - t1, 3))
-    log(f"{name}: VDM {n}^2 x {m.phi} phi x {m.theta} theta x {len(sampling.curvatures)} curvatures "
-        f"[{lo:.3g}, {hi:.3g}], {rays:,} rays in {t1 - t0:.2f} s; SVD k = {k} (rank {comp.rank}) in {t2 - t1:.2f} s, "
-        f"{out['table_bytes'] / 2**20:.1f} MB -> {out['compressed_bytes'] / 2**20:.2f} MB")
-    return out

@@ -30,9 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import geometry
 from .embree import RayScene
 from .errors import InputError
 from .meshes import TriMesh, validate
+from .parts import Billboard
 
 # The axis baseline of sec. 4.2 (Figure 4-5), as view directions: +X, -X, +Y, -Y, +Z, -Z.
 AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
@@ -58,19 +60,9 @@ class Settings:
 
 
 @dataclass
-class Billboard:
-    origin: np.ndarray    # (3,) world corner of the box at texel (0, 0), nearest depth
-    axes: np.ndarray      # (3, 3) rows u, v, w (w = view direction into the model), right-handed
-    size: np.ndarray      # (3,) world extent of the box along u, v, w
-    faces: np.ndarray     # indices of the mesh faces this billboard captured
-    alpha: np.ndarray     # (R, R) float32 coverage 0/1; [row, col] = texel (v, u), row 0 at v = 0
-    depth: np.ndarray     # (R, R) float32 in [0, 1] along w (0 = box front), 1 where alpha is 0
-    normal: np.ndarray    # (R, R, 3) float32 world unit shading normal facing -w, 0 where alpha is 0
-
-
-@dataclass
 class Result:
     billboards: list[Billboard]
+    faces: list[np.ndarray]   # per billboard, the indices of the mesh faces it captured
     leftover: dict        # faces never captured, by reason: too_small, perpendicular, hidden, over_budget
     candidates: int       # candidate directions evaluated
     rays: int             # Embree rays cast in all
@@ -86,11 +78,9 @@ def candidate_directions(azimuths: int, elevations: int) -> np.ndarray:
 
 
 def view_frame(w: np.ndarray) -> np.ndarray:
-    """Rows u, v, w: a right-handed orthonormal basis around w (Duff et al. 2017, branchless ONB)."""
-    s = np.copysign(1.0, w[2])
-    a = -1.0 / (s + w[2])
-    b = w[0] * w[1] * a
-    return np.array([[1 + s * w[0] * w[0] * a, s * b, -s * w[0]], [b, s + w[1] * w[1] * a, -w[1]], w])
+    """Rows u, v, w: a right-handed orthonormal basis around the unit vector w."""
+    u, v = geometry.onb(w[None])
+    return np.array([u[0], v[0], w])
 
 
 def _check(s: Settings):
@@ -131,16 +121,17 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), log=lambda msg: None) -
         chosen = _build(vis, tri, fn, area, dirs, settings, scale)
         billboards = list(pool.map(lambda c: _maps(v, mesh, fn, c[1], dirs[c[0]], settings.resolution, scale),
                                    chosen))
+    faces = [take for _, take in chosen]
     rays += len(billboards) * settings.resolution ** 2
-    for k, b in enumerate(billboards):
+    for k, (b, f) in enumerate(zip(billboards, faces)):
         b.origin += centre
-        log(f"billboard {k + 1}: w = {np.round(b.axes[2], 3).tolist()}, {len(b.faces)} faces, "
+        log(f"billboard {k + 1}: w = {np.round(b.axes[2], 3).tolist()}, {len(f)} faces, "
             f"{int(b.alpha.sum())} texels, box {np.round(b.size, 4).tolist()}")
 
     # Faces never captured, by reason (sec. 3.4 and 4.3).
     captured = np.zeros(len(tri), bool)
-    for b in billboards:
-        captured[b.faces] = True
+    for f in faces:
+        captured[f] = True
     texel = min((b.size[0] * b.size[1] for b in billboards), default=scale * scale) / settings.resolution ** 2
     small = ~captured & (degenerate | (area < 0.25 * texel))  # even seen head-on: under 1/4 of the finest texel
     perpendicular = ~captured & ~small & ~facing_any
@@ -148,7 +139,7 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), log=lambda msg: None) -
     leftover = {"too_small": int(small.sum()), "perpendicular": int(perpendicular.sum()),
                 "hidden": int(hidden.sum()),
                 "over_budget": int((~captured).sum() - small.sum() - perpendicular.sum() - hidden.sum())}
-    return Result(billboards, leftover, len(dirs), rays)
+    return Result(billboards, faces, leftover, len(dirs), rays)
 
 
 def _visibility(v, faces, starts, fn, dirs, min_cos, pool):
@@ -230,6 +221,6 @@ def _maps(v, mesh: TriMesh, fn, take, w, resolution: int, scale: float) -> Billb
     normal = np.zeros((resolution * resolution, 3))
     normal[hit] = n
     shape = (resolution, resolution)
-    return Billboard(origin=lo @ axes, axes=axes, size=size, faces=take,
+    return Billboard(origin=lo @ axes, axes=axes, size=size,
                      alpha=hit.reshape(shape).astype(np.float32), depth=depth.reshape(shape).astype(np.float32),
                      normal=normal.reshape(shape + (3,)).astype(np.float32))

@@ -1,9 +1,10 @@
-"""The bundle: a directory with manifest.json and its parts (PLY meshes, EXR tables and maps).
+"""The bundle: a directory with manifest.json and its parts (PLY meshes, EXR tables and maps),
+each of a kind in vdmbake.parts; docs/bundle.md is its specification.
 
 Writing goes to a hidden temporary sibling directory; the manifest is written last and
 the directory is renamed into place, so an interrupted bake never leaves a bundle that
 looks valid. Reading checks the format version, that every part path stays inside the
-bundle, and every part's sha256.
+bundle, every part's sha256 and kind, and parses the very bytes it checked.
 """
 from __future__ import annotations
 
@@ -11,15 +12,13 @@ import hashlib
 import json
 from pathlib import Path, PurePosixPath
 
-import numpy as np
-
-from . import __version__, exr, ply, quadrics
+from . import __version__
 from .errors import InputError
-from .meshes import TriMesh
+from .parts import PartKind
 from .staging import StagedDir
 
 FORMAT = "vdm-bundle"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 MANIFEST = "manifest.json"
 TIMING = "timing.json"  # wall times: kept out of the manifest so the manifest's bytes are deterministic
 
@@ -40,21 +39,13 @@ class BundleWriter:
         self.stage = StagedDir(path, MANIFEST, "bundle")
         self.parts: dict[str, dict] = {}
 
-    def _record(self, rel: str, kind: str, **meta) -> str:
-        data = (self.stage.tmp / rel).read_bytes()
-        self.parts[rel] = {"kind": kind, "sha256": _sha256(data), "bytes": len(data), **meta}
-        return rel
-
-    def add_bytes(self, rel: str, data: bytes, kind: str, **meta) -> str:
+    def add(self, rel: str, kind: PartKind, value) -> str:
+        """Write `value` as a part of `kind` at `rel` (its suffix appended); returns the part's path."""
+        rel += kind.suffix
+        data, meta = kind.pack(value)
         self.stage.file(rel).write_bytes(data)
-        return self._record(rel, kind, **meta)
-
-    def add_mesh(self, rel: str, mesh: TriMesh, kind: str = "mesh") -> str:
-        return self.add_bytes(rel, ply.to_bytes(mesh), kind, vertices=len(mesh.vertices), faces=len(mesh.faces))
-
-    def add_exr(self, rel: str, parts: dict[str, dict[str, np.ndarray]], kind: str) -> str:
-        exr.write(self.stage.file(rel), parts)
-        return self._record(rel, kind, exr_parts=sorted(parts))
+        self.parts[rel] = {"kind": kind.name, "sha256": _sha256(data), "bytes": len(data), **meta}
+        return rel
 
     def commit(self, manifest: dict, timing: dict) -> None:
         manifest = {"format": FORMAT, "format_version": FORMAT_VERSION, "tool_version": __version__,
@@ -96,6 +87,7 @@ class Bundle:
         return p
 
     def read_bytes(self, rel: str) -> bytes:
+        """The part's bytes, checked against its sha256."""
         meta = self.manifest["parts"].get(rel)
         if meta is None:
             raise InputError(f"{self.path}: the manifest lists no part {rel!r}.")
@@ -108,12 +100,11 @@ class Bundle:
                              "re-bake with vdmbake --force.")
         return data
 
-    def mesh(self, rel: str) -> TriMesh:
-        return ply.from_bytes(self.read_bytes(rel), str(self.path / rel))
-
-    def quadrics(self, rel: str) -> quadrics.QuadricSet:
-        return quadrics.from_bytes(self.read_bytes(rel), str(self.path / rel))
-
-    def exr(self, rel: str) -> dict[str, dict[str, np.ndarray]]:
-        self.read_bytes(rel)
-        return exr.read(self.part_path(rel))
+    def read(self, rel: str, kind: PartKind):
+        """The part at `rel`, which the manifest must record as of `kind`, unpacked from the bytes checked."""
+        data = self.read_bytes(rel)
+        meta = self.manifest["parts"][rel]
+        if meta.get("kind") != kind.name:
+            raise InputError(f"{self.path / rel}: the manifest records a {meta.get('kind')!r} part where a "
+                             f"{kind.name!r} part is expected; re-bake with vdmbake --force.")
+        return kind.unpack(data, meta, str(self.path / rel))

@@ -9,6 +9,7 @@ become R/G/B); reading keeps channels separate (the binding would merge R, G, B,
 """
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,11 @@ def _channel(name: str, a: np.ndarray) -> np.ndarray:
 
 def write(path: Path, parts: dict[str, dict[str, np.ndarray]], compression: str = "zip") -> None:
     """Write {part name: {channel name: 2-D array}} as one (multi-part if more than one) EXR file."""
+    Path(path).write_bytes(to_bytes(parts, compression))
+
+
+def to_bytes(parts: dict[str, dict[str, np.ndarray]], compression: str = "zip") -> bytes:
+    """The EXR file `write` makes, as bytes."""
     import OpenEXR
 
     comp = {"zip": OpenEXR.ZIP_COMPRESSION, "none": OpenEXR.NO_COMPRESSION}[compression]
@@ -45,13 +51,16 @@ def write(path: Path, parts: dict[str, dict[str, np.ndarray]], compression: str 
         header = {"compression": comp, "type": OpenEXR.scanlineimage, "displayWindow": display,
                   "dataWindow": (np.array([0, 0], np.int32), np.array([w - 1, h - 1], np.int32))}
         out.append(OpenEXR.Part(header, chans, name=name))
+    buf = io.BytesIO()
     with OpenEXR.File(out) as f:
-        f.write(str(path))
+        f.write(buf)
+    return buf.getvalue()
 
 
-def read(path: Path) -> dict[str, dict[str, np.ndarray]]:
-    """{part name: {channel name: 2-D array}} for every part of an EXR file."""
+def read(source: Path | bytes) -> dict[str, dict[str, np.ndarray]]:
+    """{part name: {channel name: 2-D array}} for every part of an EXR file, or of its bytes."""
     import OpenEXR
 
-    with OpenEXR.File(str(path), separate_channels=True) as f:
+    src = io.BytesIO(source) if isinstance(source, bytes) else str(source)
+    with OpenEXR.File(src, separate_channels=True) as f:
         return {p.name(): {c: np.array(ch.pixels) for c, ch in p.channels.items()} for p in f.parts}

@@ -348,14 +348,3 @@ def from_spec(spec: str, size: int, base: Path) -> np.ndarray:
 
     return load_image(resolve_path(spec, base), size)
 
-
-def sample(h: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Periodic bilinear interpolation of texel-centre samples at tile coordinates uv (..., 2)
-    (u along columns, v along rows): the surface the VDM bake's mesostructure mesh spans."""
-    n = h.shape[0]
-    x, y = uv[..., 0] * n - 0.5, uv[..., 1] * n - 0.5
-    x0, y0 = np.floor(x), np.floor(y)
-    fx, fy = x - x0, y - y0
-    i0, j0 = y0.astype(np.int64) % n, x0.astype(np.int64) % n
-    i1, j1 = (i0 + 1) % n, (j0 + 1) % n
-    return ((1 - fy) * ((1 - fx) * h[i0, j0] + fx * h[i0, j1]) + fy * ((1 - fx) * h[i1, j0] + fx * h[i1, j1]))

@@ -64,21 +64,6 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
 
 
-def subdivide(faces: np.ndarray, attrs: dict[str, np.ndarray]) -> tuple[np.ndarray, dict]:
-    """One level of midpoint subdivision (every triangle into four) of per-vertex attributes,
-    interpolated linearly ("normal" renormalised). Shared edges get one midpoint, so the mesh
-    stays watertight."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    uniq, inv = np.unique(np.sort(e, axis=1), axis=0, return_inverse=True)
-    a, b = uniq[:, 0], uniq[:, 1]
-    out = {k: np.concatenate([v, 0.5 * (v[a] + v[b])]) for k, v in attrs.items()}
-    out["normal"] /= np.maximum(np.linalg.norm(out["normal"], axis=1, keepdims=True), 1e-300)
-    m = len(attrs["pos"]) + inv.reshape(3, -1).T          # midpoints of edges 01, 12, 20 per face
-    f = np.concatenate([np.stack([faces[:, 0], m[:, 0], m[:, 2]], 1), np.stack([faces[:, 1], m[:, 1], m[:, 0]], 1),
-                        np.stack([faces[:, 2], m[:, 2], m[:, 1]], 1), m])
-    return f, out
-
-
 def rotation_xyz(degrees) -> np.ndarray:
     """Rotation about X, then Y, then Z (extrinsic), angles in degrees."""
     ax, ay, az = np.radians(degrees)

@@ -1,67 +1,17 @@
 """Built-in primitives with analytic normals and UVs (pure numpy).
 
-Sphere, cylinder, torus and vase are surfaces of revolution about +Z: a profile
-(r(t), z(t)), t in [0, 1], swept by the angle phi. With P = (r cos phi, r sin phi, z),
-dP/dphi x dP/dt = r (z' cos phi, z' sin phi, -r'), so the unit normal is
-(z' cos phi, z' sin phi, -r') / |(r', z')|, exact at every vertex, poles included.
-UVs: u = phi / 2pi (the seam column is duplicated), v = t.
-Principal curvatures are analytic too (do Carmo, sec. 3-3, surfaces of revolution): along the
-parallel k_p = z' / (r |(r', z')|), along the meridian k_m = (r' z'' - z' r'') / |(r', z')|^3,
-positive where the surface bends away from its normal; at a pole (r = 0) k_p takes the limit k_m.
+Sphere, cylinder, cone, torus and vase are surfaces of revolution about +Z (vdmbake.geometry.revolve,
+which gives exact normals, UVs and principal curvatures from the profile); the plane is a grid.
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+
 import numpy as np
 
-from .meshes import SurfaceFrame, TriMesh, subdivide
-
-
-def _grid_faces(rows: int, cols: int) -> np.ndarray:
-    """Two counter-clockwise triangles per cell of a (rows+1) x (cols+1) vertex grid."""
-    i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
-    a = (i * (cols + 1) + j).ravel()
-    b, c, d = a + 1, a + cols + 1, a + cols + 2
-    return np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)]).astype(np.int64)
-
-
-def revolve(profile, segments: int, rings: int) -> TriMesh:
-    """Sweep profile(t) -> (r, z, r', z', r'', z'') around +Z; rings along t, segments along phi."""
-    t = np.linspace(0.0, 1.0, rings + 1)
-    phi = np.linspace(0.0, 2.0 * np.pi, segments + 1)
-    ring = np.repeat(np.arange(rings + 1), segments + 1)            # each vertex's ring (row-major grid)
-    r, z, dr, dz, ddr, ddz = (np.broadcast_to(np.asarray(a, float), t.shape)[ring] for a in profile(t))
-    P = np.tile(phi, rings + 1)
-    c, s = np.cos(P), np.sin(P)
-    speed = np.hypot(dr, dz)                                     # |dP/dt|
-    v = np.stack([r * c, r * s, z], -1)
-    n = np.stack([dz * c, dz * s, -dr], -1) / speed[:, None]
-    uv = np.stack([P / (2 * np.pi), t[ring]], -1)
-    k_m = (dr * ddz - dz * ddr) / speed ** 3
-    with np.errstate(divide="ignore", invalid="ignore"):
-        k_p = np.where(r > 1e-12 * speed, dz / (r * speed), k_m)
-    parallel = np.stack([-s, c, np.zeros_like(c)], -1)
-    frame = SurfaceFrame(dpdu=2 * np.pi * r[:, None] * parallel,
-                         dpdv=np.stack([dr * c, dr * s, dz], -1), k1=k_p, k2=k_m, d1=parallel)
-    return TriMesh(v, _grid_faces(rings, segments), n, uv, frame)
-
-
-def _disk(radius: float, z: float, segments: int, up: bool) -> TriMesh:
-    phi = np.linspace(0.0, 2.0 * np.pi, segments + 1)[:-1]
-    v = np.concatenate([[[0.0, 0.0, z]], np.stack([radius * np.cos(phi), radius * np.sin(phi), np.full_like(phi, z)], 1)])
-    k = np.arange(segments)
-    f = np.stack([np.zeros_like(k), 1 + k, 1 + (k + 1) % segments], 1)
-    if not up:
-        f = f[:, ::-1]
-    n = np.tile([0.0, 0.0, 1.0 if up else -1.0], (len(v), 1))
-    uv = 0.5 + 0.5 * v[:, :2] / radius
-    return TriMesh(v, f.astype(np.int64), n, uv, _flat_frame(len(v), 2 * radius))
-
-
-def _flat_frame(count: int, size: float) -> SurfaceFrame:
-    """A planar patch: u along +X, v along +Y, no curvature."""
-    zero = np.zeros(count)
-    return SurfaceFrame(np.tile([size, 0.0, 0.0], (count, 1)), np.tile([0.0, size, 0.0], (count, 1)),
-                        zero, zero.copy(), np.tile([1.0, 0.0, 0.0], (count, 1)))
+from .geometry import cylinder, disk, flat_frame, grid_faces, revolve
+from .meshes import TriMesh
+from .schema import Integer, Number, setting
 
 
 def plane(size: float, segments: int) -> TriMesh:
@@ -70,8 +20,8 @@ def plane(size: float, segments: int) -> TriMesh:
     V, U = np.meshgrid(u, u, indexing="ij")
     v = np.stack([(U - 0.5) * size, (V - 0.5) * size, np.zeros_like(U)], -1).reshape(-1, 3)
     n = np.tile([0.0, 0.0, 1.0], (len(v), 1))
-    return TriMesh(v, _grid_faces(segments, segments), n, np.stack([U, V], -1).reshape(-1, 2),
-                   _flat_frame(len(v), size))
+    return TriMesh(v, grid_faces(segments, segments), n, np.stack([U, V], -1).reshape(-1, 2),
+                   flat_frame(len(v), size))
 
 
 def sphere(radius: float, segments: int, rings: int) -> TriMesh:
@@ -81,18 +31,10 @@ def sphere(radius: float, segments: int, rings: int) -> TriMesh:
                               -radius * a * a * np.sin(a * t), radius * a * a * np.cos(a * t)), segments, rings)
 
 
-def cylinder(radius: float, height: float, segments: int, rings: int, caps: int) -> TriMesh:
-    side = revolve(lambda t: (radius, (t - 0.5) * height, 0.0, height, 0.0, 0.0), segments, rings)
-    if not caps:
-        return side
-    return TriMesh.concatenate([side, _disk(radius, -0.5 * height, segments, False),
-                                _disk(radius, 0.5 * height, segments, True)])
-
-
 def cone(radius: float, height: float, segments: int, rings: int, caps: int) -> TriMesh:
     """A right circular cone on the XY plane's centre, apex up (+Z), closed by a base disk if caps."""
     side = revolve(lambda t: (radius * (1.0 - t), (t - 0.5) * height, -radius, height, 0.0, 0.0), segments, rings)
-    return side if not caps else TriMesh.concatenate([side, _disk(radius, -0.5 * height, segments, False)])
+    return side if not caps else TriMesh.concatenate([side, disk(radius, -0.5 * height, segments, False)])
 
 
 def torus(major: float, minor: float, segments: int, rings: int) -> TriMesh:
@@ -110,23 +52,67 @@ def vase(radius: float, height: float, segments: int, rings: int) -> TriMesh:
                               -radius * 0.45 * w * w * np.sin(w * t + 0.35), 0.0), segments, rings)
 
 
-def icosphere(level: int) -> TriMesh:
-    """The unit sphere as an icosahedron subdivided `level` times (20 * 4^level faces), normals radial."""
-    g = (1 + 5 ** 0.5) / 2
-    v = np.array([[-1, g, 0], [1, g, 0], [-1, -g, 0], [1, -g, 0], [0, -1, g], [0, 1, g],
-                  [0, -1, -g], [0, 1, -g], [g, 0, -1], [g, 0, 1], [-g, 0, -1], [-g, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-                  [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-                  [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
-    v /= np.linalg.norm(v, axis=1, keepdims=True)
-    for _ in range(level):   # midpoints pushed out to the sphere: on the unit sphere position = normal
-        f, a = subdivide(f, {"pos": v, "normal": v})
-        v = a["normal"]
-    return TriMesh(v, f.astype(np.int64), v.copy())
+def _length(default: float, doc: str):
+    return setting(default, Number(1e-9, 1e9), doc)
 
 
-BUILDERS = {"plane": plane, "sphere": sphere, "cylinder": cylinder, "cone": cone, "torus": torus, "vase": vase}
+def _count(default: int, doc: str):
+    return setting(default, Integer(1, 4096), doc)
 
 
-def build(name: str, params: dict) -> TriMesh:
-    return BUILDERS[name](**params)
+# Each primitive's parameters (the scene's `params` table), lengths in scene units.
+@dataclass(frozen=True)
+class PlaneParams:
+    size: float = _length(2.0, "side of the square")
+    segments: int = _count(8, "grid cells per side")
+
+
+@dataclass(frozen=True)
+class SphereParams:
+    radius: float = _length(1.0, "radius")
+    segments: int = _count(96, "cells around the Z axis")
+    rings: int = _count(48, "cells from pole to pole")
+
+
+@dataclass(frozen=True)
+class CylinderParams:
+    radius: float = _length(0.5, "radius")
+    height: float = _length(2.0, "height along Z, centred on the origin")
+    segments: int = _count(96, "cells around the Z axis")
+    rings: int = _count(8, "cells along Z")
+    caps: int = setting(1, Integer(0, 1), "1: closed by two disks")
+
+
+@dataclass(frozen=True)
+class ConeParams:
+    radius: float = _length(0.6, "base radius")
+    height: float = _length(1.5, "height along Z, apex up")
+    segments: int = _count(96, "cells around the Z axis")
+    rings: int = _count(8, "cells along Z")
+    caps: int = setting(1, Integer(0, 1), "1: closed by the base disk")
+
+
+@dataclass(frozen=True)
+class TorusParams:
+    major: float = _length(1.0, "radius of the ring")
+    minor: float = _length(0.35, "radius of the tube")
+    segments: int = _count(128, "cells around the ring")
+    rings: int = _count(64, "cells around the tube")
+
+
+@dataclass(frozen=True)
+class VaseParams:
+    radius: float = _length(0.5, "radius at the foot")
+    height: float = _length(2.0, "height along Z")
+    segments: int = _count(96, "cells around the Z axis")
+    rings: int = _count(64, "cells along the profile")
+
+
+# name -> (builder, parameters)
+PRIMITIVES = {"plane": (plane, PlaneParams), "sphere": (sphere, SphereParams), "cylinder": (cylinder, CylinderParams),
+              "cone": (cone, ConeParams), "torus": (torus, TorusParams), "vase": (vase, VaseParams)}
+
+
+def build(name: str, params) -> TriMesh:
+    """The primitive `name` with its parameters (a *Params instance)."""
+    return PRIMITIVES[name][0](**asdict(params))

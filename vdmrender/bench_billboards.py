@@ -81,9 +81,9 @@ def main(out: Path, quick: bool):
             if name not in bakes:
                 bundle = out / "bundles" / f"{tag}.bundle"
                 m = json.loads((bundle / "manifest.json").read_text())
-                bb = m["objects"][name]["billboards"]
+                bb = m["objects"][name]["techniques"]["billboards"]
                 timing = json.loads((bundle / "timing.json").read_text())["steps_s"].get(name, {})
-                bakes[name] = {"greedy": len(bb["greedy"]["boards"]), "axis": len(bb["axis"]["boards"]),
+                bakes[name] = {"greedy": len(bb["greedy"]["faces"]), "axis": len(bb["axis"]["faces"]),
                                "leftover": bb["greedy"]["leftover"],
                                "greedy_mb": m["parts"][bb["greedy"]["maps"]]["bytes"] / 2**20,
                                "axis_mb": m["parts"][bb["axis"]["maps"]]["bytes"] / 2**20,

@@ -83,7 +83,7 @@ def _scene_rows(out: Path, name, primitive, params, tiling, hname, height, w, h,
         w=w, h=h, name=tag, primitive=primitive, params=params, height=height, size=size, tu=tiling[0],
         tv=tiling[1], phi=n_phi, n_c=n_c, levels=list(levels)))
     meso = json.loads((out / "bundles" / f"vdm-{tag}.bundle" / "manifest.json").read_text())["objects"][tag]
-    c = meso["mesostructure"]["curvatures"]
+    c = meso["techniques"]["vdm"]["curvatures"]
     return [{**r, "surface": name, "height": hname, "curvature_range": [c[0], c[-1]]} for r in rows]
 
 

@@ -8,24 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from vdmbake.geometry import onb
+
 D = np.diag([1.0, 1.0, 1.0, -1.0])
 
 
 def _sign(x):
     return np.where(x >= 0, 1.0, -1.0)
-
-
-def frames(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors completing the unit `axis` (N, 3) to a right-handed orthonormal frame,
-    branch-free and stable for every direction (Duff et al. 2017, "Building an Orthonormal
-    Basis, Revisited")."""
-    x, y, z = axis[:, 0], axis[:, 1], axis[:, 2]
-    s = _sign(z)
-    a = -1.0 / (s + z)
-    b = x * y * a
-    u = np.stack([1.0 + s * x * x * a, s * b, -s * x], 1)
-    v = np.stack([b, s + y * y * a, -y], 1)
-    return u, v
 
 
 def _first_root(c, b, disc, tmin):
@@ -58,7 +47,7 @@ def ray_capped_cylinders(o, d, p0, p1, radius, tmin):
     axis = p1 - p0
     half = 0.5 * np.linalg.norm(axis, axis=1)
     w = axis / (2 * half)[:, None]
-    u, v = frames(w)
+    u, v = onb(w)
     f = o - 0.5 * (p0 + p1)
     op = np.stack([np.einsum("ij,ij->i", f, e) for e in (u, v, w)], 1)
     dp = np.stack([np.einsum("ij,ij->i", d, e) for e in (u, v, w)], 1)

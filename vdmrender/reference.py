@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from vdmbake.embree import RayScene
+from vdmbake.geometry import onb
 
 from . import quadric_math
 from .shading import safe_normalize, shade
@@ -70,7 +71,7 @@ class QuadricTracer:
         axis = c[:, 3:6] - c[:, :3]
         half = 0.5 * np.linalg.norm(axis, axis=1)
         w = axis / (2 * half)[:, None]
-        u, v = quadric_math.frames(w)
+        u, v = onb(w)
         grow = 1.0 + 1e-5  # boxes strictly enclose their quadric despite float32 rounding in Embree
         corners = np.concatenate([
             s[:, None, :3] + grow * s[:, None, 3:4] * _BOX[None],

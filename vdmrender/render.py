@@ -12,16 +12,17 @@ from pathlib import Path
 
 import numpy as np
 
-from vdmbake import __version__, exr
+from vdmbake import __version__, exr, parts
 from vdmbake.bundle import MANIFEST, Bundle
 from vdmbake.errors import InputError
+from vdmbake.scene import parse_scene_dict
 from vdmbake.staging import StagedDir
-from vdmbake.scene import TECHNIQUES, parse_scene_dict
+from vdmbake.techniques import REGISTRY
 
 from . import gl, images, reference, report
 from .camera import cameras_for
 from .metrics import compare
-from .techniques import mesostructure, variants
+from .techniques import Source, mesostructure, variants
 
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
 # (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
@@ -62,8 +63,8 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     folder = f"reference/{obj.name}"
     part = entry.get("mesh") or entry["quadrics"]
     geometry = {"part": bundle.manifest["parts"][part]["sha256"]}
-    if obj.mesostructure:   # the truly displaced geometry: the base mesh, the heights and how they are mapped
-        geometry.update(height=bundle.manifest["parts"][entry["mesostructure"]["height"]]["sha256"],
+    if obj.mesostructure:   # the truly displaced geometry: the base mesh, the maps and how they are mapped
+        geometry.update(maps=bundle.manifest["parts"][entry["mesostructure"]]["sha256"],
                         mesostructure=asdict(obj.mesostructure))
     key = _reference_key(geometry, cams, scene.light, obj.material, scene.render.background)
     prev_key = out.previous(f"{folder}/key.txt")
@@ -75,11 +76,12 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     else:
         t0 = time.perf_counter()
         if obj.mesostructure:
-            ref = reference.MeshReference(mesostructure.displaced_mesh(bundle, obj, entry), scene.light, obj.material)
+            src = Source(obj, entry, None, bundle, scene, None)
+            ref = reference.MeshReference(mesostructure.reference_mesh(src), scene.light, obj.material)
         elif obj.kind == "surface":
-            ref = reference.MeshReference(bundle.mesh(part), scene.light, obj.material)
+            ref = reference.MeshReference(bundle.read(part, parts.MESH), scene.light, obj.material)
         else:
-            ref = reference.QuadricReference(bundle.quadrics(part), scene.light, obj.material)
+            ref = reference.QuadricReference(bundle.read(part, parts.QUADRICS), scene.light, obj.material)
         frames = [ref.render(c) for c in cams]
         info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
     for n, f in zip(names, frames):
@@ -113,8 +115,8 @@ def _technique_filter(opts: Options, scene) -> set | None:
         return None
     named = {t for o in scene.objects for t in o.techniques}
     for t in opts.techniques:
-        if t not in TECHNIQUES:
-            raise InputError(f"--technique {t!r}: unknown; known techniques: {', '.join(TECHNIQUES)}.")
+        if t not in REGISTRY:
+            raise InputError(f"--technique {t!r}: unknown; known techniques: {', '.join(REGISTRY)}.")
         if t not in named:
             raise InputError(f"--technique {t!r}: no object of this bundle's scene names it "
                              f"(they name: {', '.join(sorted(named))}).")

@@ -1,46 +1,55 @@
-"""Techniques: each module turns an object's bundle parts into renderable variants.
+"""Renderers: vdmrender/techniques/NAME.py draws the technique NAME declared in vdmbake/techniques/.
 
-A variant is one point on the error-against-time chart: a technique at one value of its
-quality knob. Building a variant uploads its data and compiles (once) the programs it uses,
-so a scene compiles only the shaders of the techniques it names.
-"""
+A variant is one point on the error-against-time chart: a technique at one value of its quality
+knob. Building a variant (the module's `build(ctx, source, value)`) uploads its data and compiles,
+once per context, the programs it uses, so a scene compiles only the shaders of the techniques it
+names. The renderer reads everything it draws from the bundle."""
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
-from vdmbake.scene import TECHNIQUES
+from vdmbake.scene import Object, Scene
+from vdmbake.techniques import REGISTRY
 
-from . import billboards, coarse, impostor, mesh, mesostructure, tessellated
+
+@dataclass
+class Source:
+    """What a renderer builds from: the object, its manifest entry, the technique's own entry (the
+    parts its bake wrote; None if it bakes none), the bundle and the scene, and its settings."""
+    obj: Object
+    entry: dict
+    part: dict | None
+    bundle: Any
+    scene: Scene
+    options: Any
+
+    @property
+    def shadow_map(self) -> int:
+        return self.scene.render.shadow_map
 
 
 @dataclass
 class Variant:
     technique: str
-    knob: str | None          # name of the quality knob's value, e.g. "ratio"
-    value: float | int | str | None   # its value for this variant
-    build: Callable           # build(ctx) -> renderer with render(camera, target) and release()
-
-    @property
-    def label(self) -> str:
-        if self.knob is None:
-            return self.technique
-        return f"{self.technique}@{self.value:g}" if isinstance(self.value, float) else f"{self.technique}@{self.value}"
+    knob: str | None                   # name of the quality knob's value, e.g. "ratio"
+    value: Any                         # its value for this variant, as plain data (the scene's spelling)
+    label: str                         # e.g. coarse@0.1
+    build: Callable                    # build(ctx) -> renderer with render(camera, target) and release()
 
 
-REGISTRY = {"mesh": mesh.variants, "coarse": coarse.variants, "impostor": impostor.variants,
-            "tessellated": tessellated.variants, "vdm": mesostructure.vdm_variants, "bump": mesostructure.bump_variants,
-            "pom": mesostructure.pom_variants, "displaced": mesostructure.displaced_variants,
-            "billboards": billboards.variants}
-
-
-def variants(obj, entry: dict, bundle, scene, only=None) -> list[Variant]:
-    """The variants of every technique the object names (restricted to `only` if given), in scene order.
-    Each technique module returns (knob value, build) pairs; the knob's name comes from its spec."""
+def variants(obj: Object, entry: dict, bundle, scene: Scene, only=None) -> list[Variant]:
+    """The variants of every technique the object names (restricted to `only` if given), in scene order."""
     out = []
     for name, options in obj.techniques.items():
-        if only is None or name in only:
-            knob = TECHNIQUES[name].knob
-            out += [Variant(name, knob and knob.label, value, build)
-                    for value, build in REGISTRY[name](obj, entry, bundle, scene, options)]
+        if only is not None and name not in only:
+            continue
+        t = REGISTRY[name]
+        module = importlib.import_module(f"{__name__}.{name}")
+        src = Source(obj, entry, entry["techniques"].get(name), bundle, scene, options)
+        knob, plain = (t.knob.metadata["knob"], t.knob.metadata["type"].item.dump) if t.knob else (None, None)
+        out += [Variant(name, knob, plain and plain(value), t.label(value),
+                        lambda ctx, build=module.build, src=src, value=value: build(ctx, src, value))
+                for value in t.values(options)]
     return out

@@ -37,15 +37,14 @@ Coordinates are anchor-relative (float64 on the CPU, float32 on the GPU), as in 
 """
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import moderngl
 import numpy as np
 
+from vdmbake import parts
 from vdmbake.errors import InputError
 
 from .. import gl
-from .mesh import RasterPasses
+from .raster import RasterPasses
 from .shadowmap import ShadowMap, translation
 
 METHODS = ("thesis", "improved")
@@ -63,16 +62,6 @@ COARSE_BEHIND = 0.05         # the coarse mesh is depth-tested as if this far (x
 _CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], np.float32)
 _CUBE = _CORNERS[np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
                            [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])].reshape(-1, 3)
-
-
-class Board(NamedTuple):
-    """One billboard as plain arrays (vdmbake.billboards.Billboard has the same fields)."""
-    origin: np.ndarray   # (3,) world corner of the box at texel (0, 0), depth 0
-    axes: np.ndarray     # (3, 3) rows u, v, w (w: the view direction into the model)
-    size: np.ndarray     # (3,) box extent along u, v, w
-    alpha: np.ndarray    # (R, R) coverage; [row, col] = texel (v, u)
-    depth: np.ndarray    # (R, R) in [0, 1] along w
-    normal: np.ndarray   # (R, R, 3) world unit normal
 
 
 def surface_points(b) -> np.ndarray:
@@ -138,7 +127,7 @@ def infinite_far(projection: np.ndarray) -> np.ndarray:
 class Billboards:
     def __init__(self, ctx, boards, light, material, shadow_size: int, method: str = "improved",
                  hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0):
-        """boards: objects with origin, axes, size, alpha, depth, normal (Board, or the bake's Billboard);
+        """boards: vdmbake.parts.Billboard (origin, axes, size, alpha, depth, normal maps);
         coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of the model, which fits
         the shadow map (default: the box of the covered texels' points, and of the coarse mesh);
         steps_per_texel: the improved march's step density (its cost and quality knob; 1: a step per texel)."""
@@ -261,27 +250,12 @@ class Billboards:
             o.release()
 
 
-def load_boards(bundle, part: dict) -> list[Board]:
-    """The billboards of one projection from the bundle: maps from the EXR, frames from the manifest."""
-    maps = bundle.exr(part["maps"])
-    return [Board(np.asarray(b["origin"]), np.asarray(b["axes"]), np.asarray(b["size"]), m["A"], m["depth.Z"],
-                  np.stack([m[f"normal.{a}"] for a in "XYZ"], -1))
-            for b, m in zip(part["boards"], (maps[f"bb{i:03d}"] for i in range(len(part["boards"]))))]
 
-
-def variants(obj, entry, bundle, scene, options):
-    """One variant per PROJECTION-METHOD[+coarse] value (vdmbake.scene's `billboards` knob)."""
-    parts = entry["billboards"]
-    out = []
-    for value in options["variants"]:
-        projection, _, rest = value.partition("-")
-        method, _, fill = rest.partition("+")
-
-        def build(ctx, projection=projection, method=method, fill=fill):
-            coarse = bundle.mesh(parts["coarse"]) if fill else None
-            return Billboards(ctx, load_boards(bundle, parts[projection]), scene.light, obj.material,
-                              scene.render.shadow_map, "improved" if method == "improved" else "thesis",
-                              float(method[3:]) if method.startswith("hit") else 0.01, coarse,
-                              (np.asarray(entry["centre"]), entry["radius"]))
-        out.append((value, build))
-    return out
+def build(ctx, src, variant):
+    """One PROJECTION-METHOD[+coarse] variant (vdmbake.techniques.billboards.Variant)."""
+    part = src.part
+    coarse = src.bundle.read(part["coarse"], parts.MESH) if variant.coarse else None
+    boards = src.bundle.read(part[variant.projection]["maps"], parts.BILLBOARDS)
+    method = "thesis" if variant.hit_range is not None else "improved"
+    return Billboards(ctx, boards, src.scene.light, src.obj.material, src.shadow_map, method,
+                      variant.hit_range or 0.01, coarse, (np.asarray(src.entry["centre"]), src.entry["radius"]))

@@ -1,10 +1,11 @@
-"""Technique `coarse`: the simplified meshes baked by vdmbake, one variant per face ratio."""
+"""Renderer of `coarse`: one simplified mesh (baked by vdmbake) per ratio, rasterised like `mesh`."""
 from __future__ import annotations
 
-from .mesh import RasterMesh
+from vdmbake import parts
+
+from .raster import RasterMesh
 
 
-def variants(obj, entry, bundle, scene, options):
-    def builder(rel):
-        return lambda ctx: RasterMesh(ctx, bundle.mesh(rel), scene.light, obj.material, scene.render.shadow_map)
-    return [(ratio, builder(entry["coarse"][f"{ratio:g}"])) for ratio in options["ratios"]]
+def build(ctx, src, ratio):
+    rel = next(m["mesh"] for m in src.part["meshes"] if m["ratio"] == ratio)
+    return RasterMesh(ctx, src.bundle.read(rel, parts.MESH), src.scene.light, src.obj.material, src.shadow_map)

@@ -1,4 +1,4 @@
-"""Technique `impostor`: spheres and capped cylinders ray cast per pixel on screen-aligned quads
+"""Renderer of `impostor`: spheres and capped cylinders ray cast per pixel on screen-aligned quads
 (Sigg et al. 2006; de Poel & Bresser 2009). Knob `shading`: direct; deferred (G-buffer of normal
 and mu, then one shading pass); outlines (deferred plus Sobel silhouettes and creases).
 Shadows come from a shadow map of the same ray-cast quadrics, drawn from the light."""
@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import moderngl
 import numpy as np
+
+from vdmbake import parts
 
 from .. import gl
 from .shadowmap import ShadowMap, translation
@@ -101,8 +103,8 @@ class Impostors:
             self.fullscreen.release()
 
 
-def variants(obj, entry, bundle, scene, options):
-    def builder(mode):
-        return lambda ctx: Impostors(ctx, bundle.quadrics(entry["quadrics"]), scene.light, obj.material,
-                                     scene.render.shadow_map, mode, options["silhouette"], options["crease"])
-    return [(mode, builder(mode)) for mode in options["shading"]]
+
+def build(ctx, src, shading):
+    o = src.options
+    return Impostors(ctx, src.bundle.read(src.entry["quadrics"], parts.QUADRICS), src.scene.light, src.obj.material,
+                     src.shadow_map, shading, o.silhouette, o.crease)

@@ -1,85 +1,11 @@
-"""Technique `mesh`: the full mesh rasterised with the shared shading and a shadow map."""
+"""Renderer of `mesh`: the full mesh, rasterised with the shared shading and a shadow map."""
 from __future__ import annotations
 
-import moderngl
-import numpy as np
+from vdmbake import parts
 
-from .. import gl
-from .shadowmap import ShadowMap, translation
+from .raster import RasterMesh
 
 
-class RasterPasses:
-    """Triangle meshes drawn in two passes per frame: the shadow map (depth.frag, with polygon
-    offset), then the shaded frame (mesh.frag, or a subclass's fragment stage, whose extra
-    uniforms and textures `bind_frame` sets). Subclasses fill `draws` through `add`."""
-
-    POLYGON_OFFSET = (2.0, 2.0)   # slope-scaled and constant depth bias of the shadow-map pass
-    NORMAL_OFFSET_TEXELS = 0.0    # shadow lookups move this far along the normal, in shadow-map texels
-
-    def __init__(self, ctx, light, material, anchor, radius: float, shadow_size: int):
-        self.ctx, self.light, self.material, self.anchor = ctx, light, material, anchor
-        self.shadow = ShadowMap(ctx, shadow_size, light.direction, radius)
-        self.buffers, self.draws = [], []
-
-    def add(self, vertex: str, defines: tuple, buffers: list, attributes: list, depth_attributes: list,
-            index, instances: int = 1, frag: str = "mesh.frag", depth_vertex: str | None = None,
-            optional: bool = False) -> None:
-        """One draw in both passes; the depth pass reads only `depth_attributes` (through
-        `depth_vertex` if given). optional: attributes the fragment stage does not read may be
-        compiled away (one vertex layout serves several fragment stages)."""
-        self.buffers += buffers
-        for stage, vert, fs, attrs in (("frame", vertex, frag, attributes),
-                                       ("shadow", depth_vertex or vertex, "depth.frag", depth_attributes)):
-            prog = gl.program(self.ctx, vert, fs, defines)
-            vao = self.ctx.vertex_array(prog, attrs, index, skip_errors=optional and stage == "frame")
-            self.draws.append((stage, prog, vao, instances))
-
-    def bind_frame(self, prog, camera) -> None:
-        """Extra uniforms and textures of the frame pass (none for plain meshes)."""
-
-    def render(self, camera, target) -> None:
-        ctx = self.ctx
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        self.shadow.begin()
-        ctx.polygon_offset = self.POLYGON_OFFSET
-        for stage, prog, vao, n in self.draws:
-            if stage == "shadow":
-                gl.set_uniforms(prog, u_mvp=self.shadow.view_proj)
-                vao.render(instances=n)
-        ctx.polygon_offset = (0.0, 0.0)
-        target.begin()
-        mvp = camera.projection() @ camera.view() @ translation(self.anchor)
-        for stage, prog, vao, n in self.draws:
-            if stage == "frame":
-                gl.set_shading(prog, self.light, self.material)
-                gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(camera.eye - self.anchor))
-                self.shadow.bind(prog, normal_offset=self.NORMAL_OFFSET_TEXELS * self.shadow.texel)
-                self.bind_frame(prog, camera)
-                vao.render(instances=n)
-
-    def release(self) -> None:
-        for _, _, vao, _ in self.draws:
-            vao.release()
-        for o in (*self.buffers, self.shadow):
-            o.release()
-
-
-class RasterMesh(RasterPasses):
-    """One triangle mesh with per-vertex normals and the material's albedo."""
-
-    def __init__(self, ctx, mesh, light, material, shadow_size: int):
-        anchor, radius = mesh.bounding_sphere()
-        super().__init__(ctx, light, material, anchor, radius, shadow_size)
-        self.faces = len(mesh.faces)
-        vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
-                         ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
-        self.add("mesh.vert", (), [vbo, nbo, ibo], [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")],
-                 [(vbo, "3f", "in_pos")], ibo)
-
-
-def variants(obj, entry, bundle, scene, options):
-    """One variant: the full mesh."""
-    def build(ctx):
-        return RasterMesh(ctx, bundle.mesh(entry["mesh"]), scene.light, obj.material, scene.render.shadow_map)
-    return [(None, build)]
+def build(ctx, src, value):
+    return RasterMesh(ctx, src.bundle.read(src.entry["mesh"], parts.MESH), src.scene.light, src.obj.material,
+                      src.shadow_map)

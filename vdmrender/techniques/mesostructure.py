@@ -1,40 +1,34 @@
-"""Techniques that draw an object's mesostructure (VDM, Wang et al. 2003, and its peers):
-`vdm` (knob k: eigenfunctions reconstructed), `pom` (knob steps), `bump`, all per pixel over the
-base mesh with its interpolated surface frame; and `displaced` (knob level), the base mesh
-subdivided and displaced, rasterised. All share the shading model and the base mesh's shadow map
-for shadows cast across the object; vdm and pom add the mesostructure's own self-shadows."""
+"""The per-pixel mesostructure techniques' common pass (vdm, pom, bump: VDM, Wang et al. 2003, and
+its peers): the base mesh with its interpolated surface frame, the mesostructure's height field and
+normal map, the shared shading and the base mesh's shadow map for shadows cast across the object.
+Also the displaced geometry the reference traces."""
 from __future__ import annotations
 
 import moderngl
 import numpy as np
 
-from vdmbake import displace, vdm
+from vdmbake import geometry, parts
 
 from .. import gl
-from .mesh import RasterMesh, RasterPasses
+from .raster import RasterPasses
 
-# VDM shadow test (sec. 3.2): P' is shadowed if d_L < h / cos(theta_L) - eps, eps = this x depth + this
-# texels. Torus, bricks 64^2, 32 x 16 views, 256^2, vdm@all: eps 0 -> 5.89 dLuv, 0.25 texel -> 3.12,
-# 0.1 depth + 1 texel -> 2.05, 0.2 depth + 2 texels -> 2.05 (vdm@8 2.20), 0.5 depth + 1 texel -> 2.05. With the
-# paper's 128^2 x 32 x 8 on the same torus (512^2) 0.1 + 1 gives vdm@8 2.56 against 2.50, and a light 0.6 deg
-# above the horizon 1.32 against 1.13; but 2 texels of a 16^2 field are long: cliffs on a plane 0.95 (0.82).
-SHADOW_EPS_DEPTH, SHADOW_EPS_TEXELS = 0.2, 2.0
+def maps(src) -> parts.MesostructureMaps:
+    return src.bundle.read(src.entry["mesostructure"], parts.MESOSTRUCTURE)
 
 
-def heights(bundle, meso_entry) -> np.ndarray:
-    return bundle.exr(meso_entry["height"])["height"]["h"].astype(np.float64)
+def reference_mesh(src):
+    """The truly displaced geometry the reference traces: the base mesh subdivided until no edge spans
+    more than half a texel, and displaced (DESIGN.md, "The reference"). Too large to bake (8 M faces on
+    the benchmark's torus), it is built here from the bundle's base mesh and maps by the same kernel
+    the `displaced` bake uses."""
+    m = src.obj.mesostructure
+    base = src.bundle.read(src.entry["mesh"], parts.MESH)
+    meso = maps(src)
+    return geometry.displaced(base, meso.heights, meso.normals, m.depth, m.tiling,
+                              geometry.reference_levels(base, m.size, m.tiling))
 
 
-def displaced_mesh(bundle, obj, entry, levels: int | None = None):
-    """The base mesh subdivided `levels` times (half-texel edges if None: the reference) and displaced."""
-    m = obj.mesostructure
-    base = bundle.mesh(entry["mesh"])
-    if levels is None:
-        levels = displace.reference_levels(base, m.size, m.tiling)
-    return displace.displaced(base, heights(bundle, entry["mesostructure"]), m.depth, m.tiling, levels)
-
-
-def _texture(tex, repeat: bool, mipmaps: bool):
+def texture(tex, repeat: bool, mipmaps: bool):
     tex.repeat_x = tex.repeat_y = repeat
     if mipmaps:
         tex.build_mipmaps()
@@ -44,26 +38,17 @@ def _texture(tex, repeat: bool, mipmaps: bool):
     return tex
 
 
-def _groups(a: np.ndarray, axis: int) -> np.ndarray:
-    """Pad the eigenfunction axis to a multiple of 4 and split it into (groups, 4) at that axis."""
-    k = a.shape[axis]
-    pad = [(0, 0)] * a.ndim
-    pad[axis] = (0, -k % 4)
-    a = np.pad(a, pad)
-    return a.reshape(a.shape[:axis] + (-1, 4) + a.shape[axis + 1:])
-
-
 class MesostructurePass(RasterPasses):
     """The base mesh with its frame, drawn by one mesostructure fragment stage."""
 
     NORMAL_OFFSET_TEXELS = 1.5   # the lookups are at the base surface, which the shadow map also holds
 
-    def __init__(self, ctx, obj, entry, bundle, scene, frag: str, **uniforms):
-        mesh = bundle.mesh(entry["mesh"])
+    def __init__(self, ctx, src, frag: str, **uniforms):
+        mesh = src.bundle.read(src.entry["mesh"], parts.MESH)
         anchor, radius = mesh.bounding_sphere()
-        super().__init__(ctx, scene.light, obj.material, anchor, radius, scene.render.shadow_map)
+        super().__init__(ctx, src.scene.light, src.obj.material, anchor, radius, src.shadow_map)
         self.faces = len(mesh.faces)
-        m = obj.mesostructure
+        m = src.obj.mesostructure
         f = mesh.frame
         cols = [mesh.vertices - anchor, mesh.normals, mesh.uvs, f.dpdu, f.dpdv, np.stack([f.k1, f.k2], 1), f.d1]
         vbo = ctx.buffer(np.ascontiguousarray(np.concatenate(cols, 1), "f4").tobytes())
@@ -73,11 +58,11 @@ class MesostructurePass(RasterPasses):
                    "in_d1")],
                  [(vbo, "3f 64x", "in_pos")], ibo, frag=frag, depth_vertex="mesh.vert",
                  optional=True)
-        h = heights(bundle, entry["mesostructure"])
-        n = vdm.height_normals(h, m.depth)
+        meso = maps(src)
+        h, n = meso.heights, meso.normals
         self.textures = {
-            "u_height": _texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"), True, True),
-            "u_normals": _texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, True)}
+            "u_height": texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"), True, True),
+            "u_normals": texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, True)}
         self.uniforms = {"u_tiling": tuple(m.tiling), "u_depth": m.depth, **uniforms}
 
     def bind_frame(self, prog, camera) -> None:
@@ -90,51 +75,3 @@ class MesostructurePass(RasterPasses):
         super().release()
         for tex in self.textures.values():
             tex.release()
-
-
-class VDMPass(MesostructurePass):
-    """VDM with the first k eigenfunctions of the baked SVD (sec. 3.3)."""
-
-    def __init__(self, ctx, obj, entry, bundle, scene, k):
-        meso = entry["mesostructure"]
-        m = obj.mesostructure
-        parts = bundle.exr(meso["vdm"])
-        stored = meso["k"]
-        k = stored if k == "all" else min(k, stored)
-        W = np.stack([parts["W"][f"W.{i:03d}"] for i in range(stored)], -1).reshape(m.phi, m.size, m.size, stored)
-        W = _groups(W, 3).transpose(3, 0, 1, 2, 4)                        # (groups, phi, y, x, 4)
-        E_vdm = _groups(np.stack([parts["E_vdm"][f"E.{i:03d}"] for i in range(stored)]), 0)  # (groups, 4, c, theta)
-        E_mvm = _groups(np.stack([parts["E_mvm"][f"E.{i:03d}"][0] for i in range(stored)]), 0)  # (groups, 4, c)
-        cs = meso["curvatures"]
-        n_c = len(cs)
-        axis = (cs[0], (n_c - 1) / (cs[-1] - cs[0]) if n_c > 1 else 0.0, n_c)
-        super().__init__(ctx, obj, entry, bundle, scene, "vdm.frag", u_k=int(k), u_groups=W.shape[0], u_n_phi=m.phi,
-                         u_curv_axis=tuple(float(x) for x in axis),
-                         u_shadow_eps=SHADOW_EPS_DEPTH * m.depth + SHADOW_EPS_TEXELS / m.size)
-        g = W.shape[0]
-        self.textures["u_W"] = _texture(ctx.texture_array(
-            (m.size, m.size, g * m.phi), 4, np.ascontiguousarray(W, "f4").tobytes(), dtype="f4"), True, True)
-        self.textures["u_E_vdm"] = _texture(ctx.texture_array(
-            (m.theta, n_c, g), 4, np.ascontiguousarray(E_vdm.transpose(0, 2, 3, 1), "f4").tobytes(), dtype="f4"),
-            False, False)
-        self.textures["u_E_mvm"] = _texture(ctx.texture(
-            (n_c, g), 4, np.ascontiguousarray(E_mvm.transpose(0, 2, 1), "f4").tobytes(), dtype="f4"), False, False)
-
-
-def vdm_variants(obj, entry, bundle, scene, options):
-    return [(k, lambda ctx, k=k: VDMPass(ctx, obj, entry, bundle, scene, k)) for k in options["k"]]
-
-
-def pom_variants(obj, entry, bundle, scene, options):
-    return [(s, lambda ctx, s=s: MesostructurePass(ctx, obj, entry, bundle, scene, "pom.frag", u_steps=s))
-            for s in options["steps"]]
-
-
-def bump_variants(obj, entry, bundle, scene, options):
-    return [(None, lambda ctx: MesostructurePass(ctx, obj, entry, bundle, scene, "bump.frag"))]
-
-
-def displaced_variants(obj, entry, bundle, scene, options):
-    return [(level, lambda ctx, level=level: RasterMesh(ctx, displaced_mesh(bundle, obj, entry, level), scene.light,
-                                                        obj.material, scene.render.shadow_map))
-            for level in options["levels"]]

@@ -1,21 +1,21 @@
-"""Technique `tessellated`: the quadrics as instanced triangle meshes, the impostors' peer.
+"""Renderer of `tessellated`: the quadrics as instanced triangle meshes, the impostors' peer.
 Knob `level`: spheres are icospheres subdivided `level` times (20 * 4^level faces), cylinders
 prisms with 4 * 2^level sides and flat caps. Same shading and shadow map as `mesh`."""
 from __future__ import annotations
 
 import numpy as np
 
-from vdmbake import primitives
+from vdmbake import geometry, parts
 
-from .mesh import RasterPasses
+from .raster import RasterPasses
 
 
 class Tessellated(RasterPasses):
     def __init__(self, ctx, q, light, material, shadow_size: int, level: int):
         anchor, radius = q.bounding_sphere()
         super().__init__(ctx, light, material, anchor, radius, shadow_size)
-        sphere = primitives.icosphere(level)
-        prism = primitives.cylinder(1.0, 2.0, 4 * 2 ** level, 1, 1)
+        sphere = geometry.icosphere(level)
+        prism = geometry.cylinder(1.0, 2.0, 4 * 2 ** level, 1, 1)
         self.faces = len(q.spheres) * len(sphere.faces) + len(q.cylinders) * len(prism.faces)
         s, c = q.instances(anchor)
         for mesh, data, layout, names, defines in (
@@ -32,8 +32,7 @@ class Tessellated(RasterPasses):
                      [(vbo, "3f", "in_pos"), (inst, depth_layout, *names[:-1])], ibo, len(data))
 
 
-def variants(obj, entry, bundle, scene, options):
-    def builder(level):
-        return lambda ctx: Tessellated(ctx, bundle.quadrics(entry["quadrics"]), scene.light, obj.material,
-                                       scene.render.shadow_map, level)
-    return [(level, builder(level)) for level in options["levels"]]
+
+def build(ctx, src, level):
+    return Tessellated(ctx, src.bundle.read(src.entry["quadrics"], parts.QUADRICS), src.scene.light,
+                       src.obj.material, src.shadow_map, level)

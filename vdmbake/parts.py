@@ -1,0 +1,159 @@
+"""The bundle's part kinds: what each file holds, packed (bake) and unpacked (render) side by side.
+
+Each kind turns a value into a file's bytes plus the metadata the manifest records beside the
+part's checksum, and back. docs/bundle.md describes the same layouts for readers that do not use
+this package. PLY parts are binary little-endian (vdmbake.ply); EXR parts are zip-compressed,
+float32, one EXR part per named table, data channels with dotted names (vdmbake.exr).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from . import exr, ply, quadrics
+from .errors import InputError
+from .meshes import TriMesh
+
+
+@dataclass(frozen=True)
+class PartKind:
+    name: str
+    suffix: str
+    pack: Callable[[Any], tuple[bytes, dict]]        # value -> (file bytes, manifest metadata)
+    unpack: Callable[[bytes, dict, str], Any]        # (file bytes, manifest metadata, origin) -> value
+
+
+def _channels(data: bytes, origin: str) -> dict[str, dict[str, np.ndarray]]:
+    try:
+        return exr.read(data)
+    except Exception as e:  # the binding raises RuntimeError and others for malformed files
+        raise InputError(f"{origin}: unreadable EXR ({e}).") from None
+
+
+def _need(parts: dict, part: str, channels, origin: str) -> list[np.ndarray]:
+    if part not in parts or any(c not in parts[part] for c in channels):
+        raise InputError(f"{origin}: EXR part {part!r} with channels {', '.join(channels)} is missing.")
+    return [parts[part][c] for c in channels]
+
+
+# --- meshes: full, coarse, displaced ----------------------------------------------------------------
+
+MESH = PartKind("mesh", ".ply",
+                lambda m: (ply.to_bytes(m), {"vertices": len(m.vertices), "faces": len(m.faces)}),
+                lambda data, meta, origin: ply.from_bytes(data, origin))
+
+# --- spheres and capped cylinders ------------------------------------------------------------------
+
+QUADRICS = PartKind("quadrics", ".ply",
+                    lambda q: (quadrics.to_bytes(q), {"spheres": len(q.spheres), "cylinders": len(q.cylinders)}),
+                    lambda data, meta, origin: quadrics.from_bytes(data, origin))
+
+
+# --- mesostructure: the height field and its normal map --------------------------------------------
+
+@dataclass
+class MesostructureMaps:
+    """One tile of the mesostructure (VDM sec. 3), N x N texels, row 0 at tile v = 0 (image order:
+    [row, column] = [v, u]). heights in [0, 1] (1 = the reference surface); normals: unit
+    texture-space normals of the displaced height field (z along the surface normal, the depth in
+    tile units), the shading normals of every mesostructure technique and of the reference."""
+    heights: np.ndarray   # (N, N) float32
+    normals: np.ndarray   # (N, N, 3) float32
+
+
+def _pack_mesostructure(m: MesostructureMaps):
+    data = exr.to_bytes({"height": {"h": m.heights},
+                         "normal": {f"normal.{a}": m.normals[..., i] for i, a in enumerate("XYZ")}})
+    return data, {"size": int(m.heights.shape[0])}
+
+
+def _unpack_mesostructure(data, meta, origin) -> MesostructureMaps:
+    parts = _channels(data, origin)
+    (h,) = _need(parts, "height", ["h"], origin)
+    n = _need(parts, "normal", ["normal.X", "normal.Y", "normal.Z"], origin)
+    return MesostructureMaps(h, np.stack(n, -1))
+
+
+MESOSTRUCTURE = PartKind("mesostructure", ".exr", _pack_mesostructure, _unpack_mesostructure)
+
+
+# --- VDM: the SVD-compressed view-dependent displacement and maximal-view-angle tables --------------
+
+@dataclass
+class VDMTables:
+    """d_VDM(x, y, phi, theta, c) ~ sum_i W[phi, y, x, i] E_vdm[i, c, theta] and theta_MVM(x, y, phi, c)
+    ~ sum_i W[phi, y, x, i] E_mvm[i, c] (sec. 3.3). x, y: texel centres of the tile; phi, theta: bin
+    centres of [0, 2 pi) and [0, pi / 2]; c: the curvature samples listed in the manifest. d in
+    texture units (extended d = l / sin(theta) on curved surfaces, the Appendix), theta_MVM in radians."""
+    W: np.ndarray       # (n_phi, N, N, k) float32
+    E_vdm: np.ndarray   # (k, n_c, n_theta) float32
+    E_mvm: np.ndarray   # (k, n_c) float32
+
+
+def _pack_vdm(t: VDMTables):
+    n_phi, n, _, k = t.W.shape
+    W = t.W.reshape(n_phi * n, n, k)        # rows: phi-major blocks of y
+    data = exr.to_bytes({"W": {f"W.{i:03d}": W[..., i] for i in range(k)},
+                         "E_vdm": {f"E.{i:03d}": t.E_vdm[i] for i in range(k)},
+                         "E_mvm": {f"E.{i:03d}": t.E_mvm[i][None] for i in range(k)}})
+    return data, {"k": k, "n_phi": n_phi}
+
+
+def _unpack_vdm(data, meta, origin) -> VDMTables:
+    parts = _channels(data, origin)
+    k, n_phi = int(meta["k"]), int(meta["n_phi"])
+    names = [f"W.{i:03d}" for i in range(k)]
+    W = np.stack(_need(parts, "W", names, origin), -1)
+    n = W.shape[1]
+    E = [f"E.{i:03d}" for i in range(k)]
+    return VDMTables(W.reshape(n_phi, n, n, k), np.stack(_need(parts, "E_vdm", E, origin)),
+                     np.stack(_need(parts, "E_mvm", E, origin))[:, 0])
+
+
+VDM = PartKind("vdm", ".exr", _pack_vdm, _unpack_vdm)
+
+
+# --- enhanced billboards ----------------------------------------------------------------------------
+
+@dataclass
+class Billboard:
+    """One enhanced billboard (thesis sec. 3.1): a box looking along w at part of the model, and its
+    R x R maps; texel [row, col] = (v, u), row 0 at v = 0."""
+    origin: np.ndarray   # (3,) world corner of the box at texel (0, 0), depth 0
+    axes: np.ndarray     # (3, 3) rows u, v, w (w = view direction into the model), right-handed
+    size: np.ndarray     # (3,) world extent of the box along u, v, w
+    alpha: np.ndarray    # (R, R) float32 coverage 0/1
+    depth: np.ndarray    # (R, R) float32 in [0, 1] along w (0 = box front), 1 where alpha is 0
+    normal: np.ndarray   # (R, R, 3) float32 world unit shading normal facing -w, 0 where alpha is 0
+
+
+def _pack_billboards(boards: list[Billboard]):
+    data = exr.to_bytes({f"bb{i:03d}": {"A": b.alpha, "depth.Z": b.depth,
+                                        **{f"normal.{a}": b.normal[..., k] for k, a in enumerate("XYZ")}}
+                         for i, b in enumerate(boards)})
+    return data, {"boards": [{"origin": b.origin.tolist(), "axes": b.axes.tolist(), "size": b.size.tolist()}
+                             for b in boards]}
+
+
+def _unpack_billboards(data, meta, origin) -> list[Billboard]:
+    parts = _channels(data, origin) if meta["boards"] else {}
+    out = []
+    for i, b in enumerate(meta["boards"]):
+        a, d, nx, ny, nz = _need(parts, f"bb{i:03d}", ["A", "depth.Z", "normal.X", "normal.Y", "normal.Z"], origin)
+        out.append(Billboard(np.asarray(b["origin"], np.float64), np.asarray(b["axes"], np.float64),
+                             np.asarray(b["size"], np.float64), a, d, np.stack([nx, ny, nz], -1)))
+    return out
+
+
+BILLBOARDS = PartKind("billboards", ".exr", _pack_billboards, _unpack_billboards)
+
+KINDS = {k.name: k for k in (MESH, QUADRICS, MESOSTRUCTURE, VDM, BILLBOARDS)}
+
+
+def stored(kind: PartKind, value):
+    """`value` as a reader of the bundle sees it (float32 rounding included): what is derived from a
+    part at bake time is derived from this, so that it agrees with what the renderer reads."""
+    data, meta = kind.pack(value)
+    return kind.unpack(data, meta, f"stored {kind.name}")

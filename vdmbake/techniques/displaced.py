@@ -1,0 +1,29 @@
+"""Technique `displaced`: conventional displacement mapping (Cook 1984), the base mesh subdivided and
+displaced inward by the mesostructure, baked at each level, rasterised."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .. import geometry, parts
+from ..schema import Integer, ListOf, Technique, setting
+
+
+@dataclass(frozen=True)
+class Options:
+    levels: tuple[int, ...] = setting((1, 2, 3), ListOf(Integer(0, 8)),
+                                      "midpoint subdivisions of the base mesh (4^level faces per face)", knob="level")
+
+
+def bake(job) -> dict:
+    m = job.obj.mesostructure
+    base = parts.stored(parts.MESH, job.mesh)     # the base mesh the reference displaces too
+    meshes = []
+    for level in job.options.levels:
+        d = geometry.displaced(base, job.maps.heights, job.maps.normals, m.depth, m.tiling, level)
+        meshes.append({"level": level, "mesh": job.write(f"displaced-{level}", parts.MESH, d)})
+        job.log(f"displaced level {level}: {len(d.faces)} faces")
+    return {"meshes": meshes}
+
+
+TECHNIQUE = Technique("displaced", "conventional displacement mapping: the base mesh subdivided and displaced, "
+                      "rasterised", ("surface",), Options, mesostructure=True, bake=bake)
