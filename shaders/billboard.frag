@@ -6,6 +6,7 @@
 // mesh depth-test together (sec. 3.4). SHADOW: the light's pass; only the depth is written.
 // A camera inside the box needs nothing special: the ray starts on the near plane (as the reference's).
 #include "billboard.glsl"
+#include "camera.glsl"
 #if !defined(SHADOW)
 #include "shading.glsl"
 #include "shadow.glsl"
@@ -26,11 +27,8 @@ flat in int v_layer;
 
 void main() {
     // The pixel's ray from the near plane (t = 0) to the far plane (t = 1), anchor-relative world.
-    vec2 ndc = gl_FragCoord.xy / u_viewport * 2.0 - 1.0;
-    vec4 a = u_inv_view_proj * vec4(ndc, -1.0, 1.0);
-    vec4 b = u_inv_view_proj * vec4(ndc, 1.0, 1.0);
-    vec3 p0 = a.xyz / a.w;
-    vec3 seg = b.xyz / b.w - p0;
+    vec3 p0, seg;
+    pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     // The same ray in texture space, and its segment inside the unit box.
     vec3 q = p0 - v_origin;
     vec3 o = vec3(dot(q, v_iu), dot(q, v_iv), dot(q, v_iw));
@@ -44,8 +42,7 @@ void main() {
     float t = march(o, d, t0, t1, v_layer);
     if (t < 0.0) discard;
     vec3 p = p0 + seg * t;
-    vec4 clip = u_view_proj * vec4(p, 1.0);
-    gl_FragDepth = clip.z / clip.w * 0.5 + 0.5;
+    gl_FragDepth = window_depth(u_view_proj, p);
 #if !defined(SHADOW)
     vec3 st = o + d * t;
     vec3 N = safe_normalize(map(st.xy, v_layer).xyz);

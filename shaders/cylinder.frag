@@ -8,7 +8,7 @@ flat in vec3 v_rgb;
 
 void main() {
     vec3 p0, seg;
-    pixel_ray(gl_FragCoord.xy, p0, seg);
+    pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     vec3 o = (v_to_param * vec4(p0, 1.0)).xyz;
     vec3 d = mat3(v_to_param) * seg;      // the ray parameter is mu directly: s in [0, 1]
     vec3 np;

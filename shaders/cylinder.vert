@@ -2,6 +2,7 @@
 // One quad per capped cylinder (instanced): the union of its two caps' projected bounding
 // boxes (Sigg et al.), each cap a flat disk: a unit sphere squashed by the variance matrix.
 #include "quadric.glsl"
+#include "frame.glsl"
 in vec2 in_corner;
 in vec3 in_p0;              // per instance: axis end points (anchor-relative) and radius
 in vec3 in_p1;
@@ -15,12 +16,8 @@ void main() {
     vec3 axis = in_p1 - in_p0;
     float h = 0.5 * length(axis);
     vec3 w = axis / (2.0 * h);
-    // Branch-free orthonormal frame (Duff et al. 2017), stable for every axis direction.
-    float s = w.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (s + w.z);
-    float b = w.x * w.y * a;
-    vec3 u = vec3(1.0 + s * w.x * w.x * a, s * b, -s * w.x);
-    vec3 v = vec3(b, s + w.y * w.y * a, -w.y);
+    vec3 u, v;
+    onb(w, u, v);
     float r = in_radius;
     vec4 box0 = quadric_bounds(mat4(vec4(u * r, 0.0), vec4(v * r, 0.0), vec4(0.0), vec4(in_p0, 1.0)));
     vec4 box1 = quadric_bounds(mat4(vec4(u * r, 0.0), vec4(v * r, 0.0), vec4(0.0), vec4(in_p1, 1.0)));

@@ -29,7 +29,7 @@ void main() {
     }
     vec4 g = texelFetch(u_normal_mu, q, 0);
     vec3 p0, seg;
-    pixel_ray(gl_FragCoord.xy, p0, seg);
+    pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     vec3 p = p0 + g.w * seg;
     vec3 n = g.xyz;
     vec3 c = shade(alb.rgb, n, normalize(u_eye - p), shadow_lit(p, n));

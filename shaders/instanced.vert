@@ -3,6 +3,7 @@
 // SPHERE: a unit icosphere placed at centre c with radius r. Otherwise a unit capped prism
 // (radius 1, z in [-1, 1]) stretched between the cylinder's end points; its normals need no
 // inverse transpose (side normals have z = 0, cap normals only z).
+#include "frame.glsl"
 in vec3 in_pos;
 in vec3 in_normal;
 #ifdef SPHERE
@@ -25,11 +26,8 @@ void main() {
 #else
     vec3 axis = in_p1 - in_p0;
     vec3 w = normalize(axis);
-    float s = w.z >= 0.0 ? 1.0 : -1.0;   // Duff et al. 2017 frame, as in cylinder.vert
-    float a = -1.0 / (s + w.z);
-    float b = w.x * w.y * a;
-    vec3 u = vec3(1.0 + s * w.x * w.x * a, s * b, -s * w.x);
-    vec3 v = vec3(b, s + w.y * w.y * a, -w.y);
+    vec3 u, v;
+    onb(w, u, v);
     v_pos = 0.5 * (in_p0 + in_p1) + mat3(u * in_radius, v * in_radius, 0.5 * axis) * in_pos;
     v_normal = mat3(u, v, w) * in_normal;
 #endif

@@ -49,6 +49,6 @@ void main() {
     }
     vec3 n = world_normal(F, textureGrad(u_normals, T1, dx, dy).xyz);
     lit *= shadow_lit(v_pos, N);
-    gl_FragDepth = window_depth(P);
+    gl_FragDepth = window_depth(u_mvp, P);
     frag = vec4(shade(u_albedo, n, Vw, lit), 1.0);
 }

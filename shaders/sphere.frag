@@ -7,7 +7,7 @@ flat in vec3 v_rgb;
 
 void main() {
     vec3 p0, seg;
-    pixel_ray(gl_FragCoord.xy, p0, seg);
+    pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     float len = length(seg);
     vec3 d = seg / len;
     float r = v_sphere.w;

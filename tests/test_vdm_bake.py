@@ -7,6 +7,8 @@ import pytest
 
 from vdmbake import vdm
 
+from vdm_oracle import bent, vdm_exact
+
 N = 32
 
 
@@ -50,15 +52,35 @@ def test_zero_curvature_resampling_is_the_identity():
     assert np.array_equal(vdm.vdm_curved(flat, s, 0.0)[0], flat)
 
 
+@pytest.mark.parametrize("c", [-3.0, -0.5, -1e-3, 1e-3, 0.5, 2.0, 3.0])
+def test_bend_is_the_circle_it_claims(c):
+    """The Appendix's bending (vdm.bend, written with sinc for c -> 0) against the closed form on the
+    circle of radius 1 / c (which loses digits as c -> 0, so tiny curvatures are checked against the
+    plane below), for arc lengths up to a quarter turn and depths from 0 to 0.2."""
+    s = np.linspace(-0.5, 0.5, 41)[:, None] * min(1.0, np.pi / 2 / abs(c))
+    h = np.array([0.0, 0.01, 0.05, 0.2])[None, :]
+    x, y = vdm.bend(s, h, c)
+    xe, ye = bent(s, h, c)
+    assert np.abs(x - xe).max() < 1e-12 and np.abs(y - ye).max() < 1e-12
+
+
+def test_bend_is_continuous_at_zero_curvature():
+    s, h = np.linspace(0.0, 0.5, 11), np.full(11, 0.05)
+    x0, y0 = vdm.bend(s, h, 0.0)
+    assert np.array_equal(x0, s) and np.array_equal(y0, -h)
+    x, y = vdm.bend(s, h, 1e-12)
+    assert np.abs(x - s).max() < 1e-12 and np.abs(y + h).max() < 1e-12
+
+
 def test_appendix_resampling_against_bent_ray_casting():
     """The Appendix approximation measured against the exact bent geometry (the figures reported)."""
     s = vdm.Sampling(N, n_phi=8)
     h = waves()
     flat, _, _ = vdm.vdm_flat(h, 0.05, s)
-    exact0 = vdm.vdm_exact(h, 0.05, s, 0.0)
+    exact0 = vdm_exact(h, 0.05, s, 0.0)
     assert np.abs(exact0 - flat).max() < 1e-3  # the oracle agrees with the flat bake at c = 0
     for c in (-1.0, 0.5, 1.0):
-        exact = vdm.vdm_exact(h, 0.05, s, c)
+        exact = vdm_exact(h, 0.05, s, c)
         approx = vdm.vdm_curved(flat, s, c)[0]
         both = (exact >= 0) & (approx >= 0)
         err = np.abs(exact - approx)[both]

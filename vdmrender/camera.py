@@ -60,6 +60,25 @@ class Camera:
         return np.broadcast_to(self.eye, d_cam.shape), d_cam @ self.basis()
 
 
+def pixel_ray(inv_view_proj: np.ndarray, viewport, frag_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ray through window positions frag_xy (N, 2) in pixels (GL's: origin at the bottom left)
+    between the near and the far plane, p = near_point + s * segment, s in [0, 1]: (N, 3) each.
+    Numpy twin of shaders/include/camera.glsl pixel_ray."""
+    ndc = np.asarray(frag_xy, np.float64) / np.asarray(viewport, np.float64) * 2.0 - 1.0
+    ends = []
+    for z in (-1.0, 1.0):
+        h = np.concatenate([ndc, np.full((len(ndc), 1), z), np.ones((len(ndc), 1))], 1) @ np.asarray(inv_view_proj).T
+        ends.append(h[:, :3] / h[:, 3:])
+    return ends[0], ends[1] - ends[0]
+
+
+def window_depth(view_proj: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Window-space depth in [0, 1] of points p (N, 3) (default depth range). Numpy twin of
+    shaders/include/camera.glsl window_depth."""
+    c = np.concatenate([np.asarray(p, np.float64), np.ones((len(p), 1))], 1) @ np.asarray(view_proj).T
+    return np.clip(0.5 + 0.5 * c[:, 2] / c[:, 3], 0.0, 1.0)
+
+
 def clip_planes(eye, target, centre, radius) -> tuple[float, float]:
     """Near/far planes enclosing the bounding sphere along the view axis (near kept > 0)."""
     fwd = (target - eye) / np.linalg.norm(target - eye)

@@ -10,7 +10,7 @@ import click
 
 from vdmbake import __version__
 from vdmbake.errors import InputError, fail
-from vdmbake.scene import MAX_SIDE
+from vdmbake.scene import MAX_SIDE, REGISTRY
 
 from .render import Options, run
 
@@ -29,7 +29,8 @@ def _resolution(ctx, param, value):
 @click.option("-o", "--output", "out", required=True, type=click.Path(path_type=Path),
               help="Output folder (frames, reference, heat maps, report); replaced atomically.")
 @click.option("-t", "--technique", "techniques", multiple=True,
-              help="Render only this technique (repeatable); default: every technique the scene names.")
+              help=f"Render only this technique (repeatable; {', '.join(REGISTRY)}); default: every technique "
+                   "the scene names.")
 @click.option("--resolution", callback=_resolution, help="WIDTHxHEIGHT, overrides the scene's render.resolution.")
 @click.option("--repeats", type=click.IntRange(1, 1000), help="Timed renders per frame (scene default otherwise).")
 @click.option("--warmup", type=click.IntRange(0, 100), help="Untimed renders per frame before timing.")

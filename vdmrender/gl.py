@@ -42,19 +42,22 @@ def renderer_name(ctx) -> str:
 
 
 def source(name: str) -> str:
-    """A shader file's text with #include "file" expanded from shaders/include/ (once each)."""
+    """A shader file's text with its includes expanded."""
+    return expand((SHADERS / name).read_text())
+
+
+def expand(text: str) -> str:
+    """GLSL text with #include "file" expanded from shaders/include/ (each file once)."""
     seen: set[str] = set()
 
-    def expand(text: str) -> str:
-        def one(m):
-            inc = m.group(1)
-            if inc in seen:
-                return ""
-            seen.add(inc)
-            return expand((SHADERS / "include" / inc).read_text())
-        return _INCLUDE.sub(one, text)
+    def one(m):
+        inc = m.group(1)
+        if inc in seen:
+            return ""
+        seen.add(inc)
+        return _INCLUDE.sub(one, (SHADERS / "include" / inc).read_text())
 
-    return expand((SHADERS / name).read_text())
+    return _INCLUDE.sub(one, text)
 
 
 def _with_defines(src: str, defines: tuple[str, ...]) -> str:
@@ -82,6 +85,13 @@ def set_uniforms(prog, **values) -> None:
                 prog[name].write(mat(value))
             else:
                 prog[name].value = value
+
+
+def release(*objects) -> None:
+    """Release GL objects (vertex arrays, buffers, textures, framebuffers, shadow maps); None is skipped."""
+    for o in objects:
+        if o is not None:
+            o.release()
 
 
 def mat(m: np.ndarray) -> bytes:
@@ -117,5 +127,4 @@ class Target:
         return a[::-1].copy()
 
     def release(self):
-        for o in (self.fbo, self.color, self.depth):
-            o.release()
+        release(self.fbo, self.color, self.depth)

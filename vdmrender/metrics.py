@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from vdmbake.colour import srgb8_to_linear
+
 # Linear sRGB -> XYZ (IEC 61966-2-1, D65).
 SRGB_TO_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
                         [0.2126729, 0.7151522, 0.0721750],
@@ -14,11 +16,6 @@ SRGB_TO_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
 WHITE_D65 = SRGB_TO_XYZ.sum(1)  # XYZ of RGB (1, 1, 1): (0.95047, 1.0, 1.08883)
 _EPS = (6 / 29) ** 3            # CIE: below this Y/Yn, L* is linear
 _KAPPA = (29 / 3) ** 3
-
-
-def srgb8_to_linear(rgb8: np.ndarray) -> np.ndarray:
-    c = np.asarray(rgb8, np.float64) / 255.0
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def _uv_prime(xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -11,6 +11,7 @@ import numpy as np
 from vdmbake.geometry import onb
 
 D = np.diag([1.0, 1.0, 1.0, -1.0])
+UNBOUNDED = 1e-12   # R_w D R_w^T >= -this |R_w|^2: the quadric reaches the eye plane (quadric.glsl's test)
 
 
 def _sign(x):
@@ -107,7 +108,7 @@ def projected_bounds(view_proj: np.ndarray, variance: np.ndarray):
     r = view_proj @ variance
     rw = r[3]
     a = rw @ D @ rw
-    if a >= 0:
+    if a >= -UNBOUNDED * (rw @ rw):
         return None
     out = []
     for k in (0, 1):

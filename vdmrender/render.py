@@ -17,7 +17,7 @@ from vdmbake.bundle import MANIFEST, Bundle
 from vdmbake.errors import InputError
 from vdmbake.scene import parse_scene_dict
 from vdmbake.staging import StagedDir
-from vdmbake.techniques import REGISTRY
+from vdmbake.scene import REGISTRY
 
 from . import gl, images, reference, report
 from .camera import cameras_for

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from vdmbake.colour import srgb_encode
+
 
 def shade(albedo, normals, to_eye, lit, light, material) -> np.ndarray:
     """Linear radiance (N, 3). normals, to_eye: (N, 3) unit; lit: (N,) bool; light/material from the scene."""
@@ -20,12 +22,6 @@ def shade(albedo, normals, to_eye, lit, light, material) -> np.ndarray:
     spec = np.maximum(np.einsum("ij,ij->i", normals, H), 0.0) ** material.shininess
     direct = np.asarray(light.color) * (material.diffuse * ndl[:, None] * albedo + material.specular * spec[:, None])
     return c + np.where(on[:, None], direct, 0.0)
-
-
-def srgb_encode(c: np.ndarray) -> np.ndarray:
-    """IEC 61966-2-1 sRGB transfer function on linear values, clamped to [0, 1]."""
-    c = np.clip(c, 0.0, 1.0)
-    return np.where(c < 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
 
 
 def to_srgb8(c: np.ndarray) -> np.ndarray:

@@ -11,8 +11,7 @@ layout(location = 1) out vec4 g_albedo;
 #endif
 
 void write_hit(vec3 p, vec3 n, float mu, vec3 albedo) {
-    vec4 clip = u_view_proj * vec4(p, 1.0);
-    gl_FragDepth = clip.z / clip.w * 0.5 + 0.5;
+    gl_FragDepth = window_depth(u_view_proj, p);
 #if defined(DIRECT)
     frag = vec4(shade(albedo, n, normalize(u_eye - p), shadow_lit(p, n)), 1.0);
 #elif defined(GBUFFER)

@@ -1,4 +1,5 @@
 // Mesostructure texture space per pixel (VDM sec. 3.2), the GLSL twin of vdmbake/texspace.py.
+#include "camera.glsl"
 // A tile spans 1 x 1 texture units; the mesostructure lies u_depth (texture units) below the
 // reference surface. Near the pixel, texture space maps to world space by M = [J | s_n N].
 uniform vec2 u_tiling;          // tiles over the UV square
@@ -69,10 +70,4 @@ vec3 world_normal(Frame F, vec3 n) {
 // Depth below the reference surface at tile coordinate T, texture units.
 float depth_at(vec2 T, vec2 dx, vec2 dy) {
     return u_depth * (1.0 - textureGrad(u_height, T, dx, dy).r);
-}
-
-// Window-space depth of an anchor-relative point, for gl_FragDepth.
-float window_depth(vec3 p) {
-    vec4 c = u_mvp * vec4(p, 1.0);
-    return clamp(0.5 + 0.5 * c.z / c.w, 0.0, 1.0);
 }

@@ -1,5 +1,6 @@
 // Ray casting of quadrics per pixel (Sigg et al. 2006, as re-implemented by de Poel & Bresser
 // 2009, sec. 3). Twin of vdmrender/quadric_math.py. Coordinates are anchor-relative world space.
+#include "camera.glsl"
 uniform mat4 u_view_proj;       // clip space from anchor-relative world
 uniform mat4 u_inv_view_proj;
 uniform vec2 u_viewport;        // pixels
@@ -27,16 +28,6 @@ vec4 quadric_bounds(mat4 T) {
 vec4 quad_corner(vec4 box, vec2 corner) {
     box = clamp(box, -1.0, 1.0);
     return vec4(mix(box.xy, box.zw, corner * 0.5 + 0.5), 0.0, 1.0);
-}
-
-// The pixel's ray between the near and the far plane: p = near_point + s * segment, s in [0, 1]
-// (the paper's interpolation factor mu, eq. 3-4, measured from the near plane).
-void pixel_ray(vec2 frag_xy, out vec3 near_point, out vec3 segment) {
-    vec2 ndc = frag_xy / u_viewport * 2.0 - 1.0;
-    vec4 a = u_inv_view_proj * vec4(ndc, -1.0, 1.0);
-    vec4 b = u_inv_view_proj * vec4(ndc, 1.0, 1.0);
-    near_point = a.xyz / a.w;
-    segment = b.xyz / b.w - near_point;
 }
 
 // Smallest root >= 0 of t^2 - 2 b t + c = 0 with disc = b^2 - c computed by the caller in a

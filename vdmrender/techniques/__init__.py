@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from vdmbake.scene import Object, Scene
-from vdmbake.techniques import REGISTRY
+from vdmbake.scene import REGISTRY
 
 
 @dataclass

@@ -244,10 +244,7 @@ class Billboards:
                    target.size, push, u_eye=tuple(eye))
 
     def release(self) -> None:
-        for _, _, vao, _ in self.draws:
-            vao.release()
-        for o in (*self.objects, self.shadow):
-            o.release()
+        gl.release(*(vao for _, _, vao, _ in self.draws), *self.objects, self.shadow)
 
 
 

@@ -12,8 +12,8 @@ from vdmbake import parts
 from .. import gl
 from .shadowmap import ShadowMap, translation
 
-NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels: 4JSV at
-                             # 512x384, 2048 map: 0.3 -> 1.97 dLuv (acne), 0.5 -> 0.50, 0.7 -> 0.45, 1.0 -> 0.54, 1.5 -> 0.70
+NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels: less gives
+                             # acne, more detaches shadows (docs/tuning.md)
 
 
 class Impostors:
@@ -39,7 +39,7 @@ class Impostors:
                                        skip_errors=name == "depth")   # the depth pass reads no colour
                 self.draws.append((name, prog, vao, len(data)))
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, radius)
-        self.gbuffer = None
+        self.gbuffer = self.fullscreen = None
         if shading != "direct":
             self.deferred = gl.program(ctx, "fullscreen.vert", "deferred.frag")
             self.fullscreen = ctx.vertex_array(self.deferred, [])
@@ -60,7 +60,7 @@ class Impostors:
                 for o in self.gbuffer:
                     o.release()
             normal_mu = self.ctx.texture(size, 4, dtype="f4")
-            albedo = self.ctx.texture(size, 4, dtype="f2")   # 8 bits would add 0.14 mean dLuv (measured)
+            albedo = self.ctx.texture(size, 4, dtype="f2")   # 8 bits would show (docs/tuning.md)
             depth = self.ctx.depth_renderbuffer(size)
             self.gbuffer = (normal_mu, albedo, depth, self.ctx.framebuffer([normal_mu, albedo], depth))
         return self.gbuffer
@@ -95,12 +95,8 @@ class Impostors:
         self.fullscreen.render(moderngl.TRIANGLES, vertices=3)
 
     def release(self) -> None:
-        for _, _, vao, _ in self.draws:
-            vao.release()
-        for o in (*self.buffers, self.shadow, *(self.gbuffer or ())):
-            o.release()
-        if self.shading != "direct":
-            self.fullscreen.release()
+        gl.release(*(vao for _, _, vao, _ in self.draws), *self.buffers, self.shadow, *(self.gbuffer or ()),
+                   self.fullscreen)
 
 
 

@@ -73,5 +73,4 @@ class MesostructurePass(RasterPasses):
 
     def release(self) -> None:
         super().release()
-        for tex in self.textures.values():
-            tex.release()
+        gl.release(*self.textures.values())

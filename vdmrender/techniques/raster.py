@@ -60,10 +60,7 @@ class RasterPasses:
                 vao.render(instances=n)
 
     def release(self) -> None:
-        for _, _, vao, _ in self.draws:
-            vao.release()
-        for o in (*self.buffers, self.shadow):
-            o.release()
+        gl.release(*(vao for _, _, vao, _ in self.draws), *self.buffers, self.shadow)
 
 
 class RasterMesh(RasterPasses):

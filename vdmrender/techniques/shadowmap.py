@@ -48,5 +48,4 @@ class ShadowMap:
                         u_shadow_bias=bias)
 
     def release(self) -> None:
-        self.fbo.release()
-        self.texture.release()
+        gl.release(self.fbo, self.texture)

@@ -1,0 +1,70 @@
+"""Docs that cannot drift: README's scene reference and the CLIs' help come from the same
+declarations the scene reader validates against (vdmbake.schema, the technique registry)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from vdmbake import scenedoc
+from vdmbake.cli import main as bake_main
+from vdmbake.errors import InputError
+from vdmbake.scene import REGISTRY, Render, parse_scene_dict
+from vdmbake.schema import settings
+from vdmrender.cli import main as render_main
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def scene(**objects_extra) -> dict:
+    obj = {"name": "s", "primitive": "sphere", "techniques": {"mesh": {}}, **objects_extra}
+    return {"objects": [obj]}
+
+
+def test_readme_scene_reference_is_current():
+    text = README.read_text()
+    assert scenedoc.block() in text, "README's scene reference is stale: run python -m vdmbake.scenedoc README.md"
+
+
+def test_reference_names_every_key_and_technique_setting():
+    ref = scenedoc.reference()
+    for f in settings(Render):
+        assert f"`{f.name}`" in ref
+    for t in REGISTRY.values():
+        assert f"`{t.name}`" in ref
+        for f in settings(t.options):
+            assert f"`{t.name}.{f.name}`" in ref
+
+
+def test_help_lists_every_technique():
+    bake_help = CliRunner().invoke(bake_main, ["--help"]).output
+    render_help = CliRunner().invoke(render_main, ["--help"]).output
+    for name in REGISTRY:
+        assert f"  {name} " in bake_help and name in render_help
+
+
+def test_unknown_key_lists_every_allowed_key():
+    with pytest.raises(InputError) as e:
+        parse_scene_dict({"render": {"bogus": 1}, **scene()}, "s.toml")
+    for f in settings(Render):
+        assert f.name in str(e.value)
+    with pytest.raises(InputError) as e:
+        parse_scene_dict(scene(techniques={"billboards": {"resolutoin": 64}}), "s.toml")
+    assert all(k in str(e.value) for k in ("variants", "resolution", "coarse_ratio"))
+
+
+@pytest.mark.parametrize("techniques,key", [
+    ({"billboards": {"resolution": 100.5}}, "resolution"),    # an integer setting: no silent truncation
+    ({"coarse": {"ratios": [1, 1.0]}}, "ratios"),             # the same ratio twice
+    ({"coarse": {"ratios": [10 ** 400]}}, "ratios"),          # an integer beyond float's range
+    ({"coarse": {"ratios": [True]}}, "ratios"),               # a boolean is not a number
+])
+def test_typed_settings_refuse_what_they_would_mangle(techniques, key):
+    with pytest.raises(InputError, match=key):
+        parse_scene_dict(scene(techniques=techniques), "s.toml")
+
+
+def test_tiny_light_direction_normalises():
+    s = parse_scene_dict({"light": {"direction": [1e-200, 0, 0]}, **scene()}, "s.toml")
+    assert s.light.direction == (1.0, 0.0, 0.0)

@@ -1,0 +1,56 @@
+"""The code's shape: the renderer renders what the bundle holds (it imports from vdmbake only the
+bundle, its part kinds, the scene, errors, EXR, Embree and the neutral geometry and colour modules;
+the benchmarks, which drive both tools, excepted), the baker never imports the renderer, and every
+declared technique has its renderer."""
+from __future__ import annotations
+
+import ast
+import importlib
+from pathlib import Path
+
+import vdmbake
+import vdmrender
+from vdmbake.scene import REGISTRY
+
+RENDER_MAY_IMPORT = {"vdmbake", "vdmbake.bundle", "vdmbake.parts", "vdmbake.scene", "vdmbake.errors",
+                     "vdmbake.exr", "vdmbake.embree", "vdmbake.staging", "vdmbake.geometry", "vdmbake.colour"}
+
+
+def imports(path: Path) -> set[str]:
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            out |= {node.module} | {f"{node.module}.{a.name}" for a in node.names
+                                    if importlib.util.find_spec(node.module) and _is_module(f"{node.module}.{a.name}")}
+    return out
+
+
+def _is_module(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except ModuleNotFoundError:
+        return False
+
+
+def test_renderer_imports_only_neutral_parts_of_the_baker():
+    root = Path(vdmrender.__file__).parent
+    for path in sorted(root.rglob("*.py")):
+        if path.name.startswith("bench"):
+            continue
+        wrong = {m for m in imports(path) if m.startswith("vdmbake") and m not in RENDER_MAY_IMPORT}
+        assert not wrong, f"{path.relative_to(root.parent)} imports {sorted(wrong)}"
+
+
+def test_baker_never_imports_the_renderer():
+    root = Path(vdmbake.__file__).parent
+    for path in sorted(root.rglob("*.py")):
+        assert not {m for m in imports(path) if m.startswith("vdmrender")}, path
+
+
+def test_every_technique_has_its_renderer():
+    for name, t in REGISTRY.items():
+        module = importlib.import_module(f"vdmrender.techniques.{name}")
+        assert callable(module.build), name
+        assert t.kinds and set(t.kinds) <= {"surface", "quadrics"}
