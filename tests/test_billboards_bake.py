@@ -254,3 +254,18 @@ def test_deterministic_and_logged():
         for name in ("origin", "axes", "size", "alpha", "depth", "normal"):
             assert np.array_equal(getattr(a, name), getattr(b, name))
     assert sum(line.startswith("billboard ") for line in lines) == len(first.billboards)
+
+
+def test_a_mesh_no_billboard_can_capture_is_refused_at_bake(tmp_path):
+    """Collinear triangles have no area, so no projection captures them: the bake says so (exit 2)
+    instead of writing a bundle the renderer cannot draw."""
+    from click.testing import CliRunner
+
+    from vdmbake.cli import main as bake_main
+
+    (tmp_path / "line.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 2 3 4\n")
+    (tmp_path / "s.toml").write_text('[[objects]]\nname = "line"\nmesh = "line.obj"\n'
+                                     'techniques = { billboards = { variants = ["axis-improved"], resolution = 8 } }\n')
+    r = CliRunner().invoke(bake_main, [str(tmp_path / "s.toml"), "-o", str(tmp_path / "b.bundle")])
+    assert r.exit_code == 2 and "captures no face" in r.stderr and "too_small" in r.stderr, r.output
+    assert not (tmp_path / "b.bundle").exists()

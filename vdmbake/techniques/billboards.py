@@ -9,6 +9,7 @@ import time
 from dataclasses import dataclass
 
 from .. import billboards, coarse, parts
+from ..errors import InputError
 from ..schema import Integer, ListOf, Number, Parsed, Technique, setting
 
 
@@ -52,6 +53,9 @@ def bake(job) -> dict:
         res = billboards.bake(job.mesh, billboards.Settings(mode=mode, resolution=opts.resolution),
                               log=lambda m: job.log(f"{mode} billboards: {m}"))
         job.steps[f"billboards_{mode}_s"] = round(time.perf_counter() - t0, 3)
+        if not res.billboards:
+            raise InputError(f"object {job.obj.name!r}: the {mode} projection captures no face of the mesh "
+                             f"(faces left out: {res.leftover}); billboards have nothing to draw.")
         rel = job.write(f"billboards-{mode}", parts.BILLBOARDS, res.billboards)
         out[mode] = {"maps": rel, "faces": [len(f) for f in res.faces], "leftover": res.leftover,
                      "candidates": res.candidates, "rays": res.rays}
