@@ -915,6 +915,7 @@ def test_vdm_plane_matches_an_independent_ray_march(meso):
         errs["transposed"].append(d[p, x, y, 0, ti] - march(u, v, phis[p], thetas[ti]))
         errs["phi toward -v"].append(d[p, y, x, 0, ti] - march(u, v, phis[p], thetas[ti], sign_v=-1))
         errs["T + dV"].append(d[p, y, x, 0, ti] - march(u, v, phis[p], thetas[ti], sign_d=-1))
+    assert np.isfinite(errs["spec"]).all()  # every ray meets the plane's mesostructure
     p90 = {k: np.nanquantile(np.abs(e), 0.9) for k, e in errs.items()}
     assert p90["spec"] < 2e-3, p90
     for k in ("transposed", "phi toward -v", "T + dV"):
