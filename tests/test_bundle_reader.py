@@ -638,7 +638,7 @@ def test_transform_scale_then_xyz_rotations_then_translation(meso):
     _, n_local, *_ = torus_frame(local, FLAT["major"], FLAT["minor"])
     assert np.abs(n - n_local @ rot.T).max() < 1e-5
     ax, ay, az = np.radians(FLAT_TRANSFORM["rotate_deg"])
-    wrong = rotation([0, 0, 0])  # Z, then Y, then X
+    wrong = np.eye(3)  # becomes Rx @ Ry @ Rz: Z first, then Y, then X (the wrong order)
     for m in (np.array([[1, 0, 0], [0, math.cos(ax), -math.sin(ax)], [0, math.sin(ax), math.cos(ax)]]),
               np.array([[math.cos(ay), 0, math.sin(ay)], [0, 1, 0], [-math.sin(ay), 0, math.cos(ay)]]),
               np.array([[math.cos(az), -math.sin(az), 0], [math.sin(az), math.cos(az), 0], [0, 0, 1]])):
