@@ -4,7 +4,9 @@ Sphere, cylinder, torus and vase are surfaces of revolution about +Z: a profile
 (r(t), z(t)), t in [0, 1], swept by the angle phi. With P = (r cos phi, r sin phi, z),
 dP/dphi x dP/dt = r (z' cos phi, z' sin phi, -r'), so the unit normal is
 (z' cos phi, z' sin phi, -r') / |(r', z')|, exact at every vertex, poles included.
-UVs: u = phi / 2pi (the seam column is duplicated), v = t.
+UVs: u = phi / 2pi (the seam column is duplicated), v = t. Every texture map is right-handed seen
+from outside ((dP/du x dP/dv) . n > 0), as standard (OBJ / glTF) UVs are: a picture lands upright and
+unmirrored, v = 1 at its top (vdmbake.heightfields flips image rows to that convention).
 Principal curvatures are analytic too (do Carmo, sec. 3-3, surfaces of revolution): along the
 parallel k_p = z' / (r |(r', z')|), along the meridian k_m = (r' z'' - z' r'') / |(r', z')|^3,
 positive where the surface bends away from its normal; at a pole (r = 0) k_p takes the limit k_m.
@@ -53,15 +55,16 @@ def _disk(radius: float, z: float, segments: int, up: bool) -> TriMesh:
     if not up:
         f = f[:, ::-1]
     n = np.tile([0.0, 0.0, 1.0 if up else -1.0], (len(v), 1))
-    uv = 0.5 + 0.5 * v[:, :2] / radius
-    return TriMesh(v, f.astype(np.int64), n, uv, _flat_frame(len(v), 2 * radius))
+    mirror = 1.0 if up else -1.0            # seen from below, u runs along -X so the picture is not mirrored
+    uv = 0.5 + 0.5 * v[:, :2] / radius * [mirror, 1.0]
+    return TriMesh(v, f.astype(np.int64), n, uv, _flat_frame(len(v), 2 * radius, mirror))
 
 
-def _flat_frame(count: int, size: float) -> SurfaceFrame:
-    """A planar patch: u along +X, v along +Y, no curvature."""
+def _flat_frame(count: int, size: float, u_sign: float = 1.0) -> SurfaceFrame:
+    """A planar patch: u along u_sign * X, v along +Y, no curvature."""
     zero = np.zeros(count)
-    return SurfaceFrame(np.tile([size, 0.0, 0.0], (count, 1)), np.tile([0.0, size, 0.0], (count, 1)),
-                        zero, zero.copy(), np.tile([1.0, 0.0, 0.0], (count, 1)))
+    return SurfaceFrame(np.tile([u_sign * size, 0.0, 0.0], (count, 1)), np.tile([0.0, size, 0.0], (count, 1)),
+                        zero, zero.copy(), np.tile([u_sign, 0.0, 0.0], (count, 1)))
 
 
 def plane(size: float, segments: int) -> TriMesh:
