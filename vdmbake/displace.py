@@ -6,6 +6,12 @@ geometry the VDM reference traces (DESIGN.md, "The reference").
 The base mesh is the reference surface every mesostructure technique starts from, so the
 subdivision is linear (midpoint) over its facets, carrying the interpolated normal, UV and
 texture tangents; a vertex moves by depth * s_n * (1 - h(uv * tiling)) against its normal.
+
+Seams live in the texture coordinates only: vertices split for their UVs (a UV seam) are welded by
+position first (meshes.weld), take one position and one normal, and move by the mean of their
+copies' displacements (equal where the height field is continuous across the seam, e.g. a periodic
+tile at integer tiling), so the displaced surface has no cracks; each copy keeps its own UV and
+shading normal.
 """
 from __future__ import annotations
 
@@ -14,7 +20,7 @@ import numpy as np
 from . import texspace
 from .errors import InputError
 from .heightfields import sample
-from .meshes import TriMesh, subdivide
+from .meshes import TriMesh, subdivide, weld
 from .vdm import height_normals
 
 MAX_FACES = 16_000_000   # a reference finer than this would not fit a 24 GiB machine's Embree build
@@ -41,13 +47,21 @@ def displaced(mesh: TriMesh, heights: np.ndarray, depth: float, tiling, levels: 
         raise InputError(f"displacement at {levels} subdivision levels would make {faces_out:,} faces "
                          f"(limit {MAX_FACES:,}); use fewer levels, a smaller mesostructure size, "
                          "less tiling or a finer base mesh.")
-    f, a = mesh.faces, {"pos": mesh.vertices, "normal": mesh.normals, "uv": mesh.uvs,
-                        "dpdu": mesh.frame.dpdu, "dpdv": mesh.frame.dpdv}
+    w = weld(mesh.vertices)
+    first = np.unique(w, return_index=True)[1]
+    normal = np.zeros((len(first), 3))
+    np.add.at(normal, w, mesh.normals)                     # one normal per point of the surface
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    f, a = mesh.faces, {"pos": mesh.vertices[first][w], "normal": normal[w], "uv": mesh.uvs,
+                        "dpdu": mesh.frame.dpdu, "dpdv": mesh.frame.dpdv, "weld": w}
     for _ in range(levels):
         f, a = subdivide(f, a)
     T = a["uv"] * np.asarray(tiling)
     J = np.stack([a["dpdu"] / tiling[0], a["dpdv"] / tiling[1]], -1)
     J -= a["normal"][:, :, None] * np.einsum("vi,vij->vj", a["normal"], J)[:, None, :]   # into the tangent plane
-    moved = a["pos"] - a["normal"] * (depth * texspace.normal_scale(J) * (1.0 - sample(heights, T)))[:, None]
+    amount = depth * texspace.normal_scale(J) * (1.0 - sample(heights, T))
+    w = a["weld"]
+    amount = (np.bincount(w, amount) / np.bincount(w))[w]   # the copies of a seam vertex move together
+    moved = a["pos"] - a["normal"] * amount[:, None]
     n_tex = np.stack([sample(c, T) for c in np.moveaxis(height_normals(heights, depth), -1, 0)], -1)
     return TriMesh(moved, f, texspace.world_normals(J, a["normal"], n_tex), a["uv"])

@@ -64,15 +64,34 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
 
 
+def weld(vertices: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
+    """(V,) int64 position ids: vertices within rel_tol of the bounding radius share an id (they are one
+    point of the surface, split only for their texture coordinates, e.g. at a UV seam). Ids are
+    numbered in order of first appearance, so the first vertex of each id can stand for it."""
+    centre = 0.5 * (vertices.min(0) + vertices.max(0))
+    scale = max(float(np.abs(vertices - centre).max()), 1e-300) * rel_tol
+    _, first, inv = np.unique(np.round((vertices - centre) / scale), axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return rank[inv.ravel()]
+
+
 def subdivide(faces: np.ndarray, attrs: dict[str, np.ndarray]) -> tuple[np.ndarray, dict]:
     """One level of midpoint subdivision (every triangle into four) of per-vertex attributes,
     interpolated linearly ("normal" renormalised). Shared edges get one midpoint, so the mesh
-    stays watertight."""
+    stays watertight. An integer "weld" attribute (position ids, see weld) is carried exactly: a
+    midpoint gets the id of its edge's end ids, so the two copies of an edge split at a UV seam
+    give midpoints with the same id (and, from bit-identical ends, the same position)."""
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     uniq, inv = np.unique(np.sort(e, axis=1), axis=0, return_inverse=True)
     a, b = uniq[:, 0], uniq[:, 1]
-    out = {k: np.concatenate([v, 0.5 * (v[a] + v[b])]) for k, v in attrs.items()}
+    out = {k: np.concatenate([v, 0.5 * (v[a] + v[b])]) for k, v in attrs.items() if k != "weld"}
     out["normal"] /= np.maximum(np.linalg.norm(out["normal"], axis=1, keepdims=True), 1e-300)
+    if "weld" in attrs:
+        w = attrs["weld"]
+        _, mid = np.unique(np.sort(np.stack([w[a], w[b]], 1), axis=1), axis=0, return_inverse=True)
+        out["weld"] = np.concatenate([w, w.max() + 1 + mid.ravel()])
     m = len(attrs["pos"]) + inv.reshape(3, -1).T          # midpoints of edges 01, 12, 20 per face
     f = np.concatenate([np.stack([faces[:, 0], m[:, 0], m[:, 2]], 1), np.stack([faces[:, 1], m[:, 1], m[:, 0]], 1),
                         np.stack([faces[:, 2], m[:, 2], m[:, 1]], 1), m])
@@ -166,4 +185,7 @@ def load_mesh_file(path: Path) -> TriMesh:
     merged.merge_vertices()
     v, f = np.asarray(merged.vertices, np.float64), np.asarray(merged.faces, np.int64)
     uvs = np.asarray(merged.visual.uv, np.float64) if uv is not None else None
-    return TriMesh(v, f, vertex_normals(v, f), uvs)
+    # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
+    # of all its faces on both sides, so shading and displacement agree across the seam.
+    w = weld(v)
+    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs)
