@@ -75,6 +75,8 @@ class MesostructurePass(RasterPasses):
                  optional=True)
         h = heights(bundle, entry["mesostructure"])
         n = vdm.height_normals(h, m.depth)
+        # Height fields are indexed [v, u] with row 0 at v = 0 (vdmbake.heightfields); GL's first row is
+        # t = 0, so the arrays go up as they are and texture(T) reads h at T = (u, v).
         self.textures = {
             "u_height": _texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"), True, True),
             "u_normals": _texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, True)}
