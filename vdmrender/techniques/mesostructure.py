@@ -34,6 +34,16 @@ def displaced_mesh(bundle, obj, entry, levels: int | None = None):
     return displace.displaced(base, heights(bundle, entry["mesostructure"]), m.depth, m.tiling, levels)
 
 
+def skirt_scene(bundle, obj, entry):
+    """The Embree scene of the base mesh's shell side wall (vdmbake.borders.skirt), None on a closed surface."""
+    from vdmbake.borders import skirt
+    from vdmbake.embree import RayScene
+
+    m = obj.mesostructure
+    v, f = skirt(bundle.mesh(entry["mesh"]), m.depth, m.tiling)
+    return RayScene(v, f) if len(f) else None
+
+
 def _texture(tex, repeat: bool, mipmaps: bool):
     tex.repeat_x = tex.repeat_y = repeat
     if mipmaps:
