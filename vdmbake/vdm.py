@@ -83,17 +83,21 @@ def height_normals(heights: np.ndarray, depth: float) -> np.ndarray:
     return vertex_normals(v, f).reshape(n + 2, n + 2, 3)[1:-1, 1:-1]
 
 
-def flat_rays(sampling: Sampling, eps: float) -> tuple[np.ndarray, np.ndarray]:
+def flat_rays(sampling: Sampling, eps: float, rows: slice = slice(None)) -> tuple[np.ndarray, np.ndarray]:
     """Origins and directions of the zero-curvature bake: for every texel centre (rows y, columns x)
     and view (phi, theta), a ray along -V. Rays start eps above the reference surface (a ray
-    starting on a top texel could slip under the one-sided sheet); vdm_flat takes eps / cos(theta) off."""
+    starting on a top texel could slip under the one-sided sheet); vdm_flat takes eps / cos(theta) off.
+    `rows`: only these texel rows (y), in the same order (vdm_flat casts them block by block)."""
     n = sampling.size
     c = (np.arange(n) + 0.5) / n
-    Y, X = np.meshgrid(c, c, indexing="ij")
+    Y, X = np.meshgrid(c[rows], c, indexing="ij")
     origins = np.stack([X, Y, np.full_like(X, eps)], -1).reshape(-1, 1, 3)
     dirs = -view_vectors(sampling.thetas, sampling.phis).reshape(1, -1, 3)
-    return (np.broadcast_to(origins, (n * n, dirs.shape[1], 3)).reshape(-1, 3),
-            np.broadcast_to(dirs, (n * n, dirs.shape[1], 3)).reshape(-1, 3))
+    return (np.broadcast_to(origins, (len(origins), dirs.shape[1], 3)).reshape(-1, 3),
+            np.broadcast_to(dirs, (len(origins), dirs.shape[1], 3)).reshape(-1, 3))
+
+
+FLAT_BLOCK_RAYS = 1 << 19   # rays generated and cast per block: their arrays stay small, nothing waits on a copy
 
 
 def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RayScene | None = None):
@@ -105,39 +109,63 @@ def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RaySc
     if scene is None:
         scene = RayScene(*mesostructure_mesh(heights, depth, padding_texels(depth, sampling)))
     eps = 1e-4 * depth
-    o, d = flat_rays(sampling, eps)
-    before = scene.rays_cast
-    t = scene.distances(o, d).reshape(n, n, sampling.n_phi, sampling.n_theta)
     extra = (eps / np.cos(sampling.thetas)).astype(np.float32)
-    t = np.where(t >= 0, np.maximum(t - extra, 0.0), -1.0).astype(np.float32)
-    return t, scene.rays_cast - before, scene
+    before = scene.rays_cast
+    out = np.empty((n, n, sampling.n_phi, sampling.n_theta), np.float32)
+    step = max(1, FLAT_BLOCK_RAYS // (n * sampling.n_phi * sampling.n_theta))   # texel rows per block
+    for y in range(0, n, step):
+        t = scene.distances(*flat_rays(sampling, eps, slice(y, y + step)))
+        t = t.reshape(-1, n, sampling.n_phi, sampling.n_theta)
+        out[y:y + step] = np.where(t >= 0, np.maximum(t - extra, 0.0), -1.0)
+    return out, scene.rays_cast - before, scene
 
 
 def bend(s: np.ndarray, h: np.ndarray, c: float) -> tuple[np.ndarray, np.ndarray]:
     """A point at arc length s along the view's azimuth and depth h below the reference surface,
     after bending the surface to curvature c about the entry point (origin, normal +z'):
-    returns its 2-D position (x along the azimuth, y up). Written with sinc so that c -> 0 is
-    exact: x = (1 - h c) sin(s c) / c, y = (cos(s c) - 1) / c - h cos(s c)."""
+    returns its 2-D position (x along the azimuth, y up): x = (1 - h c) sin(s c) / c,
+    y = (cos(s c) - 1) / c - h cos(s c), written with the half-angle sine so that small s c loses no
+    digits ((cos a - 1) = -2 sin^2(a / 2)) and c = 0 is the flat case exactly."""
+    if c == 0:
+        return np.asarray(s, np.float64) + 0.0, -np.asarray(h, np.float64)
     sc = s * c
-    x = (1.0 - h * c) * s * np.sinc(sc / np.pi)
-    y = -0.5 * c * s * s * np.sinc(sc / (2 * np.pi)) ** 2 - h * np.cos(sc)
+    half = np.sin(0.5 * sc)
+    sin2 = 2.0 * half * half                      # 1 - cos(s c)
+    x = (1.0 - h * c) * np.sin(sc) / c
+    y = -sin2 / c - h * (1.0 - sin2)
     return x, y
 
 
 CHUNK_ROWS = 8192  # rows (x, y, phi) per block: the (rows, theta, sample) temporaries stay in cache
 
 
-def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
-    """vdm_curved_rows over cache-sized blocks of rows (see there)."""
+def hit_geometry(d_flat: np.ndarray, sampling: Sampling) -> tuple:
+    """The curvature-independent part of the Appendix's resampling, computed once per table: which
+    zero-curvature samples hit (valid), their extended d (0 where none), and the arc length s and depth
+    h of each hit below its entry point; rows (..., n_theta) as d_flat."""
+    th = sampling.thetas
+    valid = d_flat >= 0
+    dd = np.where(valid, d_flat, 0.0).astype(np.float64)
+    return valid, dd, dd * np.sin(th), dd * np.cos(th)
+
+
+def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float, geometry: tuple | None = None,
+               out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """vdm_curved_rows over cache-sized blocks of rows (see there). `geometry`: hit_geometry(d_flat)
+    when several curvatures share it; `out`: where to write the table (any view of d_flat's shape)."""
     rows = d_flat.reshape(-1, d_flat.shape[-1])
-    out = np.empty(rows.shape, np.float32)
+    geometry = tuple(g.reshape(rows.shape) for g in (geometry or hit_geometry(rows, sampling)))
+    res = np.empty(d_flat.shape, np.float32) if out is None else out
+    res_rows = res.reshape(rows.shape, copy=False)       # a view (out's leading axes are contiguous), never a copy
     horizon = np.empty(len(rows), np.float32)
     for s in range(0, len(rows), CHUNK_ROWS):
-        out[s:s + CHUNK_ROWS], horizon[s:s + CHUNK_ROWS] = vdm_curved_rows(rows[s:s + CHUNK_ROWS], sampling, c)
-    return out.reshape(d_flat.shape), horizon.reshape(d_flat.shape[:-1])
+        b = slice(s, s + CHUNK_ROWS)
+        res_rows[b], horizon[b] = vdm_curved_rows(rows[b], sampling, c, tuple(g[b] for g in geometry))
+    return res, horizon.reshape(d_flat.shape[:-1])
 
 
-def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
+def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float,
+                    geometry: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The Appendix's curvature resampling: bend the zero-curvature hit points to curvature c,
     take their new viewing angles theta', drop those that became occluded (theta' not above
     every earlier one), resample linearly at the uniform thetas; -1 past the last hit on a
@@ -145,14 +173,13 @@ def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[n
     Also returns each row's horizon: the largest theta' of a kept hit (pi / 2 for a hit at the entry
     point; 0 if none), the exact edge of the valid range that the uniform samples only bracket."""
     th = sampling.thetas
-    valid = d_flat >= 0
-    dd = np.where(valid, d_flat, 0.0).astype(np.float64)
-    s, h = dd * np.sin(th), dd * np.cos(th)            # arc length and depth of each hit
+    valid, dd, s, h = geometry or hit_geometry(d_flat, sampling)   # arc length s and depth h of each hit
     x, y = bend(s, h, c)
     th_new = np.arctan2(x, -y)                          # angle from the normal, toward the eye
     th_new = np.where(dd > 0, th_new, th)               # a hit at the entry point keeps its angle
     with np.errstate(divide="ignore", invalid="ignore"):
-        ext = np.where(s > 0, s / np.sin(th_new), dd)   # extended displacement l / sin(theta')
+        # extended displacement l / sin(theta'), sin(theta') = x / |(x, y)|
+        ext = np.where(s > 0, s * np.hypot(x, y) / x, dd)
     # Occlusion after bending: keep a sample only if its angle exceeds every earlier one; the
     # kept samples are then increasing in theta' in index order, so no sort is needed.
     run = np.maximum.accumulate(np.where(valid, th_new, -np.inf), axis=-1)
@@ -175,9 +202,9 @@ def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[n
     counts = np.bincount((row * (n + 1) + first_target)[keep], minlength=rows * (n + 1)).reshape(rows, n + 1)
     below = np.cumsum(counts, axis=-1)[:, :n]                           # kept samples at or below theta_j
     has_lo, has_hi = below >= 1, below < m
-    pick = lambda a, i: np.take_along_axis(a, np.clip(i, 0, n - 1), -1)  # noqa: E731
-    a0, a1 = pick(comp_ang, below - 1), pick(comp_ang, below)
-    v0, v1 = pick(comp_val, below - 1), pick(comp_val, below)
+    i0 = np.clip(below - 1, 0, n - 1) + row * n           # flat indices of the bracketing kept samples
+    i1 = np.clip(below, 0, n - 1) + row * n
+    a0, a1, v0, v1 = comp_ang.take(i0), comp_ang.take(i1), comp_val.take(i0), comp_val.take(i1)
     with np.errstate(invalid="ignore", divide="ignore"):
         w = np.where(has_lo & has_hi, (th32 - a0) / (a1 - a0), np.float32(0))
     r = np.where(has_lo & has_hi, v0 + w * (v1 - v0), np.where(has_hi, v1, v0))  # clamp outside the samples
@@ -235,12 +262,22 @@ def mvm(vdm: np.ndarray, sampling: Sampling, horizons: dict | None = None) -> np
     is taken (pi / 2 where every sample is valid, so a flat or concave patch never clips grazing
     views; 0 where none is), or, for the convex curvatures in `horizons` (c index -> (N, N, n_phi)
     from vdm_curved), the exact angle of the last visible hit. (N, N, n_phi, n_theta, n_c) -> (N, N, n_phi, n_c)."""
-    ok = vdm >= 0
-    edge = sampling.thetas + 0.25 * np.pi / sampling.n_theta
-    out = np.where(ok, edge[None, None, None, :, None], 0.0).max(axis=3).astype(np.float32)
-    for i, h in (horizons or {}).items():
-        out[..., i] = np.where(ok[..., i].any(-1), h, 0.0)
+    out = np.empty(vdm.shape[:3] + vdm.shape[4:], np.float32)
+    for i in range(vdm.shape[-1]):
+        out[..., i] = mvm_slice(vdm[..., i], sampling, (horizons or {}).get(i))
     return out
+
+
+def mvm_slice(vdm_c: np.ndarray, sampling: Sampling, horizon: np.ndarray | None = None) -> np.ndarray:
+    """mvm for one curvature: (N, N, n_phi, n_theta) -> (N, N, n_phi); `horizon` for a convex one."""
+    ok = vdm_c >= 0
+    if horizon is not None:
+        return np.where(ok.any(-1), horizon, np.float32(0))
+    edge = sampling.thetas + 0.25 * np.pi / sampling.n_theta
+    return np.where(ok, edge, 0.0).max(axis=-1).astype(np.float32)
+
+
+ERROR_BLOCK_ROWS = 16384   # rows of A per block of the reconstruction-error pass
 
 
 @dataclass
@@ -286,29 +323,44 @@ def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int, report=()) -> Compr
     total = sigma2.sum()
     errors = {}
     for kk in sorted({min(max(1, int(r)), k) for r in report} | {k}):
-        err = W[:, :kk] @ E[:, :kk].T
-        err -= A
-        err_vdm = err[:, :cols]
-        err_vdm[invalid] = 0.0                            # the -1 entries are the MVM's business
+        sq_vdm = sq_mvm = max_vdm = 0.0
+        for s in range(0, rows, ERROR_BLOCK_ROWS):        # the residual block by block, in cache
+            b = slice(s, s + ERROR_BLOCK_ROWS)
+            err = W[b, :kk] @ E[:, :kk].T
+            err -= A[b]
+            err_vdm = err[:, :cols]
+            err_vdm[invalid[b]] = 0.0                     # the -1 entries are the MVM's business
+            sq_vdm += float(np.einsum("ij,ij->", err_vdm, err_vdm, dtype=np.float64))
+            sq_mvm += float(np.einsum("ij,ij->", err[:, cols:], err[:, cols:], dtype=np.float64))
+            max_vdm = max(max_vdm, float(np.abs(err_vdm).max()))
         errors[kk] = Truncation(
             energy=float(sigma2[:kk].sum() / total) if total > 0 else 1.0,
-            rms_vdm=float(np.sqrt(np.einsum("ij,ij->", err_vdm, err_vdm, dtype=np.float64) / valid)) if valid else 0.0,
-            rms_mvm=float(np.sqrt(np.mean(err[:, cols:].astype(np.float64) ** 2))),
-            max_abs_vdm=float(np.abs(err_vdm).max()) if valid else 0.0)
-        del err, err_vdm
+            rms_vdm=float(np.sqrt(sq_vdm / valid)) if valid else 0.0,
+            rms_mvm=float(np.sqrt(sq_mvm / (rows * n_c))),
+            max_abs_vdm=max_vdm if valid else 0.0)
     return Compressed(W=W.reshape(n, n, n_phi, k), E_vdm=E[:cols].T.reshape(k, n_theta, n_c).copy(),
                       E_mvm=E[cols:].T.copy(), rank=rank, errors=errors)
 
 
 def bake_tables(heights: np.ndarray, depth: float, sampling: Sampling) -> tuple[np.ndarray, np.ndarray, int]:
     """The full 5-D VDM (N, N, n_phi, n_theta, n_c) and the MVM (N, N, n_phi, n_c), and rays cast.
-    Curvatures are resampled in parallel threads (numpy releases the GIL in its kernels)."""
+    Curvatures are resampled in parallel threads (numpy releases the GIL in its kernels), each writing
+    its slice of both tables in place; the curvature-independent part of the resampling is shared."""
     from concurrent.futures import ThreadPoolExecutor
 
     flat, rays, _ = vdm_flat(heights, depth, sampling)
+    cs = sampling.curvatures
+    table = np.empty(flat.shape + (len(cs),), np.float32)
+    theta_mvm = np.empty(flat.shape[:-1] + (len(cs),), np.float32)
+    geometry = hit_geometry(flat, sampling) if any(c != 0 for c in cs) else None
+
+    def one(i: int) -> None:
+        if cs[i] == 0:
+            table[..., i], horizon = flat, None
+        else:
+            _, horizon = vdm_curved(flat, sampling, cs[i], geometry, out=table[..., i])
+        theta_mvm[..., i] = mvm_slice(table[..., i], sampling, horizon if cs[i] > 0 else None)
+
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        slices = list(pool.map(lambda c: (flat, None) if c == 0 else vdm_curved(flat, sampling, c),
-                               sampling.curvatures))
-    table = np.stack([t for t, _ in slices], -1)
-    horizons = {i: h for i, ((_, h), c) in enumerate(zip(slices, sampling.curvatures)) if c > 0}
-    return table, mvm(table, sampling, horizons), rays
+        list(pool.map(one, range(len(cs))))
+    return table, theta_mvm, rays
