@@ -175,11 +175,17 @@ def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float,
     th = sampling.thetas
     valid, dd, s, h = geometry or hit_geometry(d_flat, sampling)   # arc length s and depth h of each hit
     x, y = bend(s, h, c)
-    th_new = np.arctan2(x, -y)                          # angle from the normal, toward the eye
-    th_new = np.where(dd > 0, th_new, th)               # a hit at the entry point keeps its angle
     with np.errstate(divide="ignore", invalid="ignore"):
-        # extended displacement l / sin(theta'), sin(theta') = x / |(x, y)|
-        ext = np.where(s > 0, s * np.hypot(x, y) / x, dd)
+        # The angle from the normal toward the eye, theta' = atan2(x, -y) = pi / 2 - atan(-y / x) for x > 0
+        # (a bent hit lies ahead of its entry point); the extended displacement l / sin(theta') with
+        # 1 / sin(theta') = sqrt(1 + (y / x)^2). A hit at the entry point (s = 0) keeps its angle.
+        t = y / x
+        th_new = np.where(s > 0, np.pi / 2 + np.arctan(t), th)
+        ext = np.where(s > 0, s * np.sqrt(1.0 + t * t), dd)
+        wrapped = (s > 0) & ~(x > 0)      # bent past a half turn or below the centre of curvature: rare
+        if wrapped.any():
+            th_new[wrapped] = np.arctan2(x[wrapped], -y[wrapped])
+            ext[wrapped] = s[wrapped] / np.sin(th_new[wrapped])
     # Occlusion after bending: keep a sample only if its angle exceeds every earlier one; the
     # kept samples are then increasing in theta' in index order, so no sort is needed.
     run = np.maximum.accumulate(np.where(valid, th_new, -np.inf), axis=-1)
@@ -212,7 +218,8 @@ def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float,
         r = np.where(has_hi | (a0 >= th32), r, -1.0)
     # A hit at the entry point (d = 0: the mesostructure touches the reference surface) is hit from every
     # angle up to the horizon.
-    horizon = np.minimum(np.where(keep, np.where(dd > 0, th_new, np.pi / 2), 0.0).max(-1), np.float32(np.pi / 2))
+    top = np.float32(np.pi / 2)
+    horizon = np.where((keep & (dd == 0)).any(-1), top, np.minimum(np.where(keep, th_new, np.float32(0)).max(-1), top))
     return np.where(has_lo | has_hi, r, -1.0).astype(np.float32), horizon
 
 
