@@ -142,75 +142,106 @@ CHUNK_ROWS = 8192  # rows (x, y, phi) per block: the (rows, theta, sample) tempo
 def hit_geometry(d_flat: np.ndarray, sampling: Sampling) -> tuple:
     """The curvature-independent part of the Appendix's resampling, computed once per table: which
     zero-curvature samples hit (valid), their extended d (0 where none), and the arc length s and depth
-    h of each hit below its entry point; rows (..., n_theta) as d_flat."""
-    th = sampling.thetas
-    valid = d_flat >= 0
-    dd = np.where(valid, d_flat, 0.0).astype(np.float64)
+    h of each hit below its entry point. Theta-major: (n_theta, rows) for d_flat (..., n_theta), so the
+    per-row scans over theta (running maximum, ranks, counts) run across whole rows at once."""
+    th = sampling.thetas[:, None]
+    d = d_flat.reshape(-1, d_flat.shape[-1]).T
+    valid = d >= 0
+    dd = np.where(valid, d, 0.0).astype(np.float64)
     return valid, dd, dd * np.sin(th), dd * np.cos(th)
 
 
 def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float, geometry: tuple | None = None,
                out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """vdm_curved_rows over cache-sized blocks of rows (see there). `geometry`: hit_geometry(d_flat)
-    when several curvatures share it; `out`: where to write the table (any view of d_flat's shape)."""
+    """The Appendix's resampling (resample_columns) over cache-sized blocks of rows: (table, horizon) of
+    d_flat's shape and its shape less theta. `geometry`: hit_geometry(d_flat) when several curvatures share
+    it; `out`: where to write the table (any view of d_flat's shape whose leading axes are contiguous)."""
     rows = d_flat.reshape(-1, d_flat.shape[-1])
-    geometry = tuple(g.reshape(rows.shape) for g in (geometry or hit_geometry(rows, sampling)))
+    geometry = geometry or hit_geometry(rows, sampling)
     res = np.empty(d_flat.shape, np.float32) if out is None else out
-    res_rows = res.reshape(rows.shape, copy=False)       # a view (out's leading axes are contiguous), never a copy
+    res_rows = res.reshape(rows.shape, copy=False)       # a view, never a copy
     horizon = np.empty(len(rows), np.float32)
     for s in range(0, len(rows), CHUNK_ROWS):
         b = slice(s, s + CHUNK_ROWS)
-        res_rows[b], horizon[b] = vdm_curved_rows(rows[b], sampling, c, tuple(g[b] for g in geometry))
+        r, horizon[b] = resample_columns(tuple(g[:, b] for g in geometry), sampling, c)
+        res_rows[b] = r.T
     return res, horizon.reshape(d_flat.shape[:-1])
 
 
-def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float,
-                    geometry: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
+    """resample_columns for rows (rows, n_theta) of zero-curvature distances: (rows, n_theta), (rows,)."""
+    r, horizon = resample_columns(hit_geometry(d_flat, sampling), sampling, c)
+    return r.T.copy(), horizon
+
+
+def _scan(op, a: np.ndarray) -> np.ndarray:
+    """op.accumulate over axis 0 as one vector op per row (numpy's accumulate along the first axis of a
+    C-ordered array runs column by column)."""
+    out = np.empty_like(a)
+    out[0] = a[0]
+    for k in range(1, len(a)):
+        op(out[k - 1], a[k], out=out[k])
+    return out
+
+
+def resample_columns(geometry: tuple, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
     """The Appendix's curvature resampling: bend the zero-curvature hit points to curvature c,
     take their new viewing angles theta', drop those that became occluded (theta' not above
     every earlier one), resample linearly at the uniform thetas; -1 past the last hit on a
     convex surface (the ray leaves it). Values are the extended d = l / sin(theta).
-    Also returns each row's horizon: the largest theta' of a kept hit (pi / 2 for a hit at the entry
-    point; 0 if none), the exact edge of the valid range that the uniform samples only bracket."""
-    th = sampling.thetas
-    valid, dd, s, h = geometry or hit_geometry(d_flat, sampling)   # arc length s and depth h of each hit
-    x, y = bend(s, h, c)
+    geometry: hit_geometry's (n_theta, m) columns; returns the table (n_theta, m) float32 and each
+    column's horizon (m,): the largest theta' of a kept hit (pi / 2 for a hit at the entry point;
+    0 if none), the exact edge of the valid range that the uniform samples only bracket."""
+    th = sampling.thetas[:, None]
+    valid, dd, s, h = geometry                          # arc length s and depth h of each hit
     with np.errstate(divide="ignore", invalid="ignore"):
-        # The angle from the normal toward the eye, theta' = atan2(x, -y) = pi / 2 - atan(-y / x) for x > 0
-        # (a bent hit lies ahead of its entry point); the extended displacement l / sin(theta') with
-        # 1 / sin(theta') = sqrt(1 + (y / x)^2). A hit at the entry point (s = 0) keeps its angle.
-        t = y / x
-        th_new = np.where(s > 0, np.pi / 2 + np.arctan(t), th)
-        ext = np.where(s > 0, s * np.sqrt(1.0 + t * t), dd)
-        wrapped = (s > 0) & ~(x > 0)      # bent past a half turn or below the centre of curvature: rare
-        if wrapped.any():
-            th_new[wrapped] = np.arctan2(x[wrapped], -y[wrapped])
+        # The bent hit (bend) seen from the entry point: theta' = atan2(x, -y) = pi / 2 + atan(y / x) while
+        # x > 0 (the hit lies ahead of its entry point), and the extended displacement l / sin(theta') with
+        # 1 / sin(theta') = sqrt(1 + (y / x)^2). With tau = tan(s c / 2), y / x = -(2 tau^2 + h c (1 - tau^2)) /
+        # (2 (1 - h c) tau): one tangent instead of bend's two sines. c = 0 is the flat case, y / x = -h / s.
+        hc = h * c
+        if c == 0:
+            t = -h / s
+        else:
+            tau = np.tan(0.5 * c * s)
+            tau2 = tau * tau
+            t = -(2.0 * tau2 + hc * (1.0 - tau2)) / (2.0 * (1.0 - hc) * tau)
+        hit = s > 0                                     # a hit at the entry point keeps its angle
+        th_new = np.where(hit, np.pi / 2 + np.arctan(t), th)
+        ext = np.where(hit, s * np.sqrt(1.0 + t * t), dd)
+        # bent past a half turn or below the centre of curvature: x <= 0 (rare; checked on the block first)
+        if c != 0 and (float(h.max()) * c >= 1.0 or float(s.max()) * abs(c) >= np.pi) and \
+                (wrapped := hit & ((hc >= 1.0) | (np.abs(c * s) >= np.pi))).any():
+            x, y = bend(s[wrapped], h[wrapped], c)
+            th_new[wrapped] = np.arctan2(x, -y)
             ext[wrapped] = s[wrapped] / np.sin(th_new[wrapped])
     # Occlusion after bending: keep a sample only if its angle exceeds every earlier one; the
     # kept samples are then increasing in theta' in index order, so no sort is needed.
-    run = np.maximum.accumulate(np.where(valid, th_new, -np.inf), axis=-1)
-    earlier = np.concatenate([np.full(run[..., :1].shape, -np.inf), run[..., :-1]], -1)
-    keep = valid & (th_new > earlier)
+    run = _scan(np.maximum, np.where(valid, th_new, -np.inf))
+    keep = valid.copy()
+    keep[1:] &= th_new[1:] > run[:-1]
     # Kept samples, compacted by rank (they increase in theta' with their index), and for every
-    # target theta_j the number of kept samples at or below it: O(samples) work per row.
-    rows, n = th_new.shape
-    th32 = th.astype(np.float32)
+    # target theta_j the number of kept samples at or below it: O(samples) work per column.
+    n, m = th_new.shape
+    th32 = sampling.thetas.astype(np.float32)
     th_new, ext = th_new.astype(np.float32), ext.astype(np.float32)
-    row = np.arange(rows)[:, None]
-    rank = np.cumsum(keep, axis=-1) - 1
-    m = keep.sum(-1, keepdims=True)
-    slot = (row * n + rank)[keep]
-    comp_ang = np.full(rows * n, np.inf, np.float32)
-    comp_val = np.zeros(rows * n, np.float32)
+    col = np.arange(m)
+    rank = _scan(np.add, keep.astype(np.int64)) - 1
+    kept = rank[-1] + 1
+    slot = (rank * m + col)[keep]
+    comp_ang = np.full(n * m, np.inf, np.float32)
+    comp_val = np.zeros(n * m, np.float32)
     comp_ang[slot], comp_val[slot] = th_new[keep], ext[keep]
-    comp_ang, comp_val = comp_ang.reshape(rows, n), comp_val.reshape(rows, n)
-    first_target = np.searchsorted(th32, th_new, side="left")        # theta'_k <= theta_j iff j >= this
-    counts = np.bincount((row * (n + 1) + first_target)[keep], minlength=rows * (n + 1)).reshape(rows, n + 1)
-    below = np.cumsum(counts, axis=-1)[:, :n]                           # kept samples at or below theta_j
-    has_lo, has_hi = below >= 1, below < m
-    i0 = np.clip(below - 1, 0, n - 1) + row * n           # flat indices of the bracketing kept samples
-    i1 = np.clip(below, 0, n - 1) + row * n
+    first_target = np.zeros((n, m), np.int64)                # targets below theta'_k: theta'_k <= theta_j iff j >= it
+    for t in th32:
+        first_target += th_new > t
+    counts = np.bincount((first_target * m + col)[keep], minlength=(n + 1) * m).reshape(n + 1, m)
+    below = _scan(np.add, counts[:n])                                    # kept samples at or below theta_j
+    has_lo, has_hi = below >= 1, below < kept
+    i0 = np.clip(below - 1, 0, n - 1) * m + col           # flat indices of the bracketing kept samples
+    i1 = np.clip(below, 0, n - 1) * m + col
     a0, a1, v0, v1 = comp_ang.take(i0), comp_ang.take(i1), comp_val.take(i0), comp_val.take(i1)
+    th32 = th32[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
         w = np.where(has_lo & has_hi, (th32 - a0) / (a1 - a0), np.float32(0))
     r = np.where(has_lo & has_hi, v0 + w * (v1 - v0), np.where(has_hi, v1, v0))  # clamp outside the samples
@@ -219,7 +250,7 @@ def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float,
     # A hit at the entry point (d = 0: the mesostructure touches the reference surface) is hit from every
     # angle up to the horizon.
     top = np.float32(np.pi / 2)
-    horizon = np.where((keep & (dd == 0)).any(-1), top, np.minimum(np.where(keep, th_new, np.float32(0)).max(-1), top))
+    horizon = np.where((keep & ~hit).any(0), top, np.minimum(np.where(keep, th_new, np.float32(0)).max(0), top))
     return np.where(has_lo | has_hi, r, -1.0).astype(np.float32), horizon
 
 
