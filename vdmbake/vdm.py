@@ -100,12 +100,17 @@ def flat_rays(sampling: Sampling, eps: float, rows: slice = slice(None)) -> tupl
 FLAT_BLOCK_RAYS = 1 << 19   # rays generated and cast per block: their arrays stay small, nothing waits on a copy
 
 
-def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RayScene | None = None):
+def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RayScene | None = None,
+             on_block=None):
     """Zero-curvature VDM by ray casting (sec. 3.1): (N, N, n_phi, n_theta) float32 distances,
-    the ray count, and the Embree scene (reusable). Rows are y, columns x (image order)."""
+    the ray count, and the Embree scene (reusable). Rows are y, columns x (image order).
+    on_block(out, rows): called with the table and each block of texel rows (a slice) once it is cast."""
     n = sampling.size
     if depth <= 0:
-        return np.zeros((n, n, sampling.n_phi, sampling.n_theta), np.float32), 0, scene
+        out = np.zeros((n, n, sampling.n_phi, sampling.n_theta), np.float32)
+        if on_block:
+            on_block(out, slice(0, n))
+        return out, 0, scene
     if scene is None:
         scene = RayScene(*mesostructure_mesh(heights, depth, padding_texels(depth, sampling)))
     eps = 1e-4 * depth
@@ -117,6 +122,8 @@ def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RaySc
         t = scene.distances(*flat_rays(sampling, eps, slice(y, y + step)))
         t = t.reshape(-1, n, sampling.n_phi, sampling.n_theta)
         out[y:y + step] = np.where(t >= 0, np.maximum(t - extra, 0.0), -1.0)
+        if on_block:
+            on_block(out, slice(y, min(y + step, n)))
     return out, scene.rays_cast - before, scene
 
 
@@ -382,23 +389,34 @@ def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int, report=()) -> Compr
 
 def bake_tables(heights: np.ndarray, depth: float, sampling: Sampling) -> tuple[np.ndarray, np.ndarray, int]:
     """The full 5-D VDM (N, N, n_phi, n_theta, n_c) and the MVM (N, N, n_phi, n_c), and rays cast.
-    Curvatures are resampled in parallel threads (numpy releases the GIL in its kernels), each writing
-    its slice of both tables in place; the curvature-independent part of the resampling is shared."""
+    Every row (x, y, phi) is resampled on its own, so the work is pipelined: while Embree casts the next
+    block of texel rows (it releases the GIL), worker threads resample the blocks already cast, one task per
+    block and curvature (numpy releases the GIL in its kernels), each writing its slice of both tables in
+    place; the curvature-independent part of the resampling is computed once per block."""
     from concurrent.futures import ThreadPoolExecutor
 
-    flat, rays, _ = vdm_flat(heights, depth, sampling)
     cs = sampling.curvatures
-    table = np.empty(flat.shape + (len(cs),), np.float32)
-    theta_mvm = np.empty(flat.shape[:-1] + (len(cs),), np.float32)
-    geometry = hit_geometry(flat, sampling) if any(c != 0 for c in cs) else None
+    n = sampling.size
+    table = np.empty((n, n, sampling.n_phi, sampling.n_theta, len(cs)), np.float32)
+    theta_mvm = np.empty((n, n, sampling.n_phi, len(cs)), np.float32)
 
-    def one(i: int) -> None:
+    def one(flat_rows: np.ndarray, rows: slice, i: int, geometry) -> None:
+        part = table[rows, ..., i]
         if cs[i] == 0:
-            table[..., i], horizon = flat, None
+            part[...], horizon = flat_rows, None
         else:
-            _, horizon = vdm_curved(flat, sampling, cs[i], geometry, out=table[..., i])
-        theta_mvm[..., i] = mvm_slice(table[..., i], sampling, horizon if cs[i] > 0 else None)
+            _, horizon = vdm_curved(flat_rows, sampling, cs[i], geometry, out=part)
+        theta_mvm[rows, ..., i] = mvm_slice(part, sampling, horizon if cs[i] > 0 else None)
 
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        list(pool.map(one, range(len(cs))))
+        tasks = []
+
+        def on_block(flat: np.ndarray, rows: slice) -> None:
+            flat_rows = flat[rows]
+            geometry = hit_geometry(flat_rows, sampling) if any(c != 0 for c in cs) else None
+            tasks.extend(pool.submit(one, flat_rows, rows, i, geometry) for i in range(len(cs)))
+
+        _, rays, _ = vdm_flat(heights, depth, sampling, on_block=on_block)
+        for t in tasks:
+            t.result()                            # re-raises a worker's exception
     return table, theta_mvm, rays
