@@ -90,8 +90,9 @@ def subdivide(faces: np.ndarray, attrs: dict[str, np.ndarray]) -> tuple[np.ndarr
     out["normal"] /= np.maximum(np.linalg.norm(out["normal"], axis=1, keepdims=True), 1e-300)
     if "weld" in attrs:
         w = attrs["weld"]
-        _, mid = np.unique(np.sort(np.stack([w[a], w[b]], 1), axis=1), axis=0, return_inverse=True)
-        out["weld"] = np.concatenate([w, w.max() + 1 + mid.ravel()])
+        top = int(w.max()) + 1
+        _, mid = np.unique(np.minimum(w[a], w[b]) * top + np.maximum(w[a], w[b]), return_inverse=True)  # one key per edge
+        out["weld"] = np.concatenate([w, top + mid.ravel()])
     m = len(attrs["pos"]) + inv.reshape(3, -1).T          # midpoints of edges 01, 12, 20 per face
     f = np.concatenate([np.stack([faces[:, 0], m[:, 0], m[:, 2]], 1), np.stack([faces[:, 1], m[:, 1], m[:, 0]], 1),
                         np.stack([faces[:, 2], m[:, 2], m[:, 1]], 1), m])
