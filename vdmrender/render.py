@@ -71,9 +71,9 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     names = [f"{folder}/{k:03d}" for k in range(len(cams))]
     if prev_key.is_file() and prev_key.read_text().strip() == key and all(
             out.previous(n + ".exr").is_file() for n in names):
-        parts = [exr.read(out.previous(n + ".exr")) for n in names]
-        frames = [np.stack([p["reference"][c] for c in "RGBA"], -1) for p in parts]
-        classes = [p["classes"]["C"].astype(np.uint8) if "classes" in p else None for p in parts]
+        cached = [exr.read(out.previous(n + ".exr")) for n in names]
+        frames = [np.stack([p["reference"][c] for c in "RGBA"], -1) for p in cached]
+        classes = [p["classes"]["C"].astype(np.uint8) if "classes" in p else None for p in cached]
         info = {"cached": True, "trace_s": 0.0}
     else:
         t0 = time.perf_counter()
@@ -89,11 +89,11 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
         classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
         info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
     for n, f, k in zip(names, frames, classes):
-        parts = {"reference": {c: f[..., i] for i, c in enumerate("RGBA")}}
+        layers = {"reference": {c: f[..., i] for i, c in enumerate("RGBA")}}
         if k is not None:   # which pixels see an open border or the inside (vdmrender.borders), as a mask too
-            parts["classes"] = {"C": k.astype(np.float32)}
+            layers["classes"] = {"C": k.astype(np.float32)}
             images.save_rgb(out.file(n + "-classes.png"), np.dstack([borders.COLOURS[k], np.full(k.shape, 255, np.uint8)]))
-        exr.write(out.file(n + ".exr"), parts)
+        exr.write(out.file(n + ".exr"), layers)
         images.save_rgb(out.file(n + ".png"), images.encode(f, scene.render.background))
     out.file(f"{folder}/key.txt").write_text(key + "\n")
     log(f"{obj.name}: reference {len(cams)} frames " +
