@@ -152,25 +152,27 @@ def test_cliffs_vertical_walls_and_slot():
 # ------------------------------------------------------------------ image files
 
 
-def test_png_8bit_normalised_by_depth_not_range(tmp_path):
+def test_png_8bit_normalised_by_range_and_flipped(tmp_path):
+    """One rule for every format (heightfields docstring): min / max to [0, 1]; rows flipped so row 0
+    is v = 0, the picture's bottom."""
     a = np.arange(64, dtype=np.uint8).reshape(8, 8) * 3 + 11  # 11 .. 200
     assert a.max() == 200
     p = tmp_path / "h8.png"
     Image.fromarray(a, mode="L").save(p)
     h = hf.load_image(p, None)
     assert h.shape == (8, 8) and h.dtype == np.float64
-    assert np.allclose(h, a / 255.0, atol=1e-12)
-    assert abs(h.max() - 200 / 255) < 1e-12 and abs(h.min() - 11 / 255) < 1e-12
+    assert np.allclose(h, (a[::-1] - 11.0) / 189.0, atol=1e-12)
+    assert h.max() == 1.0 and h.min() == 0.0
 
 
-def test_png_16bit_normalised_by_depth(tmp_path):
+def test_png_16bit_precision_kept(tmp_path):
     a = np.zeros((4, 4), np.uint16)
     a[0, 0], a[0, 1], a[1, 1] = 65535, 32768, 1000
     p = tmp_path / "h16.png"
     im = Image.new("I;16", (4, 4))
     im.frombytes(a.astype("<u2").tobytes())
     im.save(p)
-    h = hf.load_image(p, None)
+    h = hf.load_image(p, None)[::-1]          # back to picture rows
     assert h[0, 0] == 1.0
     assert abs(h[0, 1] - 0.5) < 1e-4
     assert abs(h[1, 1] - 1000 / 65535) < 1e-12  # 16-bit precision kept (8-bit would give 0 or 1/255)
@@ -186,7 +188,8 @@ def test_png_rgb_and_rgba_rec709_luminance(tmp_path):
     p = tmp_path / "rgb.png"
     Image.fromarray(rgb, mode="RGB").save(p)
     h = hf.load_image(p, None)
-    expect = np.array([[0.2126, 0.7152], [0.0722, (0.2126 * 10 + 0.7152 * 100 + 0.0722 * 200) / 255]])
+    y = np.array([[0.2126, 0.7152], [0.0722, (0.2126 * 10 + 0.7152 * 100 + 0.0722 * 200) / 255]])
+    expect = ((y - y.min()) / (y.max() - y.min()))[::-1]
     assert np.allclose(h, expect, atol=1e-12)
     rgba = np.dstack([rgb, np.full((2, 2), 7, np.uint8)])  # alpha is ignored
     q = tmp_path / "rgba.png"
@@ -201,7 +204,7 @@ def test_exr_float_round_trip(tmp_path):
     exr.write(p, {"height": {"Y": z}})
     h = hf.load_image(p, None)
     expect = (z.astype(np.float64) - z.min()) / (float(z.max()) - z.min())
-    assert np.allclose(h, expect, atol=1e-12)
+    assert np.allclose(h, expect[::-1], atol=1e-12)
     assert h.min() == 0.0 and h.max() == 1.0
 
 
@@ -209,10 +212,10 @@ def test_exr_channel_choice_and_constant(tmp_path):
     ramp = np.tile(np.linspace(0, 1, 8, dtype=np.float32), (8, 1))
     p = tmp_path / "rgb.exr"
     exr.write(p, {"rgba": {"B": ramp[::-1].copy(), "G": ramp.T.copy(), "R": ramp}})
-    assert np.allclose(hf.load_image(p, None), ramp)  # R, not G or B
+    assert np.allclose(hf.load_image(p, None), ramp)  # R, not G or B (its rows are all alike)
     q = tmp_path / "single.exr"
     exr.write(q, {"depth": {"depth.Z": 2 * ramp.T}})
-    assert np.allclose(hf.load_image(q, None), ramp.T)  # the only channel
+    assert np.allclose(hf.load_image(q, None), ramp.T[::-1])  # the only channel, picture rows flipped
     c = tmp_path / "const.exr"
     exr.write(c, {"h": {"Y": np.full((4, 4), 0.25, np.float32)}})
     assert np.array_equal(hf.load_image(c, None), np.ones((4, 4)))

@@ -246,20 +246,24 @@ def test_no_relief_tables_on_a_convex_surface(what):
 
 
 def test_all_zero_heights(tmp_path):
-    """An all-zero 8-bit PNG (PNGs are normalised by bit depth: zeros stay 0): the whole surface lies
-    at the floor, depth * s_n inside the torus, an offset surface. Measured: vdm@all 4.379 (IoU
-    0.9702), pom@16 9.922 (0.8342), mesh 10.110 (0.8270), displaced@1 0.040 (1.0). (The VDM's
+    """An 8-bit PNG all zero but one texel (heights are normalised by min / max, and a constant image
+    has no relief): the surface lies at the floor, depth * s_n inside the torus, an offset surface,
+    save one small bump per tile. Measured: vdm@all 4.503 (IoU
+    0.9692), pom@16 9.867 (0.8359), mesh 10.084 (0.8287), displaced@1 0.154 (1.0); with no bump at all
+    (main, before the normalisation rule) 4.379, 9.922, 10.110, 0.040. (The VDM's
     outline comes early: the curved tables' horizon is 67 degrees at c = 1 where the floor is
     visible up to asin(1 - c depth) = 70.1 degrees; see the report.)"""
-    Image.fromarray(np.zeros((16, 16), np.uint8)).save(tmp_path / "zeros.png")
+    img = np.zeros((16, 16), np.uint8)
+    img[8, 8] = 255
+    Image.fromarray(img).save(tmp_path / "zeros.png")
     rows, _ = render(tmp_path, scene(ORBIT.format(count=2), TORUS, ALL + ", displaced = { levels = [1] }",
                                      height="zeros.png", tiling=(8, 2)))
     bundle = Bundle(tmp_path / "b.bundle")
-    assert not bundle.read(bundle.manifest["objects"]["p"]["mesostructure"], parts.MESOSTRUCTURE).heights.any()
-    assert mean(rows, "vdm@all") <= 5.0                               # 4.379
-    assert rows["vdm@all"]["iou"] >= 0.96                             # 0.9702
-    assert mean(rows, "vdm@all") < 0.5 * mean(rows, "pom@16")         # 9.922: pom has no silhouettes
-    assert mean(rows, "displaced@1") <= 0.2 and rows["displaced@1"]["iou"] >= 0.999
+    assert np.count_nonzero(bundle.read(bundle.manifest["objects"]["p"]["mesostructure"], parts.MESOSTRUCTURE).heights) == 1
+    assert mean(rows, "vdm@all") <= 5.0                               # 4.503
+    assert rows["vdm@all"]["iou"] >= 0.96                             # 0.9692
+    assert mean(rows, "vdm@all") < 0.5 * mean(rows, "pom@16")         # 9.867: pom has no silhouettes
+    assert mean(rows, "displaced@1") <= 0.25 and rows["displaced@1"]["iou"] >= 0.999
 
 
 # ----------------------------------------------------------------------------- SVD and the bake's rules

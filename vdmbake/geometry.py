@@ -10,7 +10,7 @@ import numpy as np
 
 from . import texspace
 from .errors import InputError
-from .meshes import SurfaceFrame, TriMesh
+from .meshes import SurfaceFrame, TriMesh, weld
 
 MAX_FACES = 16_000_000   # a displaced mesh finer than this would not fit a 24 GiB machine's Embree build
 
@@ -29,12 +29,19 @@ def onb(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def subdivide(faces: np.ndarray, attrs: dict[str, np.ndarray]) -> tuple[np.ndarray, dict]:
     """One level of midpoint subdivision (every triangle into four) of per-vertex attributes,
     interpolated linearly ("normal" renormalised). Shared edges get one midpoint, so the mesh
-    stays watertight."""
+    stays watertight. An integer "weld" attribute (position ids, see weld) is carried exactly: a
+    midpoint gets the id of its edge's end ids, so the two copies of an edge split at a UV seam
+    give midpoints with the same id (and, from bit-identical ends, the same position)."""
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     uniq, inv = np.unique(np.sort(e, axis=1), axis=0, return_inverse=True)
     a, b = uniq[:, 0], uniq[:, 1]
-    out = {k: np.concatenate([v, 0.5 * (v[a] + v[b])]) for k, v in attrs.items()}
+    out = {k: np.concatenate([v, 0.5 * (v[a] + v[b])]) for k, v in attrs.items() if k != "weld"}
     out["normal"] /= np.maximum(np.linalg.norm(out["normal"], axis=1, keepdims=True), 1e-300)
+    if "weld" in attrs:
+        w = attrs["weld"]
+        top = int(w.max()) + 1
+        _, mid = np.unique(np.minimum(w[a], w[b]) * top + np.maximum(w[a], w[b]), return_inverse=True)  # one key per edge
+        out["weld"] = np.concatenate([w, top + mid.ravel()])
     m = len(attrs["pos"]) + inv.reshape(3, -1).T          # midpoints of edges 01, 12, 20 per face
     f = np.concatenate([np.stack([faces[:, 0], m[:, 0], m[:, 2]], 1), np.stack([faces[:, 1], m[:, 1], m[:, 0]], 1),
                         np.stack([faces[:, 2], m[:, 2], m[:, 1]], 1), m])
@@ -44,7 +51,9 @@ def subdivide(faces: np.ndarray, attrs: dict[str, np.ndarray]) -> tuple[np.ndarr
 # Surfaces of revolution about +Z: a profile (r(t), z(t)), t in [0, 1], swept by the angle phi. With
 # P = (r cos phi, r sin phi, z), dP/dphi x dP/dt = r (z' cos phi, z' sin phi, -r'), so the unit normal
 # is (z' cos phi, z' sin phi, -r') / |(r', z')|, exact at every vertex, poles included. UVs:
-# u = phi / 2pi (the seam column is duplicated), v = t. Principal curvatures (do Carmo, sec. 3-3):
+# u = phi / 2pi (the seam column is duplicated), v = t; every texture map is right-handed seen from outside
+# ((dP/du x dP/dv) . n > 0), as standard (OBJ / glTF) UVs are, so a picture lands upright and unmirrored,
+# v = 1 at its top (vdmbake.heightfields flips image rows to that convention). Principal curvatures (do Carmo, sec. 3-3):
 # along the parallel k_p = z' / (r |(r', z')|), along the meridian k_m = (r' z'' - z' r'') / |(r', z')|^3,
 # positive where the surface bends away from its normal; at a pole (r = 0) k_p takes the limit k_m.
 
@@ -85,15 +94,16 @@ def disk(radius: float, z: float, segments: int, up: bool) -> TriMesh:
     if not up:
         f = f[:, ::-1]
     n = np.tile([0.0, 0.0, 1.0 if up else -1.0], (len(v), 1))
-    uv = 0.5 + 0.5 * v[:, :2] / radius
-    return TriMesh(v, f.astype(np.int64), n, uv, flat_frame(len(v), 2 * radius))
+    mirror = 1.0 if up else -1.0            # seen from below, u runs along -X so the picture is not mirrored
+    uv = 0.5 + 0.5 * v[:, :2] / radius * [mirror, 1.0]
+    return TriMesh(v, f.astype(np.int64), n, uv, flat_frame(len(v), 2 * radius, mirror))
 
 
-def flat_frame(count: int, size: float) -> SurfaceFrame:
-    """A planar patch: u along +X, v along +Y, no curvature."""
+def flat_frame(count: int, size: float, u_sign: float = 1.0) -> SurfaceFrame:
+    """A planar patch: u along u_sign * X, v along +Y, no curvature."""
     zero = np.zeros(count)
-    return SurfaceFrame(np.tile([size, 0.0, 0.0], (count, 1)), np.tile([0.0, size, 0.0], (count, 1)),
-                        zero, zero.copy(), np.tile([1.0, 0.0, 0.0], (count, 1)))
+    return SurfaceFrame(np.tile([u_sign * size, 0.0, 0.0], (count, 1)), np.tile([0.0, size, 0.0], (count, 1)),
+                        zero, zero.copy(), np.tile([u_sign, 0.0, 0.0], (count, 1)))
 
 
 def cylinder(radius: float, height: float, segments: int, rings: int, caps: int) -> TriMesh:
@@ -148,7 +158,10 @@ def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: fl
     """The base mesh (with UVs and frame) midpoint-subdivided `levels` times, linearly over its facets
     (it is the reference surface every mesostructure technique starts from), carrying the
     interpolated normal, UV and texture tangents; each vertex moves inward by depth * s_n * (1 - h)
-    against its normal. The shading normals are those every per-pixel technique uses: the
+    against its normal. Seams live in the texture coordinates only: vertices split for their UVs are
+    welded by position first (meshes.weld), take one position and one normal, and move by the mean of
+    their copies' displacements (equal where the height field is continuous across the seam), so the
+    displaced surface has no cracks. The shading normals are those every per-pixel technique uses: the
     mesostructure's texture-space normals `normals` (MesostructureMaps) mapped through the
     interpolated frame, so the comparison measures geometry, not a different normal."""
     faces_out = len(mesh.faces) * 4 ** levels
@@ -156,14 +169,61 @@ def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: fl
         raise InputError(f"displacement at {levels} subdivision levels would make {faces_out:,} faces "
                          f"(limit {MAX_FACES:,}); use fewer levels, a smaller mesostructure size, "
                          "less tiling or a finer base mesh.")
-    f, a = mesh.faces, {"pos": mesh.vertices, "normal": mesh.normals, "uv": mesh.uvs,
-                        "dpdu": mesh.frame.dpdu, "dpdv": mesh.frame.dpdv}
+    w = weld(mesh.vertices)
+    first = np.unique(w, return_index=True)[1]
+    normal = np.zeros((len(first), 3))
+    np.add.at(normal, w, mesh.normals)                     # one normal per point of the surface
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    f, a = mesh.faces, {"pos": mesh.vertices[first][w], "normal": normal[w], "uv": mesh.uvs,
+                        "dpdu": mesh.frame.dpdu, "dpdv": mesh.frame.dpdv, "weld": w}
     for _ in range(levels):
         f, a = subdivide(f, a)
     T = a["uv"] * np.asarray(tiling)
     J = np.stack([a["dpdu"] / tiling[0], a["dpdv"] / tiling[1]], -1)
     J -= a["normal"][:, :, None] * np.einsum("vi,vij->vj", a["normal"], J)[:, None, :]   # into the tangent plane
-    h = np.asarray(heights, np.float64)
-    moved = a["pos"] - a["normal"] * (depth * texspace.normal_scale(J) * (1.0 - sample(h, T)))[:, None]
+    amount = depth * texspace.normal_scale(J) * (1.0 - sample(np.asarray(heights, np.float64), T))
+    w = a["weld"]
+    amount = (np.bincount(w, amount) / np.bincount(w))[w]   # the copies of a seam vertex move together
+    moved = a["pos"] - a["normal"] * amount[:, None]
     n_tex = np.stack([sample(np.asarray(c, np.float64), T) for c in np.moveaxis(normals, -1, 0)], -1)
     return TriMesh(moved, f, texspace.world_normals(J, a["normal"], n_tex))
+
+
+# Open boundaries (VDM sec. 5: "VDMs will be extended to model open surface boundaries, which are not
+# handled in our current implementation"). The mesostructure fills a shell under the base surface, down
+# to depth * s_n; on a closed surface the shell has no sides. Where the base surface has a border (a
+# plane, an open mesh) the shell is open there, and what a view sees through that side is modelled by no
+# per-pixel method (they all start their rays on the base surface), while the displaced reference sheet
+# shows its cut edge and, from behind, its underside. The side wall, the `skirt`, is every border edge
+# swept from the base surface to the shell's floor; vdmrender/borders.py scores the pixels that see it
+# apart from the surface. Borders are found on the surface, not on its UV charts (welded by position),
+# so a UV seam is never a border.
+
+def boundary_edges(faces: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """(E, 2) vertex index pairs of the edges used by exactly one face, keyed by the position ids
+    `ids` (meshes.weld), in their face's winding order (so the surface lies to the left)."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    key = np.sort(ids[e], axis=1)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return e[counts[inv.ravel()] == 1]
+
+
+def skirt(mesh: TriMesh, depth: float, tiling) -> tuple[np.ndarray, np.ndarray]:
+    """The shell's side wall along the base mesh's borders: (vertices (2B, 3), faces (2E, 3)), each
+    border edge a quad from the base surface down to depth * s_n along each end's normal (the deepest
+    the mesostructure reaches there). Empty arrays on a closed surface."""
+    ids = weld(mesh.vertices)
+    edges = boundary_edges(mesh.faces, ids)
+    if not len(edges):
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    used, local = np.unique(edges, return_inverse=True)
+    local = local.reshape(-1, 2)
+    n = mesh.normals[used]
+    J = texspace.jacobian(mesh.frame, tiling)[used]
+    J = J - n[:, :, None] * np.einsum("vi,vij->vj", n, J)[:, None, :]     # into the tangent plane
+    top = mesh.vertices[used]
+    bottom = top - n * (depth * texspace.normal_scale(J))[:, None]
+    a, b = local[:, 0], local[:, 1]
+    m = len(used)
+    faces = np.concatenate([np.stack([a, b, b + m], 1), np.stack([a, b + m, a + m], 1)])
+    return np.concatenate([top, bottom]), faces.astype(np.int64)

@@ -3,6 +3,15 @@
 A height field is a (size, size) float64 array in [0, 1]: 1 is the top (the reference
 surface the VDM is baked against), 0 the deepest point. Rows are v, columns u; texel
 (i, j) sits at the texel centre ((j + 0.5) / size, (i + 0.5) / size) of the unit tile.
+Row 0 is therefore v = 0, which in OBJ / glTF texture coordinates (as trimesh gives them) is the
+bottom of the picture: image files, whose first row is the picture's top, are flipped on loading,
+so every consumer (the bake, displacement, the GL upload, whose first row is t = 0) indexes [v, u].
+
+Normalisation (one rule for every file, `depth` the only scale): the stored values are mapped
+to [0, 1] by their own min / max, the lowest point to 0 and the highest to 1, whatever the format
+(8- or 16-bit PNG, grey or colour, float EXR in any unit). The file's numeric range (bit depth,
+metres or feet, an offset) is not a second scale: `depth` alone is the peak-to-valley height of
+the mesostructure. A constant image is all ones (no relief).
 
 Three sources:
 - `pattern`: procedural, tileable test materials in the manner of the classic VDM / parallax
@@ -211,7 +220,7 @@ def resample(h: np.ndarray, size: int) -> np.ndarray:
 
 
 def _png_stored(path: Path) -> np.ndarray:
-    """Luminance of a PNG in [0, 1], normalised by its bit depth (not its range)."""
+    """Luminance of a PNG in its stored units (grey value over its bit depth's full scale), rows top to bottom."""
     from PIL import Image
 
     try:
@@ -259,13 +268,18 @@ def _exr_height(path: Path) -> np.ndarray:
     bad = ~np.isfinite(h)
     if bad.any():
         raise InputError(f"{path}: {int(bad.sum())} texels are NaN or infinite (allowed: finite heights only)")
+    return h
+
+
+def _normalised(h: np.ndarray) -> np.ndarray:
+    """The one normalisation rule (module docstring): min / max to [0, 1], constant -> all ones."""
     lo, hi = float(h.min()), float(h.max())
-    if hi <= lo:
-        return np.ones_like(h)
-    return (h - lo) / (hi - lo)
+    return np.ones_like(h) if hi <= lo else (h - lo) / (hi - lo)
 
 
 def _finish(h: np.ndarray, size: int | None, where: str) -> np.ndarray:
+    """Normalise, turn picture rows (top first) into v rows (v = 0 first), check or resample the size."""
+    h = _normalised(h)[::-1]
     if size is None:
         if h.shape[0] != h.shape[1]:
             raise InputError(f"{where}: image is {h.shape[1]} x {h.shape[0]}, not square "
@@ -281,8 +295,9 @@ def _finish(h: np.ndarray, size: int | None, where: str) -> np.ndarray:
 def load_image(path: Path, size: int | None) -> np.ndarray:
     """A height field from an image: 8-bit or 16-bit PNG (grey, or RGB/RGBA converted to luminance
     with Rec. 709 weights on the stored values), or a float EXR (first channel named Y, R or the only one;
-    use vdmbake.exr.read which returns {part: {channel: 2-D array}}). Normalised to [0, 1] by the
-    file's bit depth for PNG (not by its min/max), and by min/max for EXR (constant EXR -> all ones).
+    use vdmbake.exr.read which returns {part: {channel: 2-D array}}). Normalised to [0, 1] by the data's
+    min / max, whatever the format (constant -> all ones), and flipped so row 0 is v = 0 (the picture's
+    bottom), as the module docstring says.
     `size`: resample to size x size with a periodic (wrap-around) bilinear filter, or keep the native
     size if None (non-square images are refused unless size is given)."""
     path = Path(path)
@@ -308,7 +323,7 @@ def load_image(path: Path, size: int | None) -> np.ndarray:
 
 def skimage_photo(name: str, size: int | None) -> np.ndarray:
     """Real photographs bundled with scikit-image (e.g. 'brick', 'gravel', 'grass'): luminance as height,
-    normalised to [0, 1] by min/max. Raise InputError naming the extra to install if scikit-image is missing,
+    normalised and oriented as every image file (load_image). Raise InputError naming the extra to install if scikit-image is missing,
     and naming the allowed photo names if the name is unknown. Only the photos inside the scikit-image
     wheel are used; they are read straight from its skimage/data folder (nothing is ever downloaded)."""
     if name not in SKIMAGE_PHOTOS:
@@ -331,10 +346,7 @@ def skimage_photo(name: str, size: int | None) -> np.ndarray:
     else:
         raise InputError(f"{where}: {file} is not in this scikit-image installation's skimage/data "
                          f"(allowed: {', '.join(SKIMAGE_PHOTOS)}, from a scikit-image wheel)")
-    h = _png_stored(path)
-    lo, hi = float(h.min()), float(h.max())
-    h = np.ones_like(h) if hi <= lo else (h - lo) / (hi - lo)
-    return _finish(h, size, f"{where} ({path})")
+    return _finish(_png_stored(path), size, f"{where} ({path})")
 
 
 def from_spec(spec: str, size: int, base: Path) -> np.ndarray:

@@ -64,6 +64,19 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
 
 
+def weld(vertices: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
+    """(V,) int64 position ids: vertices within rel_tol of the bounding radius share an id (they are one
+    point of the surface, split only for their texture coordinates, e.g. at a UV seam). Ids are
+    numbered in order of first appearance, so the first vertex of each id can stand for it."""
+    centre = 0.5 * (vertices.min(0) + vertices.max(0))
+    scale = max(float(np.abs(vertices - centre).max()), 1e-300) * rel_tol
+    _, first, inv = np.unique(np.round((vertices - centre) / scale), axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return rank[inv.ravel()]
+
+
 def rotation_xyz(degrees) -> np.ndarray:
     """Rotation about X, then Y, then Z (extrinsic), angles in degrees."""
     ax, ay, az = np.radians(degrees)
@@ -151,4 +164,7 @@ def load_mesh_file(path: Path) -> TriMesh:
     merged.merge_vertices()
     v, f = np.asarray(merged.vertices, np.float64), np.asarray(merged.faces, np.int64)
     uvs = np.asarray(merged.visual.uv, np.float64) if uv is not None else None
-    return TriMesh(v, f, vertex_normals(v, f), uvs)
+    # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
+    # of all its faces on both sides, so shading and displacement agree across the seam.
+    w = weld(v)
+    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs)

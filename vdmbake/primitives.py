@@ -5,7 +5,7 @@ which gives exact normals, UVs and principal curvatures from the profile); the p
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, is_dataclass
 
 import numpy as np
 
@@ -114,5 +114,5 @@ PRIMITIVES = {"plane": (plane, PlaneParams), "sphere": (sphere, SphereParams), "
 
 
 def build(name: str, params) -> TriMesh:
-    """The primitive `name` with its parameters (a *Params instance)."""
-    return PRIMITIVES[name][0](**asdict(params))
+    """The primitive `name` with its parameters (a *Params instance, or a dict of them)."""
+    return PRIMITIVES[name][0](**(asdict(params) if is_dataclass(params) else params))

@@ -83,101 +83,172 @@ def height_normals(heights: np.ndarray, depth: float) -> np.ndarray:
     return vertex_normals(v, f).reshape(n + 2, n + 2, 3)[1:-1, 1:-1]
 
 
-def flat_rays(sampling: Sampling, eps: float) -> tuple[np.ndarray, np.ndarray]:
+def flat_rays(sampling: Sampling, eps: float, rows: slice = slice(None)) -> tuple[np.ndarray, np.ndarray]:
     """Origins and directions of the zero-curvature bake: for every texel centre (rows y, columns x)
     and view (phi, theta), a ray along -V. Rays start eps above the reference surface (a ray
-    starting on a top texel could slip under the one-sided sheet); vdm_flat takes eps / cos(theta) off."""
+    starting on a top texel could slip under the one-sided sheet); vdm_flat takes eps / cos(theta) off.
+    `rows`: only these texel rows (y), in the same order (vdm_flat casts them block by block)."""
     n = sampling.size
     c = (np.arange(n) + 0.5) / n
-    Y, X = np.meshgrid(c, c, indexing="ij")
+    Y, X = np.meshgrid(c[rows], c, indexing="ij")
     origins = np.stack([X, Y, np.full_like(X, eps)], -1).reshape(-1, 1, 3)
     dirs = -view_vectors(sampling.thetas, sampling.phis).reshape(1, -1, 3)
-    return (np.broadcast_to(origins, (n * n, dirs.shape[1], 3)).reshape(-1, 3),
-            np.broadcast_to(dirs, (n * n, dirs.shape[1], 3)).reshape(-1, 3))
+    return (np.broadcast_to(origins, (len(origins), dirs.shape[1], 3)).reshape(-1, 3),
+            np.broadcast_to(dirs, (len(origins), dirs.shape[1], 3)).reshape(-1, 3))
 
 
-def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RayScene | None = None):
+FLAT_BLOCK_RAYS = 1 << 19   # rays generated and cast per block: their arrays stay small, nothing waits on a copy
+
+
+def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RayScene | None = None,
+             on_block=None):
     """Zero-curvature VDM by ray casting (sec. 3.1): (N, N, n_phi, n_theta) float32 distances,
-    the ray count, and the Embree scene (reusable). Rows are y, columns x (image order)."""
+    the ray count, and the Embree scene (reusable). Rows are y, columns x (image order).
+    on_block(out, rows): called with the table and each block of texel rows (a slice) once it is cast."""
     n = sampling.size
     if depth <= 0:
-        return np.zeros((n, n, sampling.n_phi, sampling.n_theta), np.float32), 0, scene
+        out = np.zeros((n, n, sampling.n_phi, sampling.n_theta), np.float32)
+        if on_block:
+            on_block(out, slice(0, n))
+        return out, 0, scene
     if scene is None:
         scene = RayScene(*mesostructure_mesh(heights, depth, padding_texels(depth, sampling)))
     eps = 1e-4 * depth
-    o, d = flat_rays(sampling, eps)
-    before = scene.rays_cast
-    t = scene.distances(o, d).reshape(n, n, sampling.n_phi, sampling.n_theta)
     extra = (eps / np.cos(sampling.thetas)).astype(np.float32)
-    t = np.where(t >= 0, np.maximum(t - extra, 0.0), -1.0).astype(np.float32)
-    return t, scene.rays_cast - before, scene
+    before = scene.rays_cast
+    out = np.empty((n, n, sampling.n_phi, sampling.n_theta), np.float32)
+    step = max(1, FLAT_BLOCK_RAYS // (n * sampling.n_phi * sampling.n_theta))   # texel rows per block
+    for y in range(0, n, step):
+        t = scene.distances(*flat_rays(sampling, eps, slice(y, y + step)))
+        t = t.reshape(-1, n, sampling.n_phi, sampling.n_theta)
+        out[y:y + step] = np.where(t >= 0, np.maximum(t - extra, 0.0), -1.0)
+        if on_block:
+            on_block(out, slice(y, min(y + step, n)))
+    return out, scene.rays_cast - before, scene
 
 
 def bend(s: np.ndarray, h: np.ndarray, c: float) -> tuple[np.ndarray, np.ndarray]:
     """A point at arc length s along the view's azimuth and depth h below the reference surface,
     after bending the surface to curvature c about the entry point (origin, normal +z'):
-    returns its 2-D position (x along the azimuth, y up). Written with sinc so that c -> 0 is
-    exact: x = (1 - h c) sin(s c) / c, y = (cos(s c) - 1) / c - h cos(s c)."""
+    returns its 2-D position (x along the azimuth, y up): x = (1 - h c) sin(s c) / c,
+    y = (cos(s c) - 1) / c - h cos(s c), written with the half-angle sine so that small s c loses no
+    digits ((cos a - 1) = -2 sin^2(a / 2)) and c = 0 is the flat case exactly."""
+    if c == 0:
+        return np.asarray(s, np.float64) + 0.0, -np.asarray(h, np.float64)
     sc = s * c
-    x = (1.0 - h * c) * s * np.sinc(sc / np.pi)
-    y = -0.5 * c * s * s * np.sinc(sc / (2 * np.pi)) ** 2 - h * np.cos(sc)
+    half = np.sin(0.5 * sc)
+    sin2 = 2.0 * half * half                      # 1 - cos(s c)
+    x = (1.0 - h * c) * np.sin(sc) / c
+    y = -sin2 / c - h * (1.0 - sin2)
     return x, y
 
 
 CHUNK_ROWS = 8192  # rows (x, y, phi) per block: the (rows, theta, sample) temporaries stay in cache
 
 
-def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
-    """vdm_curved_rows over cache-sized blocks of rows (see there)."""
+def hit_geometry(d_flat: np.ndarray, sampling: Sampling) -> tuple:
+    """The curvature-independent part of the Appendix's resampling, computed once per table: which
+    zero-curvature samples hit (valid), their extended d (0 where none), and the arc length s and depth
+    h of each hit below its entry point. Theta-major: (n_theta, rows) for d_flat (..., n_theta), so the
+    per-row scans over theta (running maximum, ranks, counts) run across whole rows at once."""
+    th = sampling.thetas[:, None]
+    d = d_flat.reshape(-1, d_flat.shape[-1]).T
+    valid = d >= 0
+    dd = np.where(valid, d, 0.0).astype(np.float64)
+    return valid, dd, dd * np.sin(th), dd * np.cos(th)
+
+
+def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float, geometry: tuple | None = None,
+               out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The Appendix's resampling (resample_columns) over cache-sized blocks of rows: (table, horizon) of
+    d_flat's shape and its shape less theta. `geometry`: hit_geometry(d_flat) when several curvatures share
+    it; `out`: where to write the table (any view of d_flat's shape whose leading axes are contiguous)."""
     rows = d_flat.reshape(-1, d_flat.shape[-1])
-    out = np.empty(rows.shape, np.float32)
+    geometry = geometry or hit_geometry(rows, sampling)
+    res = np.empty(d_flat.shape, np.float32) if out is None else out
+    res_rows = res.reshape(rows.shape, copy=False)       # a view, never a copy
     horizon = np.empty(len(rows), np.float32)
     for s in range(0, len(rows), CHUNK_ROWS):
-        out[s:s + CHUNK_ROWS], horizon[s:s + CHUNK_ROWS] = vdm_curved_rows(rows[s:s + CHUNK_ROWS], sampling, c)
-    return out.reshape(d_flat.shape), horizon.reshape(d_flat.shape[:-1])
+        b = slice(s, s + CHUNK_ROWS)
+        r, horizon[b] = resample_columns(tuple(g[:, b] for g in geometry), sampling, c)
+        res_rows[b] = r.T
+    return res, horizon.reshape(d_flat.shape[:-1])
 
 
 def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
+    """resample_columns for rows (rows, n_theta) of zero-curvature distances: (rows, n_theta), (rows,)."""
+    r, horizon = resample_columns(hit_geometry(d_flat, sampling), sampling, c)
+    return r.T.copy(), horizon
+
+
+def _scan(op, a: np.ndarray) -> np.ndarray:
+    """op.accumulate over axis 0 as one vector op per row (numpy's accumulate along the first axis of a
+    C-ordered array runs column by column)."""
+    out = np.empty_like(a)
+    out[0] = a[0]
+    for k in range(1, len(a)):
+        op(out[k - 1], a[k], out=out[k])
+    return out
+
+
+def resample_columns(geometry: tuple, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
     """The Appendix's curvature resampling: bend the zero-curvature hit points to curvature c,
     take their new viewing angles theta', drop those that became occluded (theta' not above
     every earlier one), resample linearly at the uniform thetas; -1 past the last hit on a
     convex surface (the ray leaves it). Values are the extended d = l / sin(theta).
-    Also returns each row's horizon: the largest theta' of a kept hit (pi / 2 for a hit at the entry
-    point; 0 if none), the exact edge of the valid range that the uniform samples only bracket."""
-    th = sampling.thetas
-    valid = d_flat >= 0
-    dd = np.where(valid, d_flat, 0.0).astype(np.float64)
-    s, h = dd * np.sin(th), dd * np.cos(th)            # arc length and depth of each hit
-    x, y = bend(s, h, c)
-    th_new = np.arctan2(x, -y)                          # angle from the normal, toward the eye
-    th_new = np.where(dd > 0, th_new, th)               # a hit at the entry point keeps its angle
+    geometry: hit_geometry's (n_theta, m) columns; returns the table (n_theta, m) float32 and each
+    column's horizon (m,): the largest theta' of a kept hit (pi / 2 for a hit at the entry point;
+    0 if none), the exact edge of the valid range that the uniform samples only bracket."""
+    th = sampling.thetas[:, None]
+    valid, dd, s, h = geometry                          # arc length s and depth h of each hit
     with np.errstate(divide="ignore", invalid="ignore"):
-        ext = np.where(s > 0, s / np.sin(th_new), dd)   # extended displacement l / sin(theta')
+        # The bent hit (bend) seen from the entry point: theta' = atan2(x, -y) = pi / 2 + atan(y / x) while
+        # x > 0 (the hit lies ahead of its entry point), and the extended displacement l / sin(theta') with
+        # 1 / sin(theta') = sqrt(1 + (y / x)^2). With tau = tan(s c / 2), y / x = -(2 tau^2 + h c (1 - tau^2)) /
+        # (2 (1 - h c) tau): one tangent instead of bend's two sines. c = 0 is the flat case, y / x = -h / s.
+        hc = h * c
+        if c == 0:
+            t = -h / s
+        else:
+            tau = np.tan(0.5 * c * s)
+            tau2 = tau * tau
+            t = -(2.0 * tau2 + hc * (1.0 - tau2)) / (2.0 * (1.0 - hc) * tau)
+        hit = s > 0                                     # a hit at the entry point keeps its angle
+        th_new = np.where(hit, np.pi / 2 + np.arctan(t), th)
+        ext = np.where(hit, s * np.sqrt(1.0 + t * t), dd)
+        # bent past a half turn or below the centre of curvature: x <= 0 (rare; checked on the block first)
+        if c != 0 and (float(h.max()) * c >= 1.0 or float(s.max()) * abs(c) >= np.pi) and \
+                (wrapped := hit & ((hc >= 1.0) | (np.abs(c * s) >= np.pi))).any():
+            x, y = bend(s[wrapped], h[wrapped], c)
+            th_new[wrapped] = np.arctan2(x, -y)
+            ext[wrapped] = s[wrapped] / np.sin(th_new[wrapped])
     # Occlusion after bending: keep a sample only if its angle exceeds every earlier one; the
     # kept samples are then increasing in theta' in index order, so no sort is needed.
-    run = np.maximum.accumulate(np.where(valid, th_new, -np.inf), axis=-1)
-    earlier = np.concatenate([np.full(run[..., :1].shape, -np.inf), run[..., :-1]], -1)
-    keep = valid & (th_new > earlier)
+    run = _scan(np.maximum, np.where(valid, th_new, -np.inf))
+    keep = valid.copy()
+    keep[1:] &= th_new[1:] > run[:-1]
     # Kept samples, compacted by rank (they increase in theta' with their index), and for every
-    # target theta_j the number of kept samples at or below it: O(samples) work per row.
-    rows, n = th_new.shape
-    th32 = th.astype(np.float32)
+    # target theta_j the number of kept samples at or below it: O(samples) work per column.
+    n, m = th_new.shape
+    th32 = sampling.thetas.astype(np.float32)
     th_new, ext = th_new.astype(np.float32), ext.astype(np.float32)
-    row = np.arange(rows)[:, None]
-    rank = np.cumsum(keep, axis=-1) - 1
-    m = keep.sum(-1, keepdims=True)
-    slot = (row * n + rank)[keep]
-    comp_ang = np.full(rows * n, np.inf, np.float32)
-    comp_val = np.zeros(rows * n, np.float32)
+    col = np.arange(m)
+    rank = _scan(np.add, keep.astype(np.int64)) - 1
+    kept = rank[-1] + 1
+    slot = (rank * m + col)[keep]
+    comp_ang = np.full(n * m, np.inf, np.float32)
+    comp_val = np.zeros(n * m, np.float32)
     comp_ang[slot], comp_val[slot] = th_new[keep], ext[keep]
-    comp_ang, comp_val = comp_ang.reshape(rows, n), comp_val.reshape(rows, n)
-    first_target = np.searchsorted(th32, th_new, side="left")        # theta'_k <= theta_j iff j >= this
-    counts = np.bincount((row * (n + 1) + first_target)[keep], minlength=rows * (n + 1)).reshape(rows, n + 1)
-    below = np.cumsum(counts, axis=-1)[:, :n]                           # kept samples at or below theta_j
-    has_lo, has_hi = below >= 1, below < m
-    pick = lambda a, i: np.take_along_axis(a, np.clip(i, 0, n - 1), -1)  # noqa: E731
-    a0, a1 = pick(comp_ang, below - 1), pick(comp_ang, below)
-    v0, v1 = pick(comp_val, below - 1), pick(comp_val, below)
+    first_target = np.zeros((n, m), np.int64)                # targets below theta'_k: theta'_k <= theta_j iff j >= it
+    for t in th32:
+        first_target += th_new > t
+    counts = np.bincount((first_target * m + col)[keep], minlength=(n + 1) * m).reshape(n + 1, m)
+    below = _scan(np.add, counts[:n])                                    # kept samples at or below theta_j
+    has_lo, has_hi = below >= 1, below < kept
+    i0 = np.clip(below - 1, 0, n - 1) * m + col           # flat indices of the bracketing kept samples
+    i1 = np.clip(below, 0, n - 1) * m + col
+    a0, a1, v0, v1 = comp_ang.take(i0), comp_ang.take(i1), comp_val.take(i0), comp_val.take(i1)
+    th32 = th32[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
         w = np.where(has_lo & has_hi, (th32 - a0) / (a1 - a0), np.float32(0))
     r = np.where(has_lo & has_hi, v0 + w * (v1 - v0), np.where(has_hi, v1, v0))  # clamp outside the samples
@@ -185,7 +256,8 @@ def vdm_curved_rows(d_flat: np.ndarray, sampling: Sampling, c: float) -> tuple[n
         r = np.where(has_hi | (a0 >= th32), r, -1.0)
     # A hit at the entry point (d = 0: the mesostructure touches the reference surface) is hit from every
     # angle up to the horizon.
-    horizon = np.minimum(np.where(keep, np.where(dd > 0, th_new, np.pi / 2), 0.0).max(-1), np.float32(np.pi / 2))
+    top = np.float32(np.pi / 2)
+    horizon = np.where((keep & ~hit).any(0), top, np.minimum(np.where(keep, th_new, np.float32(0)).max(0), top))
     return np.where(has_lo | has_hi, r, -1.0).astype(np.float32), horizon
 
 
@@ -195,12 +267,22 @@ def mvm(vdm: np.ndarray, sampling: Sampling, horizons: dict | None = None) -> np
     is taken (pi / 2 where every sample is valid, so a flat or concave patch never clips grazing
     views; 0 where none is), or, for the convex curvatures in `horizons` (c index -> (N, N, n_phi)
     from vdm_curved), the exact angle of the last visible hit. (N, N, n_phi, n_theta, n_c) -> (N, N, n_phi, n_c)."""
-    ok = vdm >= 0
-    edge = sampling.thetas + 0.25 * np.pi / sampling.n_theta
-    out = np.where(ok, edge[None, None, None, :, None], 0.0).max(axis=3).astype(np.float32)
-    for i, h in (horizons or {}).items():
-        out[..., i] = np.where(ok[..., i].any(-1), h, 0.0)
+    out = np.empty(vdm.shape[:3] + vdm.shape[4:], np.float32)
+    for i in range(vdm.shape[-1]):
+        out[..., i] = mvm_slice(vdm[..., i], sampling, (horizons or {}).get(i))
     return out
+
+
+def mvm_slice(vdm_c: np.ndarray, sampling: Sampling, horizon: np.ndarray | None = None) -> np.ndarray:
+    """mvm for one curvature: (N, N, n_phi, n_theta) -> (N, N, n_phi); `horizon` for a convex one."""
+    ok = vdm_c >= 0
+    if horizon is not None:
+        return np.where(ok.any(-1), horizon, np.float32(0))
+    edge = sampling.thetas + 0.25 * np.pi / sampling.n_theta
+    return np.where(ok, edge, 0.0).max(axis=-1).astype(np.float32)
+
+
+ERROR_BLOCK_ROWS = 16384   # rows of A per block of the reconstruction-error pass
 
 
 @dataclass
@@ -246,29 +328,55 @@ def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int, report=()) -> Compr
     total = sigma2.sum()
     errors = {}
     for kk in sorted({min(max(1, int(r)), k) for r in report} | {k}):
-        err = W[:, :kk] @ E[:, :kk].T
-        err -= A
-        err_vdm = err[:, :cols]
-        err_vdm[invalid] = 0.0                            # the -1 entries are the MVM's business
+        sq_vdm = sq_mvm = max_vdm = 0.0
+        for s in range(0, rows, ERROR_BLOCK_ROWS):        # the residual block by block, in cache
+            b = slice(s, s + ERROR_BLOCK_ROWS)
+            err = W[b, :kk] @ E[:, :kk].T
+            err -= A[b]
+            err_vdm = err[:, :cols]
+            err_vdm[invalid[b]] = 0.0                     # the -1 entries are the MVM's business
+            sq_vdm += float(np.einsum("ij,ij->", err_vdm, err_vdm, dtype=np.float64))
+            sq_mvm += float(np.einsum("ij,ij->", err[:, cols:], err[:, cols:], dtype=np.float64))
+            max_vdm = max(max_vdm, float(np.abs(err_vdm).max()))
         errors[kk] = Truncation(
             energy=float(sigma2[:kk].sum() / total) if total > 0 else 1.0,
-            rms_vdm=float(np.sqrt(np.einsum("ij,ij->", err_vdm, err_vdm, dtype=np.float64) / valid)) if valid else 0.0,
-            rms_mvm=float(np.sqrt(np.mean(err[:, cols:].astype(np.float64) ** 2))),
-            max_abs_vdm=float(np.abs(err_vdm).max()) if valid else 0.0)
-        del err, err_vdm
+            rms_vdm=float(np.sqrt(sq_vdm / valid)) if valid else 0.0,
+            rms_mvm=float(np.sqrt(sq_mvm / (rows * n_c))),
+            max_abs_vdm=max_vdm if valid else 0.0)
     return Compressed(W=W.reshape(n, n, n_phi, k), E_vdm=E[:cols].T.reshape(k, n_theta, n_c).copy(),
                       E_mvm=E[cols:].T.copy(), rank=rank, errors=errors)
 
 
 def bake_tables(heights: np.ndarray, depth: float, sampling: Sampling) -> tuple[np.ndarray, np.ndarray, int]:
     """The full 5-D VDM (N, N, n_phi, n_theta, n_c) and the MVM (N, N, n_phi, n_c), and rays cast.
-    Curvatures are resampled in parallel threads (numpy releases the GIL in its kernels)."""
+    Every row (x, y, phi) is resampled on its own, so the work is pipelined: while Embree casts the next
+    block of texel rows (it releases the GIL), worker threads resample the blocks already cast, one task per
+    block and curvature (numpy releases the GIL in its kernels), each writing its slice of both tables in
+    place; the curvature-independent part of the resampling is computed once per block."""
     from concurrent.futures import ThreadPoolExecutor
 
-    flat, rays, _ = vdm_flat(heights, depth, sampling)
+    cs = sampling.curvatures
+    n = sampling.size
+    table = np.empty((n, n, sampling.n_phi, sampling.n_theta, len(cs)), np.float32)
+    theta_mvm = np.empty((n, n, sampling.n_phi, len(cs)), np.float32)
+
+    def one(flat_rows: np.ndarray, rows: slice, i: int, geometry) -> None:
+        part = table[rows, ..., i]
+        if cs[i] == 0:
+            part[...], horizon = flat_rows, None
+        else:
+            _, horizon = vdm_curved(flat_rows, sampling, cs[i], geometry, out=part)
+        theta_mvm[rows, ..., i] = mvm_slice(part, sampling, horizon if cs[i] > 0 else None)
+
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        slices = list(pool.map(lambda c: (flat, None) if c == 0 else vdm_curved(flat, sampling, c),
-                               sampling.curvatures))
-    table = np.stack([t for t, _ in slices], -1)
-    horizons = {i: h for i, ((_, h), c) in enumerate(zip(slices, sampling.curvatures)) if c > 0}
-    return table, mvm(table, sampling, horizons), rays
+        tasks = []
+
+        def on_block(flat: np.ndarray, rows: slice) -> None:
+            flat_rows = flat[rows]
+            geometry = hit_geometry(flat_rows, sampling) if any(c != 0 for c in cs) else None
+            tasks.extend(pool.submit(one, flat_rows, rows, i, geometry) for i in range(len(cs)))
+
+        _, rays, _ = vdm_flat(heights, depth, sampling, on_block=on_block)
+        for t in tasks:
+            t.result()                            # re-raises a worker's exception
+    return table, theta_mvm, rays

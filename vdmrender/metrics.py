@@ -41,16 +41,23 @@ def delta_luv(a_rgb8: np.ndarray, b_rgb8: np.ndarray) -> np.ndarray:
     return np.linalg.norm(srgb8_to_luv(a_rgb8) - srgb8_to_luv(b_rgb8), axis=-1)
 
 
-def compare(frame: np.ndarray, reference: np.ndarray) -> dict:
+def compare(frame: np.ndarray, reference: np.ndarray, classes: np.ndarray | None = None) -> dict:
     """Error of one frame against the reference; both (H, W, 4) uint8 sRGB + coverage alpha.
 
     Eq. 2.2 averages over object pixels; here those are the union of both coverage masks,
-    so a missing or an extra silhouette pixel counts.
+    so a missing or an extra silhouette pixel counts. `classes` (vdmrender.borders, (H, W)): pixels
+    that see an open border or the surface from inside are scored apart ("apart": their count and
+    values), the mean and IoU are over the surface pixels; "mean_all" and "iou_all" keep every pixel.
     """
     a, b = frame[..., 3] > 0, reference[..., 3] > 0
     union = a | b
     dist = delta_luv(frame[..., :3], reference[..., :3])
-    d = dist[union]
+    apart = np.zeros_like(union) if classes is None else (classes != 0)
+    scored = union & ~apart
+    d = dist[scored]
+    iou = lambda m: float((a & b & m).sum() / (union & m).sum()) if (union & m).any() else 1.0  # noqa: E731
     return {"dist": np.where(union, dist, 0.0), "union": union, "values": d,
-            "mean": float(d.mean()) if d.size else 0.0,
-            "iou": float((a & b).sum() / union.sum()) if union.any() else 1.0}
+            "mean": float(d.mean()) if d.size else 0.0, "iou": iou(~apart),
+            "mean_all": float(dist[union].mean()) if union.any() else 0.0, "iou_all": iou(np.ones_like(union)),
+            "apart": {int(c): int((union & (classes == c)).sum()) for c in (1, 2)} if classes is not None else {},
+            "apart_values": dist[union & apart]}

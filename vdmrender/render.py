@@ -19,7 +19,7 @@ from vdmbake.scene import parse_scene_dict
 from vdmbake.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import gl, images, reference, report
+from . import borders, gl, images, reference, report
 from .camera import cameras_for
 from .metrics import compare
 from .techniques import Source, mesostructure, variants
@@ -58,8 +58,9 @@ def _reference_key(geometry: dict, cams, light, material, background) -> str:
     return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
 
 
-def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np.ndarray], dict]:
-    """The reference frames (linear RGBA float32), traced or taken from the previous run's cache."""
+def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np.ndarray], list, dict]:
+    """The reference frames (linear RGBA float32) and, for a mesostructure object, each frame's pixel
+    classes (vdmrender.borders; None otherwise), traced or taken from the previous run's cache."""
     folder = f"reference/{obj.name}"
     part = entry.get("mesh") or entry["quadrics"]
     geometry = {"part": bundle.manifest["parts"][part]["sha256"]}
@@ -71,26 +72,35 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     names = [f"{folder}/{k:03d}" for k in range(len(cams))]
     if prev_key.is_file() and prev_key.read_text().strip() == key and all(
             out.previous(n + ".exr").is_file() for n in names):
-        frames = [np.stack([exr.read(out.previous(n + ".exr"))["reference"][c] for c in "RGBA"], -1) for n in names]
+        cached = [exr.read(out.previous(n + ".exr")) for n in names]
+        frames = [np.stack([p["reference"][c] for c in "RGBA"], -1) for p in cached]
+        classes = [p["classes"]["C"].astype(np.uint8) if "classes" in p else None for p in cached]
         info = {"cached": True, "trace_s": 0.0}
     else:
         t0 = time.perf_counter()
+        skirt = None
         if obj.mesostructure:
             src = Source(obj, entry, None, bundle, scene, None)
             ref = reference.MeshReference(mesostructure.reference_mesh(src), scene.light, obj.material)
+            skirt = mesostructure.skirt_scene(src)
         elif obj.kind == "surface":
             ref = reference.MeshReference(bundle.read(part, parts.MESH), scene.light, obj.material)
         else:
             ref = reference.QuadricReference(bundle.read(part, parts.QUADRICS), scene.light, obj.material)
         frames = [ref.render(c) for c in cams]
+        classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
         info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
-    for n, f in zip(names, frames):
-        exr.write(out.file(n + ".exr"), {"reference": {c: f[..., i] for i, c in enumerate("RGBA")}})
+    for n, f, k in zip(names, frames, classes):
+        layers = {"reference": {c: f[..., i] for i, c in enumerate("RGBA")}}
+        if k is not None:   # which pixels see an open border or the inside (vdmrender.borders), as a mask too
+            layers["classes"] = {"C": k.astype(np.float32)}
+            images.save_rgb(out.file(n + "-classes.png"), np.dstack([borders.COLOURS[k], np.full(k.shape, 255, np.uint8)]))
+        exr.write(out.file(n + ".exr"), layers)
         images.save_rgb(out.file(n + ".png"), images.encode(f, scene.render.background))
     out.file(f"{folder}/key.txt").write_text(key + "\n")
     log(f"{obj.name}: reference {len(cams)} frames " +
         ("(cached)" if info["cached"] else f"traced in {info['trace_s']:.2f} s, {info['rays']} rays"))
-    return frames, info
+    return frames, classes, info
 
 
 def time_variant(ctx, renderer, target, cams, repeats: int, warmup: int) -> tuple[list[float], list[np.ndarray]]:
@@ -142,7 +152,9 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                   "timing": "median wall time per frame over all timed renders, ctx.finish() inside the timed "
                             "region; ratio_to_baseline divides by the baseline row of the same object and run",
                   "error": "delta-L*u*v* (CIE 1976, sRGB/D65) against the reference over the union of both "
-                           "coverage masks (thesis eq. 2.2)",
+                           "coverage masks (thesis eq. 2.2); for a mesostructure object, pixels that see an open "
+                           "border or the surface from inside (reference/OBJECT/NNN-classes.png) are scored apart: "
+                           "border_px, inside_px, mean_dluv_apart, and every pixel together in mean_dluv_all, iou_all",
                   "heatmap_max_dluv": opts.heat_max, "rows": rows}
         report.write(out.tmp, result)
         out.commit()
@@ -154,22 +166,28 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     return result
 
 
-def _measure(ctx, v, target, cams, ref8, repeats, warmup, out, name, heat_max, background):
+def _measure(ctx, v, target, cams, ref8, classes, repeats, warmup, out, name, heat_max, background):
     """One variant: time it, read its frames back, compare each with the reference, write its
     frames and heat maps. Returns its report row and the frames and heat maps for the overview."""
     renderer = v.build(ctx)
     samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup)
     faces = getattr(renderer, "faces", None)
     renderer.release()
-    per_frame, dists, heats, enc = [], [], [], []
-    for k, (f, r8) in enumerate(zip(frames, ref8)):
+    per_frame, dists, heats, enc, whole, apart, apart_d = [], [], [], [], [], {1: 0, 2: 0}, []
+    for k, (f, r8, cls) in enumerate(zip(frames, ref8, classes)):
         f8 = images.encode(f, background)
-        c = compare(f8, r8)
+        c = compare(f8, r8, cls)
         heat = images.heatmap(c["dist"], heat_max)
         images.save_rgb(out.file(f"frames/{name}/{v.label}/{k:03d}.png"), f8)
         images.save_rgb(out.file(f"heatmaps/{name}/{v.label}/{k:03d}.png"), heat)
         per_frame.append({"frame": k, "mean_dluv": round(c["mean"], 4), "iou": round(c["iou"], 6),
                           "nonfinite": int((~np.isfinite(f)).any(-1).sum())})
+        if cls is not None:
+            per_frame[-1].update(iou_all=round(c["iou_all"], 6), border_px=c["apart"][1], inside_px=c["apart"][2])
+            for cl in apart:
+                apart[cl] += c["apart"][cl]
+            apart_d.append(c["apart_values"])
+        whole.append(c["dist"][c["union"]])
         dists.append(c["values"])
         heats.append(heat)
         enc.append(f8)
@@ -183,6 +201,13 @@ def _measure(ctx, v, target, cams, ref8, repeats, warmup, out, name, heat_max, b
            "iou": round(float(np.mean([p["iou"] for p in per_frame])), 6),
            "coverage": round(float(np.mean([r8[..., 3].mean() / 255 for r8 in ref8])), 6),
            "nonfinite": sum(p["nonfinite"] for p in per_frame), "per_frame": per_frame}
+    if classes[0] is not None:   # scored apart (vdmrender.borders): the border and inside pixels, and every pixel
+        w, ad = np.concatenate(whole), np.concatenate(apart_d)
+        row.update(surface_px=int(d.size), border_px=apart[1], inside_px=apart[2],
+                   border_fraction=round(apart[1] / max(w.size, 1), 6), inside_fraction=round(apart[2] / max(w.size, 1), 6),
+                   mean_dluv_apart=round(float(ad.mean()), 4) if ad.size else 0.0,
+                   mean_dluv_all=round(float(w.mean()), 4) if w.size else 0.0,
+                   iou_all=round(float(np.mean([p["iou_all"] for p in per_frame])), 6))
     return row, enc, heats
 
 
@@ -195,16 +220,17 @@ def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, o
         chosen = variants(obj, entry, bundle, scene, only)
         if not chosen:
             continue
-        ref_frames, ref_info = reference_frames(out, obj, entry, bundle, scene, cams, log)
+        ref_frames, ref_classes, ref_info = reference_frames(out, obj, entry, bundle, scene, cams, log)
         ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
         sheet = [("reference", ref8)]
         for v in chosen:
-            row, enc, heats = _measure(ctx, v, target, cams, ref8, repeats, warmup, out, obj.name, opts.heat_max,
+            row, enc, heats = _measure(ctx, v, target, cams, ref8, ref_classes, repeats, warmup, out, obj.name, opts.heat_max,
                                        scene.render.background)
             rows.append({**row, "device": device, "reference_cached": ref_info["cached"]})
             sheet += [(v.label, enc), (f"{v.label} error", heats)]
             log(f"{obj.name}: {v.label:>14}  {row['median_ms']:9.3f} ms/frame  mean dLuv {row['mean_dluv']:7.3f}  "
-                f"p95 {row['p95_dluv']:7.3f}  IoU {row['iou']:.4f}")
+                f"p95 {row['p95_dluv']:7.3f}  IoU {row['iou']:.4f}" +
+                (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
         images.overview(sheet, out.file(f"overview/{obj.name}.png"))
     target.release()
     return rows

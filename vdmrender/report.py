@@ -6,7 +6,10 @@ import json
 from pathlib import Path
 
 COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "median_ms", "min_ms",
-           "ratio_to_baseline", "baseline", "mean_dluv", "p95_dluv", "max_dluv", "iou", "coverage", "nonfinite", "device"]
+           "ratio_to_baseline", "baseline", "mean_dluv", "p95_dluv", "max_dluv", "iou", "coverage", "nonfinite", "device",
+           # mesostructure objects (vdmrender.borders): pixels scored apart, and every pixel together
+           "surface_px", "border_px", "inside_px", "border_fraction", "inside_fraction", "mean_dluv_apart",
+           "mean_dluv_all", "iou_all"]
 
 
 def add_baseline_ratios(rows: list[dict]) -> None:

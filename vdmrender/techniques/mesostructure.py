@@ -8,6 +8,7 @@ import moderngl
 import numpy as np
 
 from vdmbake import geometry, parts
+from vdmbake.embree import RayScene
 
 from .. import gl
 from .raster import RasterPasses
@@ -26,6 +27,13 @@ def reference_mesh(src):
     meso = maps(src)
     return geometry.displaced(base, meso.heights, meso.normals, m.depth, m.tiling,
                               geometry.reference_levels(base, m.size, m.tiling))
+
+
+def skirt_scene(src):
+    """The Embree scene of the base mesh's shell side wall (vdmbake.geometry.skirt), None on a closed surface."""
+    m = src.obj.mesostructure
+    v, f = geometry.skirt(src.bundle.read(src.entry["mesh"], parts.MESH), m.depth, m.tiling)
+    return RayScene(v, f) if len(f) else None
 
 
 def texture(tex, repeat: bool, mipmaps: bool):
@@ -60,6 +68,8 @@ class MesostructurePass(RasterPasses):
                  optional=True)
         meso = maps(src)
         h, n = meso.heights, meso.normals
+        # Height fields are indexed [v, u] with row 0 at v = 0 (vdmbake.heightfields); GL's first row is
+        # t = 0, so the arrays go up as they are and texture(T) reads h at T = (u, v).
         self.textures = {
             "u_height": texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"), True, True),
             "u_normals": texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, True)}
