@@ -5,6 +5,8 @@ taken to CIE XYZ with the sRGB matrix, then to L*u*v* relative to the D65 white 
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from vdmbake.colour import srgb8_to_linear
@@ -45,12 +47,31 @@ def compare(frame: np.ndarray, reference: np.ndarray) -> dict:
     """Error of one frame against the reference; both (H, W, 4) uint8 sRGB + coverage alpha.
 
     Eq. 2.2 averages over object pixels; here those are the union of both coverage masks,
-    so a missing or an extra silhouette pixel counts.
+    so a missing or an extra silhouette pixel counts. A frame where neither image covers a
+    pixel has no data: it is `empty`, with no mean and no IoU (None), never a perfect score.
     """
     a, b = frame[..., 3] > 0, reference[..., 3] > 0
     union = a | b
     dist = delta_luv(frame[..., :3], reference[..., :3])
     d = dist[union]
-    return {"dist": np.where(union, dist, 0.0), "union": union, "values": d,
-            "mean": float(d.mean()) if d.size else 0.0,
-            "iou": float((a & b).sum() / union.sum()) if union.any() else 1.0}
+    empty = not union.any()
+    return {"dist": np.where(union, dist, 0.0), "union": union, "values": d, "empty": empty,
+            "mean": None if empty else float(d.mean()),
+            "iou": None if empty else float((a & b).sum() / union.sum())}
+
+
+def flip_values(frame: np.ndarray, reference: np.ndarray, union: np.ndarray) -> np.ndarray:
+    """NVIDIA FLIP (Andersson et al. 2020, LDR, default 67 pixels per degree) of the sRGB frame
+    against the reference, at the pixels of `union` (those eq. 2.2 averages over; none where it is
+    empty), each in [0, 1]. FLIP models what a viewer notices when flipping between the two images,
+    so it sees edges and patterns: a second opinion beside ΔLuv, which weighs every pixel alone."""
+    if not union.any():
+        return np.zeros(0)
+    # FLIP's OpenMP threads would spin while waiting; on a shared CPU (CI, llvmpipe rendering beside
+    # it) that costs 0.3 s per small frame instead of 0.01 s. Read once, when its libgomp loads.
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    import flip_evaluator
+
+    ref, test = (np.ascontiguousarray(x[..., :3], np.float32) / 255 for x in (reference, frame))
+    fmap, _, _ = flip_evaluator.evaluate(ref, test, "LDR", applyMagma=False, computeMeanError=False)
+    return np.asarray(fmap, np.float64).reshape(union.shape)[union]

@@ -12,16 +12,16 @@ from pathlib import Path
 
 import numpy as np
 
-from vdmbake import __version__, exr, parts
+from vdmbake import __version__, code_fingerprint, exr, imported_closure, parts
 from vdmbake.bundle import MANIFEST, Bundle
 from vdmbake.errors import InputError
 from vdmbake.scene import parse_scene_dict
 from vdmbake.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import gl, images, reference, report
+from . import baseline, gl, images, reference, report
 from .camera import cameras_for
-from .metrics import compare
+from .metrics import compare, flip_values
 from .techniques import Source, mesostructure, variants
 
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
@@ -37,6 +37,10 @@ class Options:
     warmup: int | None = None
     device: str | None = None
     heat_max: float = 10.0                       # delta-Luv at the top of the heat-map colour scale
+    flip: bool = True                            # also score each frame with NVIDIA FLIP
+    baseline: Path | None = None                 # an earlier run's report.json to compare with
+    max_error_increase: float | None = None      # its thresholds (vdmrender.baseline)
+    max_slowdown: float | None = None
 
 
 def check_memory(width: int, height: int, available: int | None = None) -> None:
@@ -50,8 +54,16 @@ def check_memory(width: int, height: int, available: int | None = None) -> None:
                          "or --resolution.")
 
 
-def _reference_key(geometry: dict, cams, light, material, background) -> str:
-    blob = {"version": reference.VERSION, "geometry": geometry, "light": asdict(light), "material": asdict(material),
+def reference_code(mesostructure: bool) -> str:
+    """The fingerprint of the code a reference runs: the tracers, the cameras' pixel rays and what
+    they import (for a mesostructure, also the displaced mesh it traces), as installed."""
+    roots = ["vdmrender.reference", "vdmrender.camera"] + (["vdmrender.techniques.mesostructure"] if mesostructure
+                                                           else [])
+    return code_fingerprint(imported_closure(roots))
+
+
+def _reference_key(geometry: dict, cams, light, material, background, code: str) -> str:
+    blob = {"code": code, "geometry": geometry, "light": asdict(light), "material": asdict(material),
             "background": list(background),
             "cameras": [[c.eye.tolist(), c.target.tolist(), c.up.tolist(), c.fov_deg, c.width, c.height,
                          c.near, c.far] for c in cams]}
@@ -66,7 +78,8 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     if obj.mesostructure:   # the truly displaced geometry: the base mesh, the maps and how they are mapped
         geometry.update(maps=bundle.manifest["parts"][entry["mesostructure"]]["sha256"],
                         mesostructure=asdict(obj.mesostructure))
-    key = _reference_key(geometry, cams, scene.light, obj.material, scene.render.background)
+    key = _reference_key(geometry, cams, scene.light, obj.material, scene.render.background,
+                         reference_code(obj.mesostructure is not None))
     prev_key = out.previous(f"{folder}/key.txt")
     names = [f"{folder}/{k:03d}" for k in range(len(cams))]
     if prev_key.is_file() and prev_key.read_text().strip() == key and all(
@@ -130,6 +143,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     repeats = opts.repeats or scene.render.repeats
     warmup = scene.render.warmup if opts.warmup is None else opts.warmup
     only = _technique_filter(opts, scene)
+    old = baseline.load(opts.baseline) if opts.baseline else None
     check_memory(width, height)
     ctx = gl.create_context(opts.device)
     device = gl.renderer_name(ctx)
@@ -142,8 +156,14 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                   "timing": "median wall time per frame over all timed renders, ctx.finish() inside the timed "
                             "region; ratio_to_baseline divides by the baseline row of the same object and run",
                   "error": "delta-L*u*v* (CIE 1976, sRGB/D65) against the reference over the union of both "
-                           "coverage masks (thesis eq. 2.2)",
+                           "coverage masks (thesis eq. 2.2); a frame where neither covers a pixel is empty: no "
+                           "error, flagged, counted in empty_frames and left out of the averages",
+                  "flip": "NVIDIA FLIP (LDR, 67 pixels per degree) of the sRGB frames, averaged over the same "
+                          "pixels as the error (flip_mean pools a variant's frames like mean_dluv)" if opts.flip else "not computed",
                   "heatmap_max_dluv": opts.heat_max, "rows": rows}
+        if old is not None:
+            result["baseline"] = {"report": str(opts.baseline),
+                                  **baseline.compare(old, result, opts.max_error_increase, opts.max_slowdown)}
         report.write(out.tmp, result)
         out.commit()
     except BaseException:
@@ -154,36 +174,54 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     return result
 
 
-def _measure(ctx, v, target, cams, ref8, repeats, warmup, out, name, heat_max, background):
+def _rounded(x, digits: int):
+    return None if x is None else round(float(x), digits)
+
+
+def _measure(ctx, v, target, cams, ref8, repeats, warmup, out, obj, heat_max, background, flip):
     """One variant: time it, read its frames back, compare each with the reference, write its
-    frames and heat maps. Returns its report row and the frames and heat maps for the overview."""
+    frames and heat maps. Returns its report row and the frames and heat maps for the overview.
+    A frame where neither the variant nor the reference covers a pixel has no data: it is flagged
+    `empty`, has no error, counts in `empty_frames` and stays out of the row's averages."""
+    name = obj.name
     renderer = v.build(ctx)
     samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup)
     faces = getattr(renderer, "faces", None)
     renderer.release()
-    per_frame, dists, heats, enc = [], [], [], []
+    per_frame, dists, flips, heats, enc = [], [], [], [], []
     for k, (f, r8) in enumerate(zip(frames, ref8)):
         f8 = images.encode(f, background)
         c = compare(f8, r8)
         heat = images.heatmap(c["dist"], heat_max)
         images.save_rgb(out.file(f"frames/{name}/{v.label}/{k:03d}.png"), f8)
         images.save_rgb(out.file(f"heatmaps/{name}/{v.label}/{k:03d}.png"), heat)
-        per_frame.append({"frame": k, "mean_dluv": round(c["mean"], 4), "iou": round(c["iou"], 6),
+        fl = flip_values(f8, r8, c["union"]) if flip else np.zeros(0)
+        per_frame.append({"frame": k, "empty": c["empty"], "mean_dluv": _rounded(c["mean"], 4),
+                          "iou": _rounded(c["iou"], 6), "flip": _rounded(fl.mean(), 5) if fl.size else None,
+                          "coverage": round(float((r8[..., 3] > 0).mean()), 6),
                           "nonfinite": int((~np.isfinite(f)).any(-1).sum())})
         dists.append(c["values"])
+        flips.append(fl)
         heats.append(heat)
         enc.append(f8)
-    d = np.concatenate(dists)
+    d, fl = np.concatenate(dists), np.concatenate(flips)
+    full = [p for p in per_frame if not p["empty"]]
     row = {"object": name, "technique": v.technique, "knob": v.knob, "value": v.value, "label": v.label,
-           "faces": faces, "frames": len(cams),
+           "faces": faces, "frames": len(cams), "empty_frames": len(per_frame) - len(full),
+           "expect_empty": obj.expect_empty,
            "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3),
-           "mean_dluv": round(float(d.mean()), 4) if d.size else 0.0,
-           "p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else 0.0,
-           "max_dluv": round(float(d.max()), 4) if d.size else 0.0,
-           "iou": round(float(np.mean([p["iou"] for p in per_frame])), 6),
-           "coverage": round(float(np.mean([r8[..., 3].mean() / 255 for r8 in ref8])), 6),
+           "mean_dluv": _rounded(d.mean(), 4) if d.size else None,
+           "p95_dluv": _rounded(np.percentile(d, 95), 4) if d.size else None,
+           "max_dluv": _rounded(d.max(), 4) if d.size else None,
+           "iou": _rounded(np.mean([p["iou"] for p in full]), 6) if full else None,
+           "flip_mean": _rounded(fl.mean(), 5) if fl.size else None,
+           "coverage": round(float(np.mean([p["coverage"] for p in per_frame])), 6),
            "nonfinite": sum(p["nonfinite"] for p in per_frame), "per_frame": per_frame}
     return row, enc, heats
+
+
+def _show(x, width: int, digits: int) -> str:
+    return f"{'-':>{width}}" if x is None else f"{x:{width}.{digits}f}"
 
 
 def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log) -> list[dict]:
@@ -199,12 +237,13 @@ def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, o
         ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
         sheet = [("reference", ref8)]
         for v in chosen:
-            row, enc, heats = _measure(ctx, v, target, cams, ref8, repeats, warmup, out, obj.name, opts.heat_max,
-                                       scene.render.background)
+            row, enc, heats = _measure(ctx, v, target, cams, ref8, repeats, warmup, out, obj, opts.heat_max,
+                                       scene.render.background, opts.flip)
             rows.append({**row, "device": device, "reference_cached": ref_info["cached"]})
             sheet += [(v.label, enc), (f"{v.label} error", heats)]
-            log(f"{obj.name}: {v.label:>14}  {row['median_ms']:9.3f} ms/frame  mean dLuv {row['mean_dluv']:7.3f}  "
-                f"p95 {row['p95_dluv']:7.3f}  IoU {row['iou']:.4f}")
+            log(f"{obj.name}: {v.label:>14}  {row['median_ms']:9.3f} ms/frame  mean dLuv {_show(row['mean_dluv'], 7, 3)}"
+                f"  p95 {_show(row['p95_dluv'], 7, 3)}  IoU {_show(row['iou'], 6, 4)}  FLIP {_show(row['flip_mean'], 6, 4)}"
+                + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else ""))
         images.overview(sheet, out.file(f"overview/{obj.name}.png"))
     target.release()
     return rows
