@@ -19,7 +19,7 @@ from vdmbake.scene import parse_scene_dict
 from vdmbake.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, gl, images, reference, report
+from . import baseline, gl, images, progress, reference, report
 from .camera import cameras_for
 from .metrics import compare, flip_values
 from .techniques import Source, mesostructure, variants
@@ -95,7 +95,7 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
             ref = reference.MeshReference(bundle.read(part, parts.MESH), scene.light, obj.material)
         else:
             ref = reference.QuadricReference(bundle.read(part, parts.QUADRICS), scene.light, obj.material)
-        frames = [ref.render(c) for c in cams]
+        frames = [ref.render(c) for c in progress.bar(cams, f"{obj.name}: reference")]
         info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
     for n, f in zip(names, frames):
         exr.write(out.file(n + ".exr"), {"reference": {c: f[..., i] for i, c in enumerate("RGBA")}})
@@ -106,11 +106,12 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     return frames, info
 
 
-def time_variant(ctx, renderer, target, cams, repeats: int, warmup: int) -> tuple[list[float], list[np.ndarray]]:
+def time_variant(ctx, renderer, target, cams, repeats: int, warmup: int,
+                 desc: str = "render") -> tuple[list[float], list[np.ndarray]]:
     """Per frame: `warmup` untimed renders, then `repeats` timed ones (ctx.finish() inside the timed
     region); returns every timed sample in ms and each frame's read-back image."""
     samples, frames = [], []
-    for cam in cams:
+    for cam in progress.bar(cams, desc):
         for _ in range(warmup):
             renderer.render(cam, target)
             ctx.finish()
@@ -185,11 +186,11 @@ def _measure(ctx, v, target, cams, ref8, repeats, warmup, out, obj, heat_max, ba
     `empty`, has no error, counts in `empty_frames` and stays out of the row's averages."""
     name = obj.name
     renderer = v.build(ctx)
-    samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup)
+    samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup, f"{name}: {v.label}")
     faces = getattr(renderer, "faces", None)
     renderer.release()
     per_frame, dists, flips, heats, enc = [], [], [], [], []
-    for k, (f, r8) in enumerate(zip(frames, ref8)):
+    for k, (f, r8) in enumerate(progress.bar(list(zip(frames, ref8)), f"{name}: {v.label} scoring")):
         f8 = images.encode(f, background)
         c = compare(f8, r8)
         heat = images.heatmap(c["dist"], heat_max)
