@@ -78,7 +78,7 @@ def test_other_bake_code_rebakes_with_the_reason_logged(tmp_path, monkeypatch):
     monkeypatch.setattr(bake_mod, "bake_code", lambda: "f" * 64)
     r = CliRunner().invoke(bake_main, [str(scene), "-o", str(out)])
     assert r.exit_code == 0, r.output
-    assert f"baked by other code (bake code {manifest['code_fingerprint'][:12]}, now ffffffffffff)" in r.stderr
+    assert f"baked by other code: bake code {manifest['code_fingerprint'][:12]}, now ffffffffffff)" in r.stderr
     assert "baked" in r.stdout
     assert json.loads((out / "manifest.json").read_text())["code_fingerprint"] == "f" * 64
 

@@ -74,7 +74,7 @@ def stale(out: Path, digest: str, code: str) -> str | None:
         bundle = Bundle(out)
         if bundle.manifest.get("input_hash") != digest:
             old = bundle.manifest.get("code_fingerprint")
-            return (f"baked by other code (bake code {str(old)[:12]}, now {code[:12]})" if old != code
+            return (f"baked by other code: bake code {str(old)[:12]}, now {code[:12]}" if old != code
                     else "inputs or settings changed")
         for rel in bundle.manifest["parts"]:
             bundle.read_bytes(rel)
