@@ -99,11 +99,16 @@ def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = (), may_
     return prog
 
 
+def _info(prog) -> dict:
+    """What gl.program recorded on the program (its name, may_lack); defaults for others."""
+    return prog.extra or {"name": "program", "may_lack": frozenset()}
+
+
 def _lacks(prog, name: str, what: str) -> bool:
     """True if `prog` has no active `name`; an error when strict unless the program declared it."""
     if name in prog:
         return False
-    info = prog.extra or {"name": "program", "may_lack": frozenset()}
+    info = _info(prog)
     if strict() and name not in info["may_lack"]:
         raise GLError(f"{info['name']}: no active {what} {name!r} (renamed, misspelt, or unused by the "
                       "shader; declare it in gl.program(..., may_lack=...) if a pass variant drops it)")
@@ -148,7 +153,7 @@ def vertex_array(ctx, prog, content: list, index=None):
                 names = [x for x in names if x != name]
                 continue
             if strict() and prog[name].dimension != n:
-                raise GLError(f"{prog.extra['name']}: vertex attribute {name!r} has {prog[name].dimension} "
+                raise GLError(f"{_info(prog)['name']}: vertex attribute {name!r} has {prog[name].dimension} "
                               f"components, the layout {fmt!r} gives {n}")
             tokens.append(tok)
         if names:    # a buffer whose every attribute was dropped is not bound at all
@@ -158,7 +163,7 @@ def vertex_array(ctx, prog, content: list, index=None):
     unfed = [n for n in prog if isinstance(prog[n], moderngl.Attribute) and n not in given
              and not n.startswith("gl_")]
     if unfed and strict():
-        raise GLError(f"{prog.extra['name']}: vertex attributes {unfed} are read but not given")
+        raise GLError(f"{_info(prog)['name']}: vertex attributes {unfed} are read but not given")
     return ctx.vertex_array(prog, fixed, index)
 
 
