@@ -1,6 +1,7 @@
 #version 430
 // One quad per capped cylinder (instanced): the union of its two caps' projected bounding
-// boxes (Sigg et al.), each cap a flat disk: a unit sphere squashed by the variance matrix.
+// boxes (Sigg et al.), each cap a flat disk: a unit sphere squashed by the variance matrix;
+// the whole screen where the cylinder crosses the eye plane.
 #include "quadric.glsl"
 #include "frame.glsl"
 in vec2 in_corner;
@@ -19,9 +20,17 @@ void main() {
     vec3 u, v;
     onb(w, u, v);
     float r = in_radius;
-    vec4 box0 = quadric_bounds(mat4(vec4(u * r, 0.0), vec4(v * r, 0.0), vec4(0.0), vec4(in_p0, 1.0)));
-    vec4 box1 = quadric_bounds(mat4(vec4(u * r, 0.0), vec4(v * r, 0.0), vec4(0.0), vec4(in_p1, 1.0)));
-    gl_Position = quad_corner(vec4(min(box0.xy, box1.xy), max(box0.zw, box1.zw)), in_corner);
+    mat4 T0 = mat4(vec4(u * r, 0.0), vec4(v * r, 0.0), vec4(0.0), vec4(in_p0, 1.0));
+    mat4 T1 = mat4(vec4(u * r, 0.0), vec4(v * r, 0.0), vec4(0.0), vec4(in_p1, 1.0));
+    vec4 box0 = quadric_bounds(T0), box1 = quadric_bounds(T1);
+    // The caps' boxes bound the cylinder (the hull of its caps) only with both caps in front of the
+    // eye plane. Caps on opposite sides: the side crosses the plane (the eye inside or beside the
+    // cylinder), so the whole screen; both behind: nothing (a cap reaching the plane is the screen).
+    float s0 = eye_side(T0), s1 = eye_side(T1);
+    vec4 box = s0 * s1 < 0.0 ? vec4(-1.0, -1.0, 1.0, 1.0)
+             : s0 < 0.0 && s1 < 0.0 ? vec4(2.0)
+             : vec4(min(box0.xy, box1.xy), max(box0.zw, box1.zw));
+    gl_Position = quad_corner(box, in_corner);
     vec3 m = 0.5 * (in_p0 + in_p1);
     mat3 scale_inv = mat3(1.0 / r, 0.0, 0.0,  0.0, 1.0 / r, 0.0,  0.0, 0.0, 1.0 / h);
     mat3 rot_t = transpose(mat3(u, v, w));

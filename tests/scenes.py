@@ -1,4 +1,5 @@
 """Scene snippets shared by the tests: small enough that a bake and a render take well under a second."""
+import json
 
 RENDER = """\
 [render]
@@ -14,9 +15,11 @@ orbit = { count = 1 }
 TINY_HEAD = RENDER + CAMERA
 
 
-def bake_and_render(tmp_path, scene_text: str, *render_args):
+def bake_and_render(tmp_path, scene_text: str, *render_args, empty_reference_ok: bool = False):
     """Write scene_text, bake it, render it with --json; returns vdmrender's CliRunner result and
-    the output folder (the bake must succeed; the render's exit code is the caller's to check)."""
+    the output folder (the bake must succeed; the render's exit code is the caller's to check).
+    Every frame of the reference must cover pixels (a test of an empty frame measures nothing),
+    unless empty_reference_ok."""
     from click.testing import CliRunner
 
     from vdmbake.cli import main as bake_main
@@ -26,10 +29,14 @@ def bake_and_render(tmp_path, scene_text: str, *render_args):
     scene.write_text(scene_text)
     r = CliRunner().invoke(bake_main, [str(scene), "-o", str(bundle)])
     assert r.exit_code == 0, r.output
-    return CliRunner().invoke(render_main, [str(bundle), "-o", str(out), "--json", *render_args]), out
+    result = CliRunner().invoke(render_main, [str(bundle), "-o", str(out), "--json", *render_args])
+    if not empty_reference_ok and (out / "report.json").is_file():
+        report = json.loads((out / "report.json").read_text())
+        for row in report["rows"]:
+            empty = [f["frame"] for f in row["per_frame"] if f["coverage"] == 0]
+            assert not empty, f"{row['object']}: the reference covers no pixel in frames {empty}"
+    return result, out
 
 
 def rows_by_label(result) -> dict:
-    import json
-
     return {row["label"]: row for row in json.loads(result.stdout)["rows"]}

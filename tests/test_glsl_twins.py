@@ -39,6 +39,7 @@ void main() {{
 }}
 """)
     prog = ctx.program(vertex_shader=VERTEX, fragment_shader=frag)
+    prog.extra = {"name": "twin harness", "may_lack": frozenset({"u_in", "u_m", "u_viewport"})}   # a body reads some
     tex = ctx.texture((w, h), 4, np.ascontiguousarray(inputs, "f4").tobytes(), dtype="f4")
     targets = [ctx.texture((w, h), 4, dtype="f4") for _ in range(outputs)]
     fbo = ctx.framebuffer(targets)

@@ -168,14 +168,36 @@ def test_compare_half_missing_counts_missing_pixels():
     assert r["mean"] == pytest.approx(300.0 / 5, abs=1e-9)
 
 
-def test_compare_empty_coverage():
+def test_compare_empty_coverage_is_no_data_not_a_perfect_score():
     a, b = _image(), _image()
     a[..., :3] = 255  # colours differ, but nothing is covered in either
     r = metrics.compare(a, b)
-    assert r["mean"] == 0.0
-    assert r["iou"] == 1.0
+    assert r["empty"] is True
+    assert r["mean"] is None and r["iou"] is None
     assert r["values"].size == 0
     assert not r["union"].any()
+    assert metrics.flip_values(a, b, r["union"]).size == 0
+    b[1, 1] = (255, 255, 255, 255)   # one covered pixel: data again
+    r = metrics.compare(a, b)
+    assert r["empty"] is False and r["iou"] == 0.0 and r["mean"] == pytest.approx(0.0)
+
+
+def test_flip_over_the_union():
+    """FLIP is 0 for identical frames, grows with a visible difference, and is read only where either
+    image covers a pixel (so a change outside both masks does not count)."""
+    rng = np.random.default_rng(5)
+    ref = np.zeros((48, 64, 4), np.uint8)
+    ref[8:40, 8:56] = (180, 120, 90, 255)
+    ref[8:40, 8:56, :3] += rng.integers(0, 20, size=(32, 48, 3)).astype(np.uint8)
+    union = metrics.compare(ref, ref)["union"]
+    assert np.all(metrics.flip_values(ref, ref, union) == 0.0)
+    darker = ref.copy()
+    darker[..., :3] = (darker[..., :3] * 0.8).astype(np.uint8)
+    f = metrics.flip_values(darker, ref, union)
+    assert f.shape == (32 * 48,) and 0.3 < f.mean() < 0.6, f.mean()    # measured 0.472
+    outside = ref.copy()
+    outside[0:4, 0:4, :3] = 255   # alpha 0, 4 pixels from the object: not part of the frame's object
+    assert np.all(metrics.flip_values(outside, ref, union) == 0.0)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -175,19 +175,21 @@ def run(tmp_path, camera, spheres=MOLECULE_LIKE[0], cylinders=MOLECULE_LIKE[1], 
     return rows_by_label(r)
 
 
-def assert_exact(rows):
-    """Ray-cast impostors equal the float64 reference up to float32 and shadow-map texels."""
+def assert_exact(rows, bound, iou=0.999):
+    """Ray-cast impostors equal the float64 reference up to float32 and shadow-map texels: mean
+    ΔLuv at most `bound` (each test states what llvmpipe measured), IoU at least `iou`."""
     for label in ("impostor@direct", "impostor@deferred"):
         row = rows[label]
+        print(f"{label}: mean {row['mean_dluv']:.4f}  IoU {row['iou']:.6f}")   # pytest -s: the measured values
         assert row["nonfinite"] == 0
-        assert row["mean_dluv"] <= 0.5 and row["iou"] >= 0.999, (label, row)
+        assert row["mean_dluv"] <= bound and row["iou"] >= iou, (label, row)
     for row in rows.values():
         assert row["nonfinite"] == 0
 
 
 def test_orbit_views(tmp_path):
     rows = run(tmp_path, "orbit = { count = 3, elevation_deg = 30, distance = 2.5, fov_deg = 40 }")
-    assert_exact(rows)
+    assert_exact(rows, 0.15)   # measured 0.0212 direct, 0.0595 deferred
     # The tessellated peer converges towards the impostor as it is refined; outlines are drawn on purpose.
     assert rows["tessellated@1"]["mean_dluv"] > rows["tessellated@3"]["mean_dluv"] > rows["impostor@direct"]["mean_dluv"]
     assert rows["impostor@outlines"]["mean_dluv"] > rows["impostor@direct"]["mean_dluv"]
@@ -205,14 +207,104 @@ def test_wide_fields_of_view_do_not_crop(tmp_path, fov):
     rows = run(tmp_path, camera, RING, "[[0, 0, -1, 0, 0, -3, 0.3]]")
     # Not a near-empty frame (an orbit at 170 degrees covered 0.05%): here about 20%, borders included.
     assert rows["impostor@direct"]["coverage"] > 0.1
-    assert_exact(rows)
+    assert_exact(rows, 0.15)   # measured 0.0524 / 0.0543 at 120 degrees, 0.0075 / 0.0320 at 170
 
 
 def test_camera_inside_a_sphere_and_straddling_the_near_plane(tmp_path):
     camera = ('[[camera.poses]]\neye = [0.1, 0.1, 0.0]\ntarget = [1.3, 0.2, 0.1]\nfov_deg = 90\n'     # inside
               '[[camera.poses]]\neye = [2.6, 0.4, 0.2]\ntarget = [1.3, 0.2, 0.1]\nfov_deg = 60\n')   # near sphere 2
     rows = run(tmp_path, camera)
-    assert_exact(rows)
+    assert_exact(rows, 0.05)   # measured 0.0000 direct, 0.0162 deferred
+
+
+def water_box(rng, n=3, spacing=2.9):
+    """n^3 waters on a jittered grid as PDB atoms: spacefill oxygens (1.52) overlap their hydrogens
+    and the neighbouring oxygens, so a point near a molecule lies inside several spheres."""
+    atoms = []
+    for i, j, k in np.ndindex(n, n, n):
+        o = (np.array([i, j, k]) - (n - 1) / 2) * spacing + rng.normal(scale=0.2, size=3)
+        a = unit(rng.normal(size=3))
+        b = unit(np.cross(a, rng.normal(size=3)))
+        h2 = o + 0.96 * (np.cos(np.radians(104.5)) * a + np.sin(np.radians(104.5)) * b)
+        atoms.append([("OW", "O", o), ("HW1", "H", o + 0.96 * a), ("HW2", "H", h2)])
+    return atoms
+
+
+def pose(eye, target, fov=90):
+    return f"[[camera.poses]]\neye = {list(map(float, eye))}\ntarget = {list(map(float, target))}\nfov_deg = {fov}\n"
+
+
+def run_molecule(tmp_path, camera, molecule, style="spacefill"):
+    scene = (SCENE.split("[[objects]]")[0].format(w=96, h=72, camera=camera)
+             + f'[[objects]]\nname = "q"\nmolecule = "{molecule}"\nstyle = "{style}"\n'
+             + 'techniques = { impostor = { shading = ["direct", "deferred"] }, tessellated = { levels = [3] } }\n')
+    r, _ = bake_and_render(tmp_path, scene)
+    assert r.exit_code == 0, r.output
+    return rows_by_label(r)
+
+
+# The camera inside quadrics (issue 11): the reference walked boxes from the ray's start and stopped
+# at the first box face beyond its best hit, so a box around the eye, whose only face ahead is its
+# exit, was never tested when that exit lay farther than another quadric's hit. Against that walk the
+# exact impostors were charged 2.70 ΔLuv inside an atom and 19.57 inside the water box.
+
+def test_camera_inside_an_atom(tmp_path):
+    """Villin (596 atoms, spacefill), the eye inside an atom near the middle, overlapped by others."""
+    camera = pose([0.261, 2.085, -0.044], [0.054, 0.6345, 0.8745])   # atom at (-0.039, 1.885, -0.144), r 1.7
+    rows = run_molecule(tmp_path, camera, "pkg:pdbfixer/tests/data/test.pdb")
+    assert_exact(rows, 0.03, iou=0.9999)   # measured 0.0000, IoU 1.0 (against the old walk: 2.6977)
+
+
+def test_camera_inside_a_water_box(tmp_path):
+    """27 waters; the eye inside the middle oxygen and its first hydrogen at once."""
+    from test_molecules import pdb_text
+
+    waters = water_box(np.random.default_rng(11))
+    (tmp_path / "water.pdb").write_text(pdb_text([("HOH", i + 1, w) for i, w in enumerate(waters)]))
+    o, h = waters[13][0][2], waters[13][1][2]
+    rows = run_molecule(tmp_path, pose(o + 0.6 * (h - o), [0.0, 0.0, -5.0]), tmp_path / "water.pdb")
+    assert_exact(rows, 0.03, iou=0.9999)   # measured 0.0094, IoU 1.0 (against the old walk: 19.5694)
+
+
+def test_camera_inside_a_cylinder(tmp_path):
+    """The eye inside a long capped cylinder looking at its far cap: one cap in front of the eye plane,
+    the other behind, so the caps' projected boxes do not bound what is seen; cylinder.vert covers
+    the screen then (before, only the far cap's box was drawn: IoU 0.072)."""
+    s = "[[0, 0, -3, 0.5], [0, 0, 3, 0.5], [2.0, 1.0, 0.0, 0.8]]"
+    c = "[[0, 0, -3, 0, 0, 3, 0.3], [0, 0, 3, 2.0, 1.0, 0.0, 0.2]]"
+    rows = run(tmp_path, pose([0.05, 0.0, 0.2], [0.5, 0.3, 3.0]), s, c, w=96, h=72)
+    assert_exact(rows, 0.03, iou=0.9999)   # measured 0.0000, IoU 1.0
+
+
+def test_tracer_from_inside_overlapping_quadrics_matches_brute_force():
+    """Rays from points inside many overlapping spheres and cylinders: the box walk's first hit is the
+    nearest of every quadric tested by brute force (the old walk got 27-67% of them wrong), and
+    shadow rays (any hit) with a short range agree on whether something lies within it."""
+    from vdmbake.quadrics import QuadricSet
+    from vdmrender.reference import QuadricTracer
+
+    rng = np.random.default_rng(3)
+    s = np.c_[rng.uniform(-3, 3, (300, 3)), rng.uniform(0.4, 0.9, 300)]
+    c = np.c_[rng.uniform(-3, 3, (40, 3)), rng.uniform(-3, 3, (40, 3)), rng.uniform(0.1, 0.3, 40)]
+    q = QuadricSet(s, np.ones((300, 3), np.float32), c, np.ones((40, 3), np.float32))
+    tracer = QuadricTracer(q)
+    n = 4000
+    o = np.repeat(rng.uniform(-1, 1, (4, 3)), n // 4, 0)
+    d = unit(rng.normal(size=(n, 3)))
+    tmin, tmax = np.full(n, 1e-3), np.full(n, 50.0)
+    brute = np.full(n, np.inf)
+    for x in s:
+        brute = np.minimum(brute, qm.ray_spheres(o, d, np.broadcast_to(x[:3], o.shape), np.full(n, x[3]), tmin))
+    for x in c:
+        t, _ = qm.ray_capped_cylinders(o, d, np.broadcast_to(x[:3], o.shape), np.broadcast_to(x[3:6], o.shape),
+                                       np.full(n, x[6]), tmin)
+        brute = np.minimum(brute, t)
+    t, _, idx = tracer.first_hit(o, d, tmin, tmax)
+    assert (idx >= 0).all()
+    np.testing.assert_allclose(t, brute, rtol=1e-12)
+    short = np.full(n, 0.5)
+    ts, _, _ = tracer.first_hit(o, d, tmin, short, stop_at_any=True)
+    assert np.array_equal(np.isfinite(ts), brute <= short)
 
 
 @pytest.mark.parametrize("scale", [1e-5, 1e3])
@@ -220,16 +312,24 @@ def test_tiny_and_huge_radii(tmp_path, scale):
     s = f"[[0, 0, 0, {scale}], [{1.5 * scale}, 0, 0, {0.7 * scale}]]"
     c = f"[[0, 0, 0, 0, 0, {2 * scale}, {0.3 * scale}]]"
     rows = run(tmp_path, "orbit = { count = 2, elevation_deg = 20, distance = 3.0, fov_deg = 40 }", s, c)
-    assert_exact(rows)
+    assert_exact(rows, 0.1)    # measured 0.0050 direct, 0.0407 deferred at both scales
+
+
+TINY = [[800, 0, 0, 0.05], [-800, 100, 300, 0.05], [3000, 0, 0, 0.03], [-3000, 100, 0, 0.03]]
 
 
 def test_tiny_spheres_far_from_the_camera(tmp_path):
-    """radius / distance = 1e-5 for the small spheres: sub-pixel, found or missed as in the reference."""
-    s = "[[0, 0, 0, 1.0], [3000, 0, 0, 0.03], [-3000, 100, 0, 0.03]]"
-    camera = '[[camera.poses]]\neye = [0.0, -5000.0, 0.0]\ntarget = [0.0, 0.0, 0.0]\nfov_deg = 90\n'
-    rows = run(tmp_path, camera, s, "[]", w=160, h=120)
-    for label in ("impostor@direct", "impostor@deferred"):
-        assert rows[label]["nonfinite"] == 0 and rows[label]["mean_dluv"] <= 0.5
+    """radius / distance = 1e-5 for the small spheres: sub-pixel, found or missed as in the reference.
+    A large sphere as far away (radius / distance 0.06) gives the frame its pixels (the frame was
+    empty before, which measured nothing); the two small ones in view must add or remove no pixel
+    (IoU exactly 1), and none may turn non-finite."""
+    camera = '[[camera.poses]]\neye = [0.0, -5000.0, 0.0]\ntarget = [0.0, 0.0, 0.0]\nfov_deg = 20\n'
+    cam = Camera(np.array([0.0, -5000, 0]), np.zeros(3), np.array([0.0, 0, 1]), 20.0, 160, 120, 1.0, 1e4)
+    clip = np.c_[np.array(TINY)[:2, :3], np.ones(2)] @ (cam.projection() @ cam.view()).T
+    assert (np.abs(clip[:, :2] / clip[:, 3:]) < 1).all()          # the first two are in the frame
+    assert all(r / np.linalg.norm(np.array(c) - cam.eye) < 1.1e-5 for *c, r in TINY)
+    rows = run(tmp_path, camera, json.dumps([[0, 0, 0, 300.0]] + TINY), "[]", w=160, h=120)
+    assert_exact(rows, 0.1, iou=1.0)    # measured 0.0000 direct, 0.0452 deferred, IoU 1.0
 
 
 def test_cylinder_along_the_view_axis_and_degenerate_input(tmp_path):
@@ -237,7 +337,7 @@ def test_cylinder_along_the_view_axis_and_degenerate_input(tmp_path):
     s = "[[0, 0, 0, 0.0], [2, 0, 0, 0.5]]"                          # a zero radius is dropped
     c = "[[0, 0, -2, 0, 0, 2, 0.6], [1, 1, 1, 1, 1, 1, 0.4]]"       # along the view axis; zero length, dropped
     rows = run(tmp_path, camera, s, c)
-    assert_exact(rows)
+    assert_exact(rows, 0.15)   # measured 0.0000 direct, 0.0634 deferred
     manifest = json.loads((tmp_path / "b.bundle" / "manifest.json").read_text())
     assert manifest["objects"]["q"]["spheres_dropped"] == 1 and manifest["objects"]["q"]["cylinders_dropped"] == 1
 

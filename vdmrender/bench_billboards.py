@@ -10,11 +10,13 @@ mesh, greedy projection; plus the axis projection's billboard count and storage 
 """
 from __future__ import annotations
 
+import itertools
 import json
 from pathlib import Path
 
 import click
 
+from . import progress
 from .bench import measure_scene
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
@@ -70,24 +72,24 @@ def main(out: Path, quick: bool):
     resolutions = RESOLUTIONS[-1:] if quick else RESOLUTIONS
     res, shadow_map = (64, 512) if quick else (512, 1024)
     rows, bakes = [], {}
-    for name, source in models:
-        for w, h in resolutions:
-            tag = f"billboards-{name}-{w}x{h}"
-            for r in measure_scene(out, tag, SCENE.format(w=w, h=h, name=name, source=source, res=res,
-                                                          shadow_map=shadow_map, variants=json.dumps(VARIANTS))):
-                rows.append({**r, "resolution": f"{w}x{h}"})
-                click.echo(f"{name:8} {w}x{h} {r['label']:36} {r['median_ms']:9.1f} ms  dLuv {r['mean_dluv']:.3f}  "
-                           f"IoU {r['iou']:.4f}", err=True)
-            if name not in bakes:
-                bundle = out / "bundles" / f"{tag}.bundle"
-                m = json.loads((bundle / "manifest.json").read_text())
-                bb = m["objects"][name]["techniques"]["billboards"]
-                timing = json.loads((bundle / "timing.json").read_text())["steps_s"].get(name, {})
-                bakes[name] = {"greedy": len(bb["greedy"]["faces"]), "axis": len(bb["axis"]["faces"]),
-                               "leftover": bb["greedy"]["leftover"],
-                               "greedy_mb": m["parts"][bb["greedy"]["maps"]]["bytes"] / 2**20,
-                               "axis_mb": m["parts"][bb["axis"]["maps"]]["bytes"] / 2**20,
-                               "bake_s": timing.get("billboards_greedy_s", 0.0)}
+    for (name, source), (w, h) in progress.bar(list(itertools.product(models, resolutions)), "bench-billboards",
+                                               unit="scene"):
+        tag = f"billboards-{name}-{w}x{h}"
+        for r in measure_scene(out, tag, SCENE.format(w=w, h=h, name=name, source=source, res=res,
+                                                      shadow_map=shadow_map, variants=json.dumps(VARIANTS))):
+            rows.append({**r, "resolution": f"{w}x{h}"})
+            click.echo(f"{name:8} {w}x{h} {r['label']:36} {r['median_ms']:9.1f} ms  dLuv {r['mean_dluv']:.3f}  "
+                       f"IoU {r['iou']:.4f}", err=True)
+        if name not in bakes:
+            bundle = out / "bundles" / f"{tag}.bundle"
+            m = json.loads((bundle / "manifest.json").read_text())
+            bb = m["objects"][name]["techniques"]["billboards"]
+            timing = json.loads((bundle / "timing.json").read_text())["steps_s"].get(name, {})
+            bakes[name] = {"greedy": len(bb["greedy"]["faces"]), "axis": len(bb["axis"]["faces"]),
+                           "leftover": bb["greedy"]["leftover"],
+                           "greedy_mb": m["parts"][bb["greedy"]["maps"]]["bytes"] / 2**20,
+                           "axis_mb": m["parts"][bb["axis"]["maps"]]["bytes"] / 2**20,
+                           "bake_s": timing.get("billboards_greedy_s", 0.0)}
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
     (out / "billboards.json").write_text(json.dumps({"device": device, "map_resolution": res, "shadow_map": shadow_map,

@@ -11,6 +11,7 @@
 """
 from __future__ import annotations
 
+import itertools
 import json
 import time
 from pathlib import Path
@@ -20,7 +21,7 @@ import numpy as np
 
 from vdmbake import heightfields, vdm
 
-from . import report
+from . import progress, report
 from .bench import measure_scene
 
 # (name, primitive, params, tiling): tilings keep a tile about as long as it is wide
@@ -120,13 +121,13 @@ def main(out: Path, quick: bool):
     click.echo(f"paper configuration: {paper['bake_s']:.2f} s, {paper['flat_mrays_per_s']:.2f} Mrays/s "
                f"(raw Embree {paper['raw_mrays_per_s']:.2f})", err=True)
     rows = []
-    for name, primitive, params, tiling in SURFACES[:1] if quick else SURFACES:
-        for hname, height in HEIGHTS[:1] if quick else HEIGHTS:
-            for r in _scene_rows(out, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c,
-                                 (0, 1) if quick else (1, 2, 3)):
-                rows.append(r)
-                click.echo(f"{name:5} {hname:6} {r['label']:13} {r['median_ms']:9.1f} ms  dLuv {r['mean_dluv']:.3f}  "
-                           f"IoU {r['iou']:.4f}", err=True)
+    runs = list(itertools.product(SURFACES[:1] if quick else SURFACES, HEIGHTS[:1] if quick else HEIGHTS))
+    for (name, primitive, params, tiling), (hname, height) in progress.bar(runs, "bench-vdm", unit="scene"):
+        for r in _scene_rows(out, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c,
+                             (0, 1) if quick else (1, 2, 3)):
+            rows.append(r)
+            click.echo(f"{name:5} {hname:6} {r['label']:13} {r['median_ms']:9.1f} ms  dLuv {r['mean_dluv']:.3f}  "
+                       f"IoU {r['iou']:.4f}", err=True)
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
     (out / "vdm.json").write_text(json.dumps({"device": device, "resolution": [w, h], "paper_bake": paper,

@@ -12,6 +12,8 @@ from vdmbake import __version__
 from vdmbake.errors import InputError, fail
 from vdmbake.scene import MAX_SIDE, REGISTRY
 
+from . import gl
+from .baseline import table as baseline_table
 from .render import Options, run
 
 
@@ -36,12 +38,25 @@ def _resolution(ctx, param, value):
 @click.option("--warmup", type=click.IntRange(0, 100), help="Untimed renders per frame before timing.")
 @click.option("--device", help="EGL device index for the GL context (or set VDM_GL_DEVICE).")
 @click.option("--max-error", type=click.FloatRange(min=0), help="Exit 1 if any technique's mean ΔLuv exceeds this.")
+@click.option("--baseline", type=click.Path(path_type=Path),
+              help="An earlier run's report.json: report per object and variant the change in mean ΔLuv, p95, "
+                   "FLIP and time (a table on stderr; OUTPUT/baseline.md, baseline.csv and report.json's "
+                   "'baseline' block).")
+@click.option("--max-error-increase", type=click.FloatRange(min=0),
+              help="With --baseline: exit 1 if a variant's mean ΔLuv grew by more than this (absolute ΔLuv).")
+@click.option("--max-slowdown", type=click.FloatRange(min=0, min_open=True),
+              help="With --baseline: exit 1 if a variant's median time per frame grew by more than this ratio "
+                   "(1.25: 25%% slower).")
+@click.option("--flip/--no-flip", default=True, show_default=True,
+              help="Also score every frame with NVIDIA FLIP (flip_mean in the report; about 2 s per 512x512 "
+                   "frame on 2 CPU cores).")
 @click.option("--heat-max", type=click.FloatRange(min=1e-3), default=10.0, show_default=True,
               help="ΔLuv at the top of the heat maps' colour scale.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
-def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error, heat_max, as_json, debug):
+def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error, baseline, max_error_increase,
+         max_slowdown, flip, heat_max, as_json, debug):
     """Render BUNDLE (made by vdmbake) into OUTPUT and report error against run time.
 
     For every object, each technique variant (a technique at one value of its quality
@@ -49,24 +64,38 @@ def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error
     EGL: a real GPU where there is one, Mesa llvmpipe where there is not), and an
     independent reference is traced on the CPU with Embree. Each frame's error is the
     mean CIE-Luv distance to the reference over the union of both coverage masks (the
-    enhanced-billboards thesis's eq. 2.2); time is the median wall time per frame.
+    enhanced-billboards thesis's eq. 2.2), with NVIDIA FLIP over the same pixels beside
+    it; time is the median wall time per frame. A frame where neither the variant nor the
+    reference covers a pixel is reported as empty (no error), never as a perfect score.
 
     \b
     OUTPUT/frames/OBJECT/VARIANT/NNN.png     rendered frames
-    OUTPUT/reference/OBJECT/NNN.png (.exr)   the reference (cached by content hash)
+    OUTPUT/reference/OBJECT/NNN.png (.exr)   the reference (cached by content and code hash)
     OUTPUT/heatmaps/OBJECT/VARIANT/NNN.png   per-pixel ΔLuv, 0 to --heat-max
     OUTPUT/overview/OBJECT.png               everything on one sheet
     OUTPUT/report.json, report.csv, error_vs_time.png
+    OUTPUT/baseline.md, baseline.csv         with --baseline: the change per variant
 
-    Exit codes: 0 done, 1 done but --max-error exceeded, 2 bad usage or bad input.
+    Exit codes: 0 done; 1 done but a threshold was exceeded (--max-error, --max-error-increase,
+    --max-slowdown); 2 bad usage or bad input, or a variant with no covered pixel in any frame
+    (unless the object sets expect_empty = true). --debug also makes GL strict: a uniform or
+    vertex attribute a shader does not have is an error instead of being skipped.
 
     \b
-    Example:
+    Examples:
       vdmrender out/default.bundle -o out/default --max-error 2.0
+      vdmrender out/default.bundle -o out/new --baseline out/default/report.json \\
+          --max-error-increase 0.05 --max-slowdown 1.25
     """
+    if (max_error_increase is not None or max_slowdown is not None) and baseline is None:
+        fail(InputError("--max-error-increase and --max-slowdown compare with an earlier run; give its "
+                        "report.json with --baseline OLD/report.json."), debug)
     log = (lambda m: None) if as_json else (lambda m: click.echo(m, err=True))
     opts = Options(techniques=techniques or None, resolution=resolution, repeats=repeats, warmup=warmup,
-                   device=device, heat_max=heat_max)
+                   device=device, heat_max=heat_max, flip=flip, baseline=baseline,
+                   max_error_increase=max_error_increase, max_slowdown=max_slowdown)
+    if debug:
+        gl.STRICT = True
     try:
         result = run(bundle, out, opts, log)
     except InputError as e:
@@ -76,10 +105,22 @@ def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error
     else:
         click.echo(f"report: {out / 'report.json'}  plot: {out / 'error_vs_time.png'}  "
                    f"overview: {out / 'overview'}/  ({result['device']})")
-    worst = [r for r in result["rows"] if max_error is not None and r["mean_dluv"] > max_error]
+    rows = result["rows"]
+    worst = [r for r in rows if max_error is not None and r["mean_dluv"] is not None and r["mean_dluv"] > max_error]
     for r in worst:
         click.echo(f"{r['object']}: {r['label']} mean ΔLuv {r['mean_dluv']} exceeds --max-error {max_error}", err=True)
-    sys.exit(1 if worst else 0)
+    block = result.get("baseline")
+    if block is not None:
+        click.echo(baseline_table(block), err=True)
+        for name in block["failed"]:
+            click.echo(f"{name}: exceeds the baseline thresholds", err=True)
+    empty = [r for r in rows if r["empty_frames"] == r["frames"] and not r["expect_empty"]]
+    for r in empty:
+        click.echo(f"error: {r['object']}: {r['label']}: no frame has a pixel to score (neither the variant nor the "
+                   "reference draws anything, or every pixel drawn sees an open border or the surface from inside, "
+                   "which are scored apart), so there is nothing to measure; aim the cameras at the object, or "
+                   "set expect_empty = true on it if that is the point.", err=True)
+    sys.exit(2 if empty else 1 if worst or (block and block["failed"]) else 0)
 
 
 if __name__ == "__main__":

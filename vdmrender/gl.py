@@ -17,6 +17,19 @@ from vdmbake.errors import InputError
 SHADERS = importlib.resources.files("vdmrender") / "shaders"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.M)
 
+# Strict GL: a uniform or vertex attribute that a program does not have is an error, not silently
+# skipped (a renamed uniform would otherwise show only as drift in the error). On under --debug and
+# wherever $VDM_GL_STRICT is set (tests/conftest.py sets it for every test).
+STRICT = False
+
+
+class GLError(RuntimeError):
+    """A program and the data given to it disagree (raised in strict mode)."""
+
+
+def strict() -> bool:
+    return STRICT or os.environ.get("VDM_GL_STRICT", "") not in ("", "0")
+
 
 def create_context(device: str | None = None):
     """A standalone OpenGL 4.3+ context through EGL. `device` (or $VDM_GL_DEVICE) picks the EGL device index."""
@@ -65,26 +78,93 @@ def _with_defines(src: str, defines: tuple[str, ...]) -> str:
     return "\n".join([first, *(f"#define {d}" for d in defines), rest])
 
 
-def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = ()):
+def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = (), may_lack: tuple[str, ...] = ()):
     """Compiled once per context, and only when a technique of the scene asks for it.
-    `defines` select a pass variant of a stage (e.g. DIRECT, GBUFFER)."""
+    `defines` select a pass variant of a stage (e.g. DIRECT, GBUFFER). `may_lack`: the uniforms and
+    vertex attributes this pass variant legitimately compiles away (set_uniforms and vertex_array
+    then skip them even when strict); name them here, next to the defines that drop them."""
     if ctx.extra is None:
         ctx.extra = {}
     key = (vertex, fragment, *defines)
     if key not in ctx.extra:
-        ctx.extra[key] = ctx.program(vertex_shader=_with_defines(source(vertex), defines),
-                                     fragment_shader=_with_defines(source(fragment), defines))
-    return ctx.extra[key]
+        prog = ctx.program(vertex_shader=_with_defines(source(vertex), defines),
+                           fragment_shader=_with_defines(source(fragment), defines))
+        prog.extra = {"name": f"{vertex} + {fragment}" + (f" [{', '.join(defines)}]" if defines else ""),
+                      "may_lack": frozenset(may_lack)}
+        ctx.extra[key] = prog
+    prog = ctx.extra[key]
+    if prog.extra["may_lack"] != frozenset(may_lack):
+        raise GLError(f"{prog.extra['name']}: built with may_lack {sorted(prog.extra['may_lack'])}, "
+                      f"asked again with {sorted(may_lack)}")
+    return prog
+
+
+def _info(prog) -> dict:
+    """What gl.program recorded on the program (its name, may_lack); defaults for others."""
+    return prog.extra or {"name": "program", "may_lack": frozenset()}
+
+
+def _lacks(prog, name: str, what: str) -> bool:
+    """True if `prog` has no active `name`; an error when strict unless the program declared it."""
+    if name in prog:
+        return False
+    info = _info(prog)
+    if strict() and name not in info["may_lack"]:
+        raise GLError(f"{info['name']}: no active {what} {name!r} (renamed, misspelt, or unused by the "
+                      "shader; declare it in gl.program(..., may_lack=...) if a pass variant drops it)")
+    return True
 
 
 def set_uniforms(prog, **values) -> None:
-    """Set the uniforms a program has; those its pass variant compiled away are skipped."""
+    """Set uniforms by name; one the program lacks is skipped if declared in may_lack (or when not
+    strict), an error otherwise."""
     for name, value in values.items():
-        if name in prog:
-            if isinstance(value, np.ndarray) and value.shape == (4, 4):
-                prog[name].write(mat(value))
-            else:
-                prog[name].value = value
+        if _lacks(prog, name, "uniform"):
+            continue
+        if isinstance(value, np.ndarray) and value.shape == (4, 4):
+            prog[name].write(mat(value))
+        else:
+            prog[name].value = value
+
+
+_TOKEN = re.compile(r"(\d*)([fiux])(\d?)")
+_BYTES = {"f": 4, "i": 4, "u": 4, "x": 1}
+
+
+def vertex_array(ctx, prog, content: list, index=None):
+    """ctx.vertex_array whose layout must match the program: every attribute given is one the
+    program has (those it declared in may_lack become padding bytes of the same size), with the
+    format's component count equal to the attribute's, and every attribute the program reads is
+    given. A mismatch is an error when strict (otherwise lacking attributes are padded)."""
+    given, fixed = set(), []
+    for buf, fmt, *names in content:
+        spec, _, per = fmt.partition("/")
+        tokens, it = [], iter(names)
+        for tok in spec.split():
+            m = _TOKEN.fullmatch(tok)
+            n, kind, size = int(m.group(1) or 1), m.group(2), int(m.group(3) or _BYTES[m.group(2)])
+            if kind == "x":
+                tokens.append(tok)
+                continue
+            name = next(it)
+            given.add(name)
+            if _lacks(prog, name, "vertex attribute"):
+                tokens.append(f"{n * size}x")
+                names = [x for x in names if x != name]
+                continue
+            if strict() and prog[name].dimension != n:
+                raise GLError(f"{_info(prog)['name']}: vertex attribute {name!r} has {prog[name].dimension} "
+                              f"components, the layout {fmt!r} gives {n}")
+            tokens.append(tok)
+        if names:    # a buffer whose every attribute was dropped is not bound at all
+            fixed.append((buf, " ".join(tokens) + (f"/{per}" if per else ""), *names))
+    import moderngl
+
+    unfed = [n for n in prog if isinstance(prog[n], moderngl.Attribute) and n not in given
+             and not n.startswith("gl_")]
+    if unfed and strict():
+        raise GLError(f"{_info(prog)['name']}: vertex attributes {unfed} are read but not given")
+    return ctx.vertex_array(prog, fixed, index)
 
 
 def release(*objects) -> None:
@@ -99,11 +179,12 @@ def mat(m: np.ndarray) -> bytes:
     return np.ascontiguousarray(np.asarray(m, np.float64).T, dtype=np.float32).tobytes()
 
 
-def set_shading(prog, light, material) -> None:
-    """The shared shading model's uniforms (shaders/include/shading.glsl) and the object's albedo."""
+def set_shading(prog, light, material, albedo: bool = True) -> None:
+    """The shared shading model's uniforms (shaders/include/shading.glsl) and, if `albedo`, the
+    object's albedo as u_albedo (stages that take colours per instance or from a G-buffer have none)."""
     set_uniforms(prog, u_light_dir=tuple(light.direction), u_light_color=tuple(light.color),
-                 u_ambient=tuple(light.ambient), u_albedo=tuple(material.albedo), u_kd=material.diffuse,
-                 u_ks=material.specular, u_shininess=material.shininess)
+                 u_ambient=tuple(light.ambient), u_kd=material.diffuse, u_ks=material.specular,
+                 u_shininess=material.shininess, **({"u_albedo": tuple(material.albedo)} if albedo else {}))
 
 
 class Target:

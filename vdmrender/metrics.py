@@ -5,6 +5,8 @@ taken to CIE XYZ with the sRGB matrix, then to L*u*v* relative to the D65 white 
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from vdmbake.colour import srgb8_to_linear
@@ -47,7 +49,9 @@ def compare(frame: np.ndarray, reference: np.ndarray, classes: np.ndarray | None
     Eq. 2.2 averages over object pixels; here those are the union of both coverage masks,
     so a missing or an extra silhouette pixel counts. `classes` (vdmrender.borders, (H, W)): pixels
     that see an open border or the surface from inside are scored apart ("apart": their count and
-    values), the mean and IoU are over the surface pixels; "mean_all" and "iou_all" keep every pixel.
+    values); "mean" and "iou" are over the other, surface pixels, "mean_all" and "iou_all" over every
+    pixel. A frame with no pixel to score has no data: it is `empty`, its mean and IoU are None, never
+    a perfect score.
     """
     a, b = frame[..., 3] > 0, reference[..., 3] > 0
     union = a | b
@@ -55,9 +59,64 @@ def compare(frame: np.ndarray, reference: np.ndarray, classes: np.ndarray | None
     apart = np.zeros_like(union) if classes is None else (classes != 0)
     scored = union & ~apart
     d = dist[scored]
-    iou = lambda m: float((a & b & m).sum() / (union & m).sum()) if (union & m).any() else 1.0  # noqa: E731
-    return {"dist": np.where(union, dist, 0.0), "union": union, "values": d,
-            "mean": float(d.mean()) if d.size else 0.0, "iou": iou(~apart),
-            "mean_all": float(dist[union].mean()) if union.any() else 0.0, "iou_all": iou(np.ones_like(union)),
+    iou = lambda m: float((a & b & m).sum() / (union & m).sum()) if (union & m).any() else None  # noqa: E731
+    return {"dist": np.where(union, dist, 0.0), "union": union, "scored": scored, "values": d, "empty": not scored.any(),
+            "mean": float(d.mean()) if d.size else None, "iou": iou(~apart),
+            "mean_all": float(dist[union].mean()) if union.any() else None, "iou_all": iou(np.ones_like(union)),
             "apart": {int(c): int((union & (classes == c)).sum()) for c in (1, 2)} if classes is not None else {},
             "apart_values": dist[union & apart]}
+
+
+def flip_values(frame: np.ndarray, reference: np.ndarray, scored: np.ndarray) -> np.ndarray:
+    """NVIDIA FLIP (Andersson et al. 2020, LDR, default 67 pixels per degree) of the sRGB frame
+    against the reference, at the `scored` pixels (those eq. 2.2 averages over; none where there
+    are none), each in [0, 1]. FLIP models what a viewer notices when flipping between the two images,
+    so it sees edges and patterns: a second opinion beside ΔLuv, which weighs every pixel alone."""
+    if not scored.any():
+        return np.zeros(0)
+    # FLIP's OpenMP threads would spin while waiting; on a shared CPU (CI, llvmpipe rendering beside
+    # it) that costs 0.3 s per small frame instead of 0.01 s. Read once, when its libgomp loads.
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    import flip_evaluator
+
+    ref, test = (np.ascontiguousarray(x[..., :3], np.float32) / 255 for x in (reference, frame))
+    fmap, _, _ = flip_evaluator.evaluate(ref, test, "LDR", applyMagma=False, computeMeanError=False)
+    return np.asarray(fmap, np.float64).reshape(scored.shape)[scored]
+
+
+def _rounded(x, digits: int):
+    return None if x is None else round(float(x), digits)
+
+
+def summarise(scores: list[dict]) -> dict:
+    """A variant's report fields from its frames' scores (compare's, each with "flip" values,
+    "coverage" of the reference and a "nonfinite" pixel count): the error pooled over every scored
+    pixel of every frame, the IoU averaged over frames; empty frames are counted and left out. With
+    pixel classes (open borders), also the pixels scored apart and every pixel together."""
+    d = np.concatenate([s["values"] for s in scores])
+    fl = np.concatenate([s["flip"] for s in scores])
+    full = [s for s in scores if not s["empty"]]
+    per_frame = [{"frame": k, "empty": s["empty"], "mean_dluv": _rounded(s["mean"], 4), "iou": _rounded(s["iou"], 6),
+                  "flip": _rounded(s["flip"].mean(), 5) if s["flip"].size else None,
+                  "coverage": round(s["coverage"], 6), "nonfinite": s["nonfinite"]} for k, s in enumerate(scores)]
+    row = {"empty_frames": len(scores) - len(full),
+           "mean_dluv": _rounded(d.mean(), 4) if d.size else None,
+           "p95_dluv": _rounded(np.percentile(d, 95), 4) if d.size else None,
+           "max_dluv": _rounded(d.max(), 4) if d.size else None,
+           "iou": _rounded(np.mean([s["iou"] for s in full]), 6) if full else None,
+           "flip_mean": _rounded(fl.mean(), 5) if fl.size else None,
+           "coverage": round(float(np.mean([s["coverage"] for s in scores])), 6),
+           "nonfinite": sum(s["nonfinite"] for s in scores), "per_frame": per_frame}
+    if scores[0]["apart"]:   # scored apart (vdmrender.borders): the border and inside pixels, and every pixel
+        border, inside = (sum(s["apart"][c] for s in scores) for c in (1, 2))
+        apart = np.concatenate([s["apart_values"] for s in scores])
+        union = d.size + apart.size
+        whole = [s for s in scores if s["mean_all"] is not None]
+        for p, s in zip(per_frame, scores):
+            p.update(iou_all=_rounded(s["iou_all"], 6), border_px=s["apart"][1], inside_px=s["apart"][2])
+        row.update(surface_px=int(d.size), border_px=border, inside_px=inside,
+                   border_fraction=round(border / max(union, 1), 6), inside_fraction=round(inside / max(union, 1), 6),
+                   mean_dluv_apart=_rounded(apart.mean(), 4) if apart.size else None,
+                   mean_dluv_all=_rounded(np.concatenate([d, apart]).mean(), 4) if union else None,
+                   iou_all=_rounded(np.mean([s["iou_all"] for s in whole]), 6) if whole else None)
+    return row

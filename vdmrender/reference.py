@@ -12,7 +12,6 @@ from . import quadric_math
 from .shading import safe_normalize, shade
 
 SHADOW_EPSILON = 1e-5  # shadow-ray origin offset along the geometric normal, in bounding radii
-VERSION = 3            # bump when the reference's output for the same inputs changes (cache key)
 
 
 def _frame(camera, hit: np.ndarray, radiance: np.ndarray) -> np.ndarray:
@@ -62,7 +61,13 @@ class QuadricTracer:
     Embree finds the candidates: each quadric is enclosed in a box (12 triangles). Boxes are
     visited front to back along each ray; every box face met makes its quadric tested
     analytically (quadric_math); a ray is done when the next box face lies beyond its best
-    hit. A box is left by stepping a hair past the face, so overlapping boxes are all seen."""
+    hit. A box is left by stepping a hair past the face, so overlapping boxes are all seen.
+    A box that contains a ray's start shows no face before its exit, which may lie beyond a hit
+    found meanwhile (the camera inside an atom, a water box around the eye): so the walk starts
+    `reach` (the longest box diagonal) before the start, where every such box is entered, and
+    each box it meets is tested whatever its exit distance (hits still count from tmin on).
+    Shadow rays (stop_at_any) need no head start: they never stop before a hit, so they meet such
+    a box at its exit, at most `reach` on (they look that far whatever their tmax)."""
 
     def __init__(self, q):
         self.q = q
@@ -80,6 +85,7 @@ class QuadricTracer:
                 + w[:, None] * half[:, None, None] * _BOX[None, :, 2:3])])
         faces = (np.arange(len(corners))[:, None, None] * 8 + _BOX_FACES[None]).reshape(-1, 3)
         self.scene = RayScene(corners.reshape(-1, 3), faces)
+        self.reach = float(np.linalg.norm(corners.max(1) - corners.min(1), axis=1).max())
         self.step = 1e-6 * q.bounding_sphere()[1]
 
     def _test(self, o, d, idx, tmin):
@@ -102,19 +108,20 @@ class QuadricTracer:
         [tmin, tmax]. stop_at_any: shadow rays; any hit will do."""
         n = len(o)
         best_t, best_n, best_i = np.full(n, np.inf), np.zeros((n, 3)), np.full(n, -1)
-        cur = np.array(tmin, float, copy=True)
         tmax = np.broadcast_to(np.asarray(tmax, float), (n,))
         tmin = np.broadcast_to(np.asarray(tmin, float), (n,))
+        cur = tmin.copy() if stop_at_any else tmin - self.reach
+        limit = np.maximum(tmax, tmin + self.reach) if stop_at_any else tmax
         active = np.arange(n)
         for _ in range(100000):
             if not len(active):
                 break
-            h = self.scene.intersect(o[active] + d[active] * cur[active, None], d[active], tmax[active] - cur[active])
+            h = self.scene.intersect(o[active] + d[active] * cur[active, None], d[active], limit[active] - cur[active])
             face_t = cur[active] + h.t
             go = (h.prim >= 0) & (face_t < best_t[active])
             active, face_t, idx = active[go], face_t[go], h.prim[go] // 12
             t, nrm = self._test(o[active], d[active], idx, tmin[active])
-            better = t < best_t[active]
+            better = (t < best_t[active]) & (t <= tmax[active])
             a = active[better]
             best_t[a], best_n[a], best_i[a] = t[better], nrm[better], idx[better]
             cur[active] = face_t + self.step

@@ -12,16 +12,16 @@ from pathlib import Path
 
 import numpy as np
 
-from vdmbake import __version__, exr, parts
+from vdmbake import __version__, code_fingerprint, exr, imported_closure, parts
 from vdmbake.bundle import MANIFEST, Bundle
 from vdmbake.errors import InputError
 from vdmbake.scene import parse_scene_dict
 from vdmbake.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import borders, gl, images, reference, report
+from . import baseline, borders, gl, images, progress, reference, report
 from .camera import cameras_for
-from .metrics import compare
+from .metrics import compare, flip_values, summarise
 from .techniques import Source, mesostructure, variants
 
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
@@ -37,6 +37,10 @@ class Options:
     warmup: int | None = None
     device: str | None = None
     heat_max: float = 10.0                       # delta-Luv at the top of the heat-map colour scale
+    flip: bool = True                            # also score each frame with NVIDIA FLIP
+    baseline: Path | None = None                 # an earlier run's report.json to compare with
+    max_error_increase: float | None = None      # its thresholds (vdmrender.baseline)
+    max_slowdown: float | None = None
 
 
 def check_memory(width: int, height: int, available: int | None = None) -> None:
@@ -50,8 +54,16 @@ def check_memory(width: int, height: int, available: int | None = None) -> None:
                          "or --resolution.")
 
 
-def _reference_key(geometry: dict, cams, light, material, background) -> str:
-    blob = {"version": reference.VERSION, "geometry": geometry, "light": asdict(light), "material": asdict(material),
+def reference_code(mesostructure: bool) -> str:
+    """The fingerprint of the code a reference runs: the tracers, the cameras' pixel rays and what
+    they import (for a mesostructure, also the displaced mesh it traces), as installed."""
+    roots = ["vdmrender.reference", "vdmrender.camera"] + (["vdmrender.techniques.mesostructure"] if mesostructure
+                                                           else [])
+    return code_fingerprint(imported_closure(roots))
+
+
+def _reference_key(geometry: dict, cams, light, material, background, code: str) -> str:
+    blob = {"code": code, "geometry": geometry, "light": asdict(light), "material": asdict(material),
             "background": list(background),
             "cameras": [[c.eye.tolist(), c.target.tolist(), c.up.tolist(), c.fov_deg, c.width, c.height,
                          c.near, c.far] for c in cams]}
@@ -67,7 +79,8 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     if obj.mesostructure:   # the truly displaced geometry: the base mesh, the maps and how they are mapped
         geometry.update(maps=bundle.manifest["parts"][entry["mesostructure"]]["sha256"],
                         mesostructure=asdict(obj.mesostructure))
-    key = _reference_key(geometry, cams, scene.light, obj.material, scene.render.background)
+    key = _reference_key(geometry, cams, scene.light, obj.material, scene.render.background,
+                         reference_code(obj.mesostructure is not None))
     prev_key = out.previous(f"{folder}/key.txt")
     names = [f"{folder}/{k:03d}" for k in range(len(cams))]
     if prev_key.is_file() and prev_key.read_text().strip() == key and all(
@@ -87,7 +100,7 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
             ref = reference.MeshReference(bundle.read(part, parts.MESH), scene.light, obj.material)
         else:
             ref = reference.QuadricReference(bundle.read(part, parts.QUADRICS), scene.light, obj.material)
-        frames = [ref.render(c) for c in cams]
+        frames = [ref.render(c) for c in progress.bar(cams, f"{obj.name}: reference")]
         classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
         info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
     for n, f, k in zip(names, frames, classes):
@@ -103,11 +116,12 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     return frames, classes, info
 
 
-def time_variant(ctx, renderer, target, cams, repeats: int, warmup: int) -> tuple[list[float], list[np.ndarray]]:
+def time_variant(ctx, renderer, target, cams, repeats: int, warmup: int,
+                 desc: str = "render") -> tuple[list[float], list[np.ndarray]]:
     """Per frame: `warmup` untimed renders, then `repeats` timed ones (ctx.finish() inside the timed
     region); returns every timed sample in ms and each frame's read-back image."""
     samples, frames = [], []
-    for cam in cams:
+    for cam in progress.bar(cams, desc):
         for _ in range(warmup):
             renderer.render(cam, target)
             ctx.finish()
@@ -140,6 +154,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     repeats = opts.repeats or scene.render.repeats
     warmup = scene.render.warmup if opts.warmup is None else opts.warmup
     only = _technique_filter(opts, scene)
+    old = baseline.load(opts.baseline) if opts.baseline else None
     check_memory(width, height)
     ctx = gl.create_context(opts.device)
     device = gl.renderer_name(ctx)
@@ -152,10 +167,17 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                   "timing": "median wall time per frame over all timed renders, ctx.finish() inside the timed "
                             "region; ratio_to_baseline divides by the baseline row of the same object and run",
                   "error": "delta-L*u*v* (CIE 1976, sRGB/D65) against the reference over the union of both "
-                           "coverage masks (thesis eq. 2.2); for a mesostructure object, pixels that see an open "
-                           "border or the surface from inside (reference/OBJECT/NNN-classes.png) are scored apart: "
-                           "border_px, inside_px, mean_dluv_apart, and every pixel together in mean_dluv_all, iou_all",
+                           "coverage masks (thesis eq. 2.2); a frame where neither covers a pixel is empty: no "
+                           "error, flagged, counted in empty_frames and left out of the averages; for a "
+                           "mesostructure object, pixels that see an open border or the surface from inside "
+                           "(reference/OBJECT/NNN-classes.png) are scored apart: border_px, inside_px, "
+                           "mean_dluv_apart, and every pixel together in mean_dluv_all, iou_all",
+                  "flip": "NVIDIA FLIP (LDR, 67 pixels per degree) of the sRGB frames, averaged over the same "
+                          "pixels as the error (flip_mean pools a variant's frames like mean_dluv)" if opts.flip else "not computed",
                   "heatmap_max_dluv": opts.heat_max, "rows": rows}
+        if old is not None:
+            result["baseline"] = {"report": str(opts.baseline),
+                                  **baseline.compare(old, result, opts.max_error_increase, opts.max_slowdown)}
         report.write(out.tmp, result)
         out.commit()
     except BaseException:
@@ -166,49 +188,36 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     return result
 
 
-def _measure(ctx, v, target, cams, ref8, classes, repeats, warmup, out, name, heat_max, background):
+def _measure(ctx, v, target, cams, ref8, classes, repeats, warmup, out, obj, heat_max, background, flip):
     """One variant: time it, read its frames back, compare each with the reference, write its
-    frames and heat maps. Returns its report row and the frames and heat maps for the overview."""
+    frames and heat maps. Returns its report row and the frames and heat maps for the overview.
+    A frame with no pixel to score has no data: it is flagged `empty`, has no error, counts in
+    `empty_frames` and stays out of the row's averages (metrics.summarise)."""
+    name = obj.name
     renderer = v.build(ctx)
-    samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup)
+    samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup, f"{name}: {v.label}")
     faces = getattr(renderer, "faces", None)
     renderer.release()
-    per_frame, dists, heats, enc, whole, apart, apart_d = [], [], [], [], [], {1: 0, 2: 0}, []
-    for k, (f, r8, cls) in enumerate(zip(frames, ref8, classes)):
+    scores, heats, enc = [], [], []
+    for k, (f, r8, cls) in enumerate(progress.bar(list(zip(frames, ref8, classes)), f"{name}: {v.label} scoring")):
         f8 = images.encode(f, background)
         c = compare(f8, r8, cls)
+        c.update(flip=flip_values(f8, r8, c["scored"]) if flip else np.zeros(0),
+                 coverage=float((r8[..., 3] > 0).mean()), nonfinite=int((~np.isfinite(f)).any(-1).sum()))
         heat = images.heatmap(c["dist"], heat_max)
         images.save_rgb(out.file(f"frames/{name}/{v.label}/{k:03d}.png"), f8)
         images.save_rgb(out.file(f"heatmaps/{name}/{v.label}/{k:03d}.png"), heat)
-        per_frame.append({"frame": k, "mean_dluv": round(c["mean"], 4), "iou": round(c["iou"], 6),
-                          "nonfinite": int((~np.isfinite(f)).any(-1).sum())})
-        if cls is not None:
-            per_frame[-1].update(iou_all=round(c["iou_all"], 6), border_px=c["apart"][1], inside_px=c["apart"][2])
-            for cl in apart:
-                apart[cl] += c["apart"][cl]
-            apart_d.append(c["apart_values"])
-        whole.append(c["dist"][c["union"]])
-        dists.append(c["values"])
+        scores.append(c)
         heats.append(heat)
         enc.append(f8)
-    d = np.concatenate(dists)
     row = {"object": name, "technique": v.technique, "knob": v.knob, "value": v.value, "label": v.label,
-           "faces": faces, "frames": len(cams),
-           "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3),
-           "mean_dluv": round(float(d.mean()), 4) if d.size else 0.0,
-           "p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else 0.0,
-           "max_dluv": round(float(d.max()), 4) if d.size else 0.0,
-           "iou": round(float(np.mean([p["iou"] for p in per_frame])), 6),
-           "coverage": round(float(np.mean([r8[..., 3].mean() / 255 for r8 in ref8])), 6),
-           "nonfinite": sum(p["nonfinite"] for p in per_frame), "per_frame": per_frame}
-    if classes[0] is not None:   # scored apart (vdmrender.borders): the border and inside pixels, and every pixel
-        w, ad = np.concatenate(whole), np.concatenate(apart_d)
-        row.update(surface_px=int(d.size), border_px=apart[1], inside_px=apart[2],
-                   border_fraction=round(apart[1] / max(w.size, 1), 6), inside_fraction=round(apart[2] / max(w.size, 1), 6),
-                   mean_dluv_apart=round(float(ad.mean()), 4) if ad.size else 0.0,
-                   mean_dluv_all=round(float(w.mean()), 4) if w.size else 0.0,
-                   iou_all=round(float(np.mean([p["iou_all"] for p in per_frame])), 6))
+           "faces": faces, "frames": len(cams), "expect_empty": obj.expect_empty,
+           "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3), **summarise(scores)}
     return row, enc, heats
+
+
+def _show(x, width: int, digits: int) -> str:
+    return f"{'-':>{width}}" if x is None else f"{x:{width}.{digits}f}"
 
 
 def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log) -> list[dict]:
@@ -224,13 +233,14 @@ def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, o
         ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
         sheet = [("reference", ref8)]
         for v in chosen:
-            row, enc, heats = _measure(ctx, v, target, cams, ref8, ref_classes, repeats, warmup, out, obj.name, opts.heat_max,
-                                       scene.render.background)
+            row, enc, heats = _measure(ctx, v, target, cams, ref8, ref_classes, repeats, warmup, out, obj,
+                                       opts.heat_max, scene.render.background, opts.flip)
             rows.append({**row, "device": device, "reference_cached": ref_info["cached"]})
             sheet += [(v.label, enc), (f"{v.label} error", heats)]
-            log(f"{obj.name}: {v.label:>14}  {row['median_ms']:9.3f} ms/frame  mean dLuv {row['mean_dluv']:7.3f}  "
-                f"p95 {row['p95_dluv']:7.3f}  IoU {row['iou']:.4f}" +
-                (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
+            log(f"{obj.name}: {v.label:>14}  {row['median_ms']:9.3f} ms/frame  mean dLuv {_show(row['mean_dluv'], 7, 3)}"
+                f"  p95 {_show(row['p95_dluv'], 7, 3)}  IoU {_show(row['iou'], 6, 4)}  FLIP {_show(row['flip_mean'], 6, 4)}"
+                + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")
+                + (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
         images.overview(sheet, out.file(f"overview/{obj.name}.png"))
     target.release()
     return rows

@@ -1,12 +1,16 @@
-"""The error-against-time report: report.json, report.csv and error_vs_time.png."""
+"""The error-against-time report: report.json, report.csv and error_vs_time.png (and with --baseline,
+baseline.md and baseline.csv: the change against an earlier run)."""
 from __future__ import annotations
 
 import csv
 import json
 from pathlib import Path
 
-COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "median_ms", "min_ms",
-           "ratio_to_baseline", "baseline", "mean_dluv", "p95_dluv", "max_dluv", "iou", "coverage", "nonfinite", "device",
+from . import baseline
+
+COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "empty_frames", "median_ms", "min_ms",
+           "ratio_to_baseline", "baseline", "mean_dluv", "p95_dluv", "max_dluv", "iou", "flip_mean", "coverage",
+           "nonfinite", "device",
            # mesostructure objects (vdmrender.borders): pixels scored apart, and every pixel together
            "surface_px", "border_px", "inside_px", "border_fraction", "inside_fraction", "mean_dluv_apart",
            "mean_dluv_all", "iou_all"]
@@ -29,6 +33,9 @@ def write(folder: Path, report: dict) -> None:
         w = csv.DictWriter(f, COLUMNS, extrasaction="ignore")
         w.writeheader()
         w.writerows(report["rows"])
+    if "baseline" in report:
+        (folder / "baseline.md").write_text(baseline.table(report["baseline"]))
+        (folder / "baseline.csv").write_text(baseline.to_csv(report["baseline"]))
     plot(folder / "error_vs_time.png", report)
 
 
@@ -45,7 +52,7 @@ def plot(path: Path, report: dict) -> None:
     for ax, obj in zip(axes[0], objects):
         mine = [r for r in rows if r["object"] == obj]
         for tech in dict.fromkeys(r["technique"] for r in mine):
-            pts = [r for r in mine if r["technique"] == tech]   # in knob order, as the scene lists it
+            pts = [r for r in mine if r["technique"] == tech and r["mean_dluv"] is not None]   # in knob order
             ax.plot([r["median_ms"] for r in pts], [r["mean_dluv"] for r in pts], "o-", label=tech)
             for r in pts:
                 ax.annotate(r["label"], (r["median_ms"], r["mean_dluv"]), textcoords="offset points",

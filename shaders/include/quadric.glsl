@@ -23,6 +23,14 @@ vec4 quadric_bounds(mat4 T) {
     return vec4(min(lo, hi), max(lo, hi));
 }
 
+// The side of the eye plane the quadric T lies on: 1 in front, -1 behind, 0 reaching it (where
+// quadric_bounds gives the whole screen). The clip w row of P M T applied to T's centre is its depth.
+float eye_side(mat4 T) {
+    vec4 rw = transpose(u_view_proj * T)[3];
+    if (dot(rw, D * rw) >= -1e-12 * dot(rw, rw)) return 0.0;
+    return rw.w > 0.0 ? 1.0 : -1.0;
+}
+
 // A screen-aligned quad over the bounds, clamped to the screen, at depth 0 (never clipped);
 // the fragment stage writes the true depth.
 vec4 quad_corner(vec4 box, vec2 corner) {

@@ -184,8 +184,8 @@ class Billboards:
             self.objects += [self.maps, self.alpha, cube, ibuf]
             for stage, extra in (("shadow", ("SHADOW",)), ("frame", ())):
                 prog = gl.program(ctx, "billboard.vert", "billboard.frag", defines + extra)
-                vao = ctx.vertex_array(prog, [(cube, "3f", "in_corner"),
-                                              (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
+                vao = gl.vertex_array(ctx, prog, [(cube, "3f", "in_corner"),
+                                                  (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
                 self.draws.append((stage, prog, vao, "boards"))
         if coarse is not None:   # sec. 3.4: the coarse mesh, drawn like RasterMesh
             vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
@@ -194,7 +194,7 @@ class Billboards:
             for stage, frag, attrs in (("shadow", "depth.frag", [(vbo, "3f", "in_pos")]),
                                        ("frame", "mesh.frag", [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")])):
                 prog = gl.program(ctx, "mesh.vert", frag)
-                self.draws.append((stage, prog, ctx.vertex_array(prog, attrs, ibo), "mesh"))
+                self.draws.append((stage, prog, gl.vertex_array(ctx, prog, attrs, ibo), "mesh"))
 
     def _draw(self, stage: str, view_proj, raster, viewport, push, **uniforms) -> None:
         """One pass. raster: the billboards' box matrix (wider depth range than view_proj); push: the coarse
@@ -211,10 +211,12 @@ class Billboards:
             if kind == "boards":
                 self.maps.use(1)
                 self.alpha.use(2)
-                gl.set_uniforms(prog, u_maps=1, u_alpha=2, u_hit_range=self.hit_range, u_raster=raster,
-                                u_steps_per_texel=self.steps_per_texel,
-                                u_tolerance=2 * self.hit_range if self.method == "thesis" else 0.0,
-                                u_board_texels=BOARD_TEXELS, u_view_proj=view_proj,
+                march = ({"u_hit_range": self.hit_range} if self.method == "thesis"
+                         else {"u_steps_per_texel": self.steps_per_texel})
+                if stage == "frame":   # the frame's shadow lookup offset (billboard.frag)
+                    march.update(u_board_texels=BOARD_TEXELS,
+                                 u_tolerance=2 * self.hit_range if self.method == "thesis" else 0.0)
+                gl.set_uniforms(prog, u_maps=1, u_alpha=2, u_raster=raster, **march, u_view_proj=view_proj,
                                 u_inv_view_proj=np.linalg.inv(view_proj),
                                 u_viewport=tuple(float(x) for x in viewport), **uniforms)
                 ctx.enable(moderngl.CULL_FACE)

@@ -15,6 +15,10 @@ from .shadowmap import ShadowMap, translation
 NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels: less gives
                              # acne, more detaches shadows (docs/tuning.md)
 
+# What each pass variant (its #define) compiles away of the shared vertex layout: the shadow map's
+# depth pass reads no colour.
+DROPS = {"depth": ("in_rgb",), "direct": (), "gbuffer": ()}
+
 
 class Impostors:
     def __init__(self, ctx, q, light, material, shadow_size: int, shading: str, silhouette: float, crease: float):
@@ -34,15 +38,14 @@ class Impostors:
             inst = ctx.buffer(np.ascontiguousarray(data, "f4").tobytes())
             self.buffers.append(inst)
             for name, defines in passes.items():
-                prog = gl.program(ctx, f"{kind}.vert", f"{kind}.frag", defines)
-                vao = ctx.vertex_array(prog, [(corners, "2f", "in_corner"), (inst, layout, *names)],
-                                       skip_errors=name == "depth")   # the depth pass reads no colour
+                prog = gl.program(ctx, f"{kind}.vert", f"{kind}.frag", defines, DROPS[name])
+                vao = gl.vertex_array(ctx, prog, [(corners, "2f", "in_corner"), (inst, layout, *names)])
                 self.draws.append((name, prog, vao, len(data)))
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, radius)
         self.gbuffer = self.fullscreen = None
         if shading != "direct":
             self.deferred = gl.program(ctx, "fullscreen.vert", "deferred.frag")
-            self.fullscreen = ctx.vertex_array(self.deferred, [])
+            self.fullscreen = gl.vertex_array(ctx, self.deferred, [])
 
     def _draw(self, which: str, view_proj: np.ndarray, size, **uniforms) -> None:
         for name, prog, vao, n in self.draws:
@@ -50,7 +53,7 @@ class Impostors:
                 gl.set_uniforms(prog, u_view_proj=view_proj, u_inv_view_proj=np.linalg.inv(view_proj),
                                 u_viewport=tuple(float(x) for x in size), **uniforms)
                 if which == "direct":
-                    gl.set_shading(prog, self.light, self.material)
+                    gl.set_shading(prog, self.light, self.material, albedo=False)   # colours per instance
                     self.shadow.bind(prog, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
                 vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=n)
 
@@ -85,11 +88,11 @@ class Impostors:
         target.begin()
         ctx.disable(moderngl.DEPTH_TEST)
         p = self.deferred
-        gl.set_shading(p, self.light, self.material)
+        gl.set_shading(p, self.light, self.material, albedo=False)   # albedo from the G-buffer
         self.shadow.bind(p, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
         normal_mu.use(1)
         albedo.use(2)
-        gl.set_uniforms(p, u_normal_mu=1, u_albedo_cov=2, u_eye=eye, u_view_proj=view_proj,
+        gl.set_uniforms(p, u_normal_mu=1, u_albedo_cov=2, u_eye=eye,
                         u_inv_view_proj=np.linalg.inv(view_proj), u_viewport=tuple(float(x) for x in target.size),
                         u_near_far=(camera.near, camera.far), u_silhouette=self.silhouette, u_crease=self.crease)
         self.fullscreen.render(moderngl.TRIANGLES, vertices=3)

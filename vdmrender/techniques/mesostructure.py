@@ -51,7 +51,10 @@ class MesostructurePass(RasterPasses):
 
     NORMAL_OFFSET_TEXELS = 1.5   # the lookups are at the base surface, which the shadow map also holds
 
-    def __init__(self, ctx, src, frag: str, **uniforms):
+    def __init__(self, ctx, src, frag: str, heights: bool = True, curvature: bool = False, **uniforms):
+        """heights: the stage marches the height field (u_height, u_depth; bump reads only normals).
+        curvature: the stage reads the curvature frame (in_curv, in_d1: only vdm.frag); one vertex
+        layout serves every stage, and the others compile those attributes away."""
         mesh = src.bundle.read(src.entry["mesh"], parts.MESH)
         anchor, radius = mesh.bounding_sphere()
         super().__init__(ctx, src.scene.light, src.obj.material, anchor, radius, src.shadow_map)
@@ -65,15 +68,18 @@ class MesostructurePass(RasterPasses):
                  [(vbo, "3f 3f 2f 3f 3f 2f 3f", "in_pos", "in_normal", "in_uv", "in_dpdu", "in_dpdv", "in_curv",
                    "in_d1")],
                  [(vbo, "3f 64x", "in_pos")], ibo, frag=frag, depth_vertex="mesh.vert",
-                 optional=True)
+                 may_lack=() if curvature else ("in_curv", "in_d1"))
         meso = maps(src)
         h, n = meso.heights, meso.normals
         # Height fields are indexed [v, u] with row 0 at v = 0 (vdmbake.heightfields); GL's first row is
         # t = 0, so the arrays go up as they are and texture(T) reads h at T = (u, v).
         self.textures = {
-            "u_height": texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"), True, True),
             "u_normals": texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, True)}
-        self.uniforms = {"u_tiling": tuple(m.tiling), "u_depth": m.depth, **uniforms}
+        self.uniforms = {"u_tiling": tuple(m.tiling), **uniforms}
+        if heights:
+            self.textures["u_height"] = texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"),
+                                                True, True)
+            self.uniforms["u_depth"] = m.depth
 
     def bind_frame(self, prog, camera) -> None:
         for unit, (name, tex) in enumerate(self.textures.items(), start=1):

@@ -16,6 +16,7 @@ class RasterPasses:
 
     POLYGON_OFFSET = (2.0, 2.0)   # slope-scaled and constant depth bias of the shadow-map pass
     NORMAL_OFFSET_TEXELS = 0.0    # shadow lookups move this far along the normal, in shadow-map texels
+    UNIFORM_ALBEDO = True         # the material's albedo as u_albedo (False: colours per instance)
 
     def __init__(self, ctx, light, material, anchor, radius: float, shadow_size: int):
         self.ctx, self.light, self.material, self.anchor = ctx, light, material, anchor
@@ -24,16 +25,15 @@ class RasterPasses:
 
     def add(self, vertex: str, defines: tuple, buffers: list, attributes: list, depth_attributes: list,
             index, instances: int = 1, frag: str = "mesh.frag", depth_vertex: str | None = None,
-            optional: bool = False) -> None:
+            may_lack: tuple[str, ...] = ()) -> None:
         """One draw in both passes; the depth pass reads only `depth_attributes` (through
-        `depth_vertex` if given). optional: attributes the fragment stage does not read may be
-        compiled away (one vertex layout serves several fragment stages)."""
+        `depth_vertex` if given). may_lack: attributes and uniforms the frame pass's fragment stage
+        may compile away (one vertex layout serves several fragment stages; gl.program)."""
         self.buffers += buffers
-        for stage, vert, fs, attrs in (("frame", vertex, frag, attributes),
-                                       ("shadow", depth_vertex or vertex, "depth.frag", depth_attributes)):
-            prog = gl.program(self.ctx, vert, fs, defines)
-            vao = self.ctx.vertex_array(prog, attrs, index, skip_errors=optional and stage == "frame")
-            self.draws.append((stage, prog, vao, instances))
+        for stage, vert, fs, attrs, lack in (("frame", vertex, frag, attributes, may_lack),
+                                             ("shadow", depth_vertex or vertex, "depth.frag", depth_attributes, ())):
+            prog = gl.program(self.ctx, vert, fs, defines, lack)
+            self.draws.append((stage, prog, gl.vertex_array(self.ctx, prog, attrs, index), instances))
 
     def bind_frame(self, prog, camera) -> None:
         """Extra uniforms and textures of the frame pass (none for plain meshes)."""
@@ -53,7 +53,7 @@ class RasterPasses:
         mvp = camera.projection() @ camera.view() @ translation(self.anchor)
         for stage, prog, vao, n in self.draws:
             if stage == "frame":
-                gl.set_shading(prog, self.light, self.material)
+                gl.set_shading(prog, self.light, self.material, self.UNIFORM_ALBEDO)
                 gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(camera.eye - self.anchor))
                 self.shadow.bind(prog, normal_offset=self.NORMAL_OFFSET_TEXELS * self.shadow.texel)
                 self.bind_frame(prog, camera)

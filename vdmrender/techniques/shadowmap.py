@@ -42,10 +42,9 @@ class ShadowMap:
         self.ctx.viewport = (0, 0, *self.texture.size)
         self.fbo.clear(depth=1.0)
 
-    def bind(self, prog, unit: int = 0, normal_offset: float = 0.0, bias: float = 0.0) -> None:
+    def bind(self, prog, unit: int = 0, normal_offset: float = 0.0) -> None:
         self.texture.use(unit)
-        gl.set_uniforms(prog, u_shadow_map=unit, u_light_mvp=self.view_proj, u_normal_offset=normal_offset,
-                        u_shadow_bias=bias)
+        gl.set_uniforms(prog, u_shadow_map=unit, u_light_mvp=self.view_proj, u_normal_offset=normal_offset)
 
     def release(self) -> None:
         gl.release(self.fbo, self.texture)

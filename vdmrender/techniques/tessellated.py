@@ -11,6 +11,8 @@ from .raster import RasterPasses
 
 
 class Tessellated(RasterPasses):
+    UNIFORM_ALBEDO = False   # each quadric's colour comes with its instance (in_rgb)
+
     def __init__(self, ctx, q, light, material, shadow_size: int, level: int):
         anchor, radius = q.bounding_sphere()
         super().__init__(ctx, light, material, anchor, radius, shadow_size)

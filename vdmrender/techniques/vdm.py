@@ -37,7 +37,7 @@ class VDMPass(MesostructurePass):
         cs = part["curvatures"]
         n_c = len(cs)
         axis = (cs[0], (n_c - 1) / (cs[-1] - cs[0]) if n_c > 1 else 0.0, n_c)
-        super().__init__(ctx, src, "vdm.frag", u_k=int(k), u_groups=W.shape[0], u_n_phi=m.phi,
+        super().__init__(ctx, src, "vdm.frag", curvature=True, u_k=int(k), u_groups=W.shape[0], u_n_phi=m.phi,
                          u_curv_axis=tuple(float(x) for x in axis),
                          u_shadow_eps=SHADOW_EPS_DEPTH * m.depth + SHADOW_EPS_TEXELS / m.size)
         g = W.shape[0]

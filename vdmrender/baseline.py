@@ -1,0 +1,106 @@
+"""Regression gating against a previous run's report.json (`vdmrender --baseline OLD/report.json`).
+
+Per object and variant: the change in mean ΔLuv, p95 ΔLuv and FLIP (new minus old) and the time
+ratio (new median over old median). Thresholds in the style of OpenImageIO's idiff (`-fail`,
+`-failpercent`): an absolute error increase and a slowdown ratio beyond which the run fails
+(exit 1). Pure data in, data out: no GL, no rendering.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+from vdmbake.errors import InputError
+
+COLUMNS = ["object", "label", "status", "old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv",
+           "new_p95_dluv", "d_p95_dluv", "old_flip", "new_flip", "d_flip", "old_ms", "new_ms", "time_ratio",
+           "exceeds"]
+
+
+def load(path: Path) -> dict:
+    """A previous run's report, checked enough to compare with: rows naming object and label."""
+    path = Path(path)
+    try:
+        report = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError(f"--baseline {path}: file not found; give the report.json of an earlier vdmrender run.") \
+            from None
+    except (OSError, ValueError) as e:
+        raise InputError(f"--baseline {path}: not a readable JSON report ({e}).") from None
+    rows = report.get("rows") if isinstance(report, dict) else None
+    if not isinstance(rows, list) or not all(isinstance(r, dict) and {"object", "label", "mean_dluv", "median_ms"}
+                                             <= r.keys() for r in rows):
+        raise InputError(f"--baseline {path}: not a vdmrender report.json (it needs 'rows', each with object, "
+                         "label, mean_dluv and median_ms).")
+    return report
+
+
+def _diff(new, old):
+    return None if new is None or old is None else round(new - old, 4)
+
+
+def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown: float | None) -> dict:
+    """The baseline block of the new report: one change row per object and variant in either run,
+    and which thresholds each exceeds. status: `compared`; `new` (no old row); `missing` (an old
+    row the new run lacks: not a failure, the run may have been filtered with -t)."""
+    old_rows = {(r["object"], r["label"]): r for r in old["rows"]}
+    new_rows = {(r["object"], r["label"]): r for r in new["rows"]}
+    changes = []
+    for key in [*new_rows, *(k for k in old_rows if k not in new_rows)]:
+        o, n = old_rows.get(key), new_rows.get(key)
+        get = lambda r, k: None if r is None else r.get(k)  # noqa: E731
+        ratio = (round(n["median_ms"] / o["median_ms"], 4) if o and n and o["median_ms"] and n["median_ms"]
+                 else None)
+        c = {"object": key[0], "label": key[1], "status": "compared" if o and n else ("new" if n else "missing"),
+             "old_mean_dluv": get(o, "mean_dluv"), "new_mean_dluv": get(n, "mean_dluv"),
+             "d_mean_dluv": _diff(get(n, "mean_dluv"), get(o, "mean_dluv")),
+             "old_p95_dluv": get(o, "p95_dluv"), "new_p95_dluv": get(n, "p95_dluv"),
+             "d_p95_dluv": _diff(get(n, "p95_dluv"), get(o, "p95_dluv")),
+             "old_flip": get(o, "flip_mean"), "new_flip": get(n, "flip_mean"),
+             "d_flip": _diff(get(n, "flip_mean"), get(o, "flip_mean")),
+             "old_ms": get(o, "median_ms"), "new_ms": get(n, "median_ms"), "time_ratio": ratio}
+        exceeds = []
+        if max_error_increase is not None and c["d_mean_dluv"] is not None and c["d_mean_dluv"] > max_error_increase:
+            exceeds.append("error")
+        if max_slowdown is not None and ratio is not None and ratio > max_slowdown:
+            exceeds.append("time")
+        changes.append({**c, "exceeds": exceeds})
+    notes = [f"baseline {k} {old.get(k)!r} differs from this run's {new.get(k)!r}"
+             for k in ("device", "resolution") if old.get(k) != new.get(k)]
+    return {"thresholds": {"max_error_increase": max_error_increase, "max_slowdown": max_slowdown},
+            "notes": notes, "rows": changes, "failed": [f"{c['object']}: {c['label']}" for c in changes if c["exceeds"]]}
+
+
+def _cell(v, digits: int) -> str:
+    return "-" if v is None else f"{v:.{digits}f}"
+
+
+def table(block: dict) -> str:
+    """The block as a markdown table (stderr and OUT/baseline.md); a row over a threshold is marked."""
+    t = block["thresholds"]
+    lines = [f"change against the baseline (max error increase {t['max_error_increase']}, "
+             f"max slowdown {t['max_slowdown']})", *(f"note: {n}" for n in block["notes"]), "",
+             "| object | variant | mean ΔLuv old → new | Δ mean | p95 old → new | Δ p95 | FLIP Δ | ms old → new "
+             "| time ratio | exceeds |", "|---|---|---|---:|---|---:|---:|---|---:|---|"]
+    for c in block["rows"]:
+        lines.append(
+            f"| {c['object']} | {c['label']} | {_cell(c['old_mean_dluv'], 3)} → {_cell(c['new_mean_dluv'], 3)} | "
+            f"{_signed(c['d_mean_dluv'], 3)} | {_cell(c['old_p95_dluv'], 2)} → {_cell(c['new_p95_dluv'], 2)} | "
+            f"{_signed(c['d_p95_dluv'], 2)} | {_signed(c['d_flip'], 4)} | {_cell(c['old_ms'], 1)} → "
+            f"{_cell(c['new_ms'], 1)} | {_cell(c['time_ratio'], 2)} | "
+            f"{', '.join(c['exceeds']) or ('' if c['status'] == 'compared' else c['status'])} |")
+    return "\n".join(lines) + "\n"
+
+
+def _signed(v, digits: int) -> str:
+    return "-" if v is None else f"{v:+.{digits}f}"
+
+
+def to_csv(block: dict) -> str:
+    f = io.StringIO()
+    w = csv.DictWriter(f, COLUMNS, extrasaction="ignore")
+    w.writeheader()
+    w.writerows({**c, "exceeds": " ".join(c["exceeds"])} for c in block["rows"])
+    return f.getvalue()
