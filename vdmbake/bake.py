@@ -4,7 +4,8 @@ A surface object (mesh file or primitive) gets its full mesh: the reference trac
 the `mesh` technique draws it; `coarse` adds one simplified mesh per requested ratio.
 A surface object with a mesostructure also gets its height field, and, only if it names the
 `vdm` technique, the VDM/MVM tables: sampled over the curvature range its base mesh has, ray
-cast, compressed to the largest k the scene renders.
+cast, compressed to the largest k the scene renders; only if it names `relief`, the min/max
+pyramid of its depth field.
 A quadrics object (molecule or inline spheres/cylinders) gets only its quadric list:
 nothing is ray cast at bake time. Each part is baked only when a technique asks for it.
 """
@@ -17,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, coarse, curvature, heightfields, primitives, quadrics, texspace, vdm
+from . import __version__, coarse, curvature, heightfields, primitives, pyramid, quadrics, texspace, vdm
 from .bundle import FORMAT_VERSION, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
@@ -165,13 +166,26 @@ def _bake_billboards(writer: BundleWriter, obj: Object, mesh: TriMesh, log, step
     return out
 
 
+def _bake_relief(writer: BundleWriter, obj: Object, heights: np.ndarray, log, steps: dict) -> dict:
+    """The min/max pyramid of the depth field depth * (1 - h) (texture units, float32) for `relief`."""
+    t0 = time.perf_counter()
+    p = pyramid.build((obj.mesostructure.depth * (1.0 - heights)).astype(np.float32), pyramid.WRAP)
+    steps["relief_pyramid_s"] = round(time.perf_counter() - t0, 4)
+    rel = writer.add_exr(f"objects/{obj.name}/relief.exr", pyramid.to_parts(p), "relief")
+    log(f"{obj.name}: relief pyramid {p.top + 1} levels, {p.nbytes / 2**10:.0f} KB")
+    return {"pyramid": rel, "mode": p.mode, "levels": p.top + 1, "bytes": p.nbytes}
+
+
 def _bake_mesostructure(writer: BundleWriter, obj: Object, mesh: TriMesh, base: Path, log, steps: dict) -> dict:
-    """The height field and, if `vdm` is rendered, the compressed VDM/MVM tables (sec. 3.1-3.3)."""
+    """The height field; if `relief` is rendered, its pyramid; if `vdm` is, the compressed VDM/MVM tables
+    (sec. 3.1-3.3)."""
     m = obj.mesostructure
     heights = heightfields.from_spec(m.height, m.size, base)
     name = obj.name
     out = {"height": writer.add_exr(f"objects/{name}/height.exr", {"height": {"h": heights.astype(np.float32)}},
                                     "height")}
+    if "relief" in obj.techniques:
+        out["relief"] = _bake_relief(writer, obj, heights, log, steps)
     if "vdm" not in obj.techniques:
         return out
     lo, hi = texspace.curvature_range(mesh.frame, mesh.normals, m.tiling)

@@ -73,6 +73,10 @@ TECHNIQUES: dict[str, TechniqueSpec] = {
     # search towards the light for shadows
     "pom": TechniqueSpec(("surface",), Knob("steps", "steps", (8, 16, 32), _int_in(2, 1024),
                                             "integers in [2, 1024]"), mesostructure=True),
+    # relief mapping: the view ray and the shadow ray traced exactly through the height field's min/max
+    # pyramid (Tevs et al. 2008), bent by the surface's curvature; the knob caps the cell visits per ray
+    "relief": TechniqueSpec(("surface",), Knob("iterations", "iterations", (8, 16, 32), _int_in(1, 4096),
+                                               "integers in [1, 4096]"), mesostructure=True),
     # conventional displacement mapping: the base mesh subdivided this many times (4^level faces per
     # face), displaced, rasterised
     "displaced": TechniqueSpec(("surface",), Knob("levels", "level", (1, 2, 3), _int_in(0, 8),

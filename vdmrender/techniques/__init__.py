@@ -30,7 +30,8 @@ class Variant:
 
 REGISTRY = {"mesh": mesh.variants, "coarse": coarse.variants, "impostor": impostor.variants,
             "tessellated": tessellated.variants, "vdm": mesostructure.vdm_variants, "bump": mesostructure.bump_variants,
-            "pom": mesostructure.pom_variants, "displaced": mesostructure.displaced_variants,
+            "pom": mesostructure.pom_variants, "relief": mesostructure.relief_variants,
+            "displaced": mesostructure.displaced_variants,
             "billboards": billboards.variants}
 
 

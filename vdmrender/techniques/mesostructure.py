@@ -1,16 +1,16 @@
 """Techniques that draw an object's mesostructure (VDM, Wang et al. 2003, and its peers):
-`vdm` (knob k: eigenfunctions reconstructed), `pom` (knob steps), `bump`, all per pixel over the
-base mesh with its interpolated surface frame; and `displaced` (knob level), the base mesh
+`vdm` (knob k: eigenfunctions reconstructed), `pom` (knob steps), `relief` (knob iterations), `bump`, all
+per pixel over the base mesh with its interpolated surface frame; and `displaced` (knob level), the base mesh
 subdivided and displaced, rasterised. All share the shading model and the base mesh's shadow map
-for shadows cast across the object; vdm and pom add the mesostructure's own self-shadows."""
+for shadows cast across the object; vdm, pom and relief add the mesostructure's own self-shadows."""
 from __future__ import annotations
 
 import moderngl
 import numpy as np
 
-from vdmbake import displace, vdm
+from vdmbake import displace, pyramid, vdm
 
-from .. import gl
+from .. import gl, hftrace
 from .mesh import RasterMesh, RasterPasses
 
 # VDM shadow test (sec. 3.2): P' is shadowed if d_L < h / cos(theta_L) - eps, eps = this x depth + this
@@ -58,7 +58,7 @@ class MesostructurePass(RasterPasses):
 
     NORMAL_OFFSET_TEXELS = 1.5   # the lookups are at the base surface, which the shadow map also holds
 
-    def __init__(self, ctx, obj, entry, bundle, scene, frag: str, **uniforms):
+    def __init__(self, ctx, obj, entry, bundle, scene, frag: str, defines: tuple = (), **uniforms):
         mesh = bundle.mesh(entry["mesh"])
         anchor, radius = mesh.bounding_sphere()
         super().__init__(ctx, scene.light, obj.material, anchor, radius, scene.render.shadow_map)
@@ -68,7 +68,7 @@ class MesostructurePass(RasterPasses):
         cols = [mesh.vertices - anchor, mesh.normals, mesh.uvs, f.dpdu, f.dpdv, np.stack([f.k1, f.k2], 1), f.d1]
         vbo = ctx.buffer(np.ascontiguousarray(np.concatenate(cols, 1), "f4").tobytes())
         ibo = ctx.buffer(np.ascontiguousarray(mesh.faces, "i4").tobytes())
-        self.add("mesostructure.vert", (), [vbo, ibo],
+        self.add("mesostructure.vert", defines, [vbo, ibo],
                  [(vbo, "3f 3f 2f 3f 3f 2f 3f", "in_pos", "in_normal", "in_uv", "in_dpdu", "in_dpdv", "in_curv",
                    "in_d1")],
                  [(vbo, "3f 64x", "in_pos")], ibo, frag=frag, depth_vertex="mesh.vert",
@@ -121,6 +121,19 @@ class VDMPass(MesostructurePass):
             (n_c, g), 4, np.ascontiguousarray(E_mvm.transpose(0, 2, 1), "f4").tobytes(), dtype="f4"), False, False)
 
 
+class ReliefPass(MesostructurePass):
+    """Relief mapping by the exact hierarchical tracer (relief.frag, heightfield_trace.glsl) through the baked
+    min/max pyramid, at most `iterations` cell visits per ray. defines: e.g. ("COUNT",) for the instrumented
+    stage, which writes the tracer's cell visits per pixel instead of a colour."""
+
+    def __init__(self, ctx, obj, entry, bundle, scene, iterations: int, defines: tuple = ()):
+        r = entry["mesostructure"]["relief"]
+        p = pyramid.from_parts(bundle.exr(r["pyramid"]), r["mode"])
+        super().__init__(ctx, obj, entry, bundle, scene, "relief.frag", defines, u_iterations=int(iterations),
+                         **hftrace.uniforms(p))
+        self.textures["u_hf"] = hftrace.pyramid_texture(ctx, p)
+
+
 def vdm_variants(obj, entry, bundle, scene, options):
     return [(k, lambda ctx, k=k: VDMPass(ctx, obj, entry, bundle, scene, k)) for k in options["k"]]
 
@@ -128,6 +141,10 @@ def vdm_variants(obj, entry, bundle, scene, options):
 def pom_variants(obj, entry, bundle, scene, options):
     return [(s, lambda ctx, s=s: MesostructurePass(ctx, obj, entry, bundle, scene, "pom.frag", u_steps=s))
             for s in options["steps"]]
+
+
+def relief_variants(obj, entry, bundle, scene, options):
+    return [(n, lambda ctx, n=n: ReliefPass(ctx, obj, entry, bundle, scene, n)) for n in options["iterations"]]
 
 
 def bump_variants(obj, entry, bundle, scene, options):
