@@ -224,3 +224,17 @@ def test_all_zero_heights(tmp_path):
     assert mean(rows, "relief@32") < 0.3 * mean(rows, "pom@16")              # 9.922
     (bent, bent_iou), (flat, flat_iou) = stage_errors(tmp_path, out, (), ("FLAT",))
     assert bent < 0.4 * flat and bent_iou > flat_iou + 0.1
+
+
+def test_back_faces_follow_the_winding():
+    """relief's frame pass culls the faces its stage would discard: back faces of a consistently wound mesh,
+    front faces of one wound the other way, nothing for a mixed one."""
+    from vdmbake import primitives
+    from vdmbake.meshes import TriMesh
+    from vdmrender.techniques.mesostructure import back_faces
+    m = primitives.build("torus", {"major": 1.0, "minor": 0.35, "segments": 16, "rings": 8})
+    assert back_faces(m) == "back"
+    flipped = TriMesh(m.vertices, m.faces[:, ::-1].copy(), m.normals, m.uvs)
+    assert back_faces(flipped) == "front"
+    mixed = TriMesh(m.vertices, np.concatenate([m.faces[:10], flipped.faces[10:]]), m.normals, m.uvs)
+    assert back_faces(mixed) is None

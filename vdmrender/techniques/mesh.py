@@ -15,6 +15,7 @@ class RasterPasses:
 
     POLYGON_OFFSET = (2.0, 2.0)   # slope-scaled and constant depth bias of the shadow-map pass
     NORMAL_OFFSET_TEXELS = 0.0    # shadow lookups move this far along the normal, in shadow-map texels
+    cull_face = None              # faces the frame pass leaves out ("back" or "front"); the shadow pass draws all
 
     def __init__(self, ctx, light, material, anchor, radius: float, shadow_size: int):
         self.ctx, self.light, self.material, self.anchor = ctx, light, material, anchor
@@ -49,6 +50,9 @@ class RasterPasses:
                 vao.render(instances=n)
         ctx.polygon_offset = (0.0, 0.0)
         target.begin()
+        if self.cull_face:
+            ctx.enable(moderngl.CULL_FACE)
+            ctx.cull_face = self.cull_face
         mvp = camera.projection() @ camera.view() @ translation(self.anchor)
         for stage, prog, vao, n in self.draws:
             if stage == "frame":
@@ -57,6 +61,7 @@ class RasterPasses:
                 self.shadow.bind(prog, normal_offset=self.NORMAL_OFFSET_TEXELS * self.shadow.texel)
                 self.bind_frame(prog, camera)
                 vao.render(instances=n)
+        ctx.disable(moderngl.CULL_FACE)
 
     def release(self) -> None:
         for _, _, vao, _ in self.draws:

@@ -121,10 +121,22 @@ class VDMPass(MesostructurePass):
             (n_c, g), 4, np.ascontiguousarray(E_mvm.transpose(0, 2, 1), "f4").tobytes(), dtype="f4"), False, False)
 
 
+def back_faces(mesh) -> str | None:
+    """Which faces a stage that discards fragments seen from behind (V . N <= 0, N the interpolated normal)
+    can leave to the rasteriser to cull: "back" when every face's winding agrees with its vertex normals,
+    "front" when every one disagrees, None for a mixed mesh. (On llvmpipe a discard at the top of the stage
+    still costs about the whole stage: docs/relief-notes.md.)"""
+    v, f = mesh.vertices, mesh.faces
+    g = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    agree = np.einsum("ij,ij->i", g, mesh.normals[f].sum(1))
+    return "back" if (agree >= 0).all() else "front" if (agree <= 0).all() else None
+
+
 class ReliefPass(MesostructurePass):
     """Relief mapping by the exact hierarchical tracer (relief.frag, heightfield_trace.glsl) through the baked
     min/max pyramid, at most `iterations` cell visits per ray. defines: e.g. ("COUNT",) for the instrumented
-    stage, which writes the tracer's cell visits per pixel instead of a colour."""
+    stage, which writes the tracer's cell visits per pixel instead of a colour. The frame pass culls the
+    faces seen from behind (back_faces)."""
 
     def __init__(self, ctx, obj, entry, bundle, scene, iterations: int, defines: tuple = ()):
         r = entry["mesostructure"]["relief"]
@@ -132,6 +144,7 @@ class ReliefPass(MesostructurePass):
         super().__init__(ctx, obj, entry, bundle, scene, "relief.frag", defines, u_iterations=int(iterations),
                          **hftrace.uniforms(p))
         self.textures["u_hf"] = hftrace.pyramid_texture(ctx, p)
+        self.cull_face = back_faces(bundle.mesh(entry["mesh"]))
 
 
 def vdm_variants(obj, entry, bundle, scene, options):
