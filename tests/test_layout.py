@@ -1,5 +1,5 @@
 """The code's shape: the renderer renders what the bundle holds (it imports from vdmbake only the
-bundle, its part kinds, the scene, errors, EXR, Embree and the neutral geometry and colour modules;
+bundle, its part kinds, the scene, errors, EXR, Embree and the neutral geometry, colour and pyramid modules;
 the benchmarks, which drive both tools, excepted), the baker never imports the renderer, and every
 declared technique has its renderer."""
 from __future__ import annotations
@@ -13,7 +13,9 @@ import vdmrender
 from vdmbake.scene import REGISTRY
 
 RENDER_MAY_IMPORT = {"vdmbake", "vdmbake.bundle", "vdmbake.parts", "vdmbake.scene", "vdmbake.errors",
-                     "vdmbake.exr", "vdmbake.embree", "vdmbake.staging", "vdmbake.geometry", "vdmbake.colour"}
+                     "vdmbake.exr", "vdmbake.embree", "vdmbake.staging",
+                     # neutral pure numpy: shared geometry, the sRGB transfer, the tracer's pyramid layout
+                     "vdmbake.geometry", "vdmbake.colour", "vdmbake.pyramid"}
 
 
 def imports(path: Path) -> set[str]:

@@ -12,7 +12,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import exr, ply, quadrics
+from . import exr, ply, pyramid, quadrics
 from .errors import InputError
 from .meshes import TriMesh
 
@@ -149,7 +149,16 @@ def _unpack_billboards(data, meta, origin) -> list[Billboard]:
 
 BILLBOARDS = PartKind("billboards", ".exr", _pack_billboards, _unpack_billboards)
 
-KINDS = {k.name: k for k in (MESH, QUADRICS, MESOSTRUCTURE, VDM, BILLBOARDS)}
+# --- min/max mip pyramid of a depth field (the hierarchical tracer's, vdmbake/pyramid.py) ------------
+
+def _pack_pyramid(p: pyramid.Pyramid):
+    return exr.to_bytes(pyramid.to_parts(p)), {"mode": p.mode, "levels": p.top + 1}
+
+
+PYRAMID = PartKind("pyramid", ".exr", _pack_pyramid,
+                   lambda data, meta, origin: pyramid.from_parts(_channels(data, origin), meta["mode"]))
+
+KINDS = {k.name: k for k in (MESH, QUADRICS, MESOSTRUCTURE, VDM, BILLBOARDS, PYRAMID)}
 
 
 def stored(kind: PartKind, value):

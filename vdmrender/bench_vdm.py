@@ -4,7 +4,8 @@
    16 curvatures in [-2, 3]): seconds per step, and the table bake's rays per second against raw
    Embree on the same rays in the same run; sizes raw and compressed, and the error each k adds.
 2. Error against time on a torus and a vase with brick and gravel heights at 512^2: VDM at several
-   k and uncompressed, POM at several step counts, bump mapping, displacement mapping at several
+   k and uncompressed, POM at several step counts, relief mapping (exact hierarchical tracing) at several
+   iteration caps, bump mapping, displacement mapping at several
    subdivision levels, and the plain base mesh, against the displaced geometry traced by Embree.
 
     python -m vdmrender.bench_vdm -o out/bench [--quick]
@@ -41,7 +42,7 @@ name = "{name}"
 primitive = "{primitive}"
 params = {params}
 mesostructure = {{ height = "{height}", size = {size}, depth = 0.06, tiling = [{tu}, {tv}], phi = {phi}, theta = 8, curvatures = {n_c} }}
-techniques = {{ vdm = {{ k = [1, 2, 4, 8, "all"] }}, pom = {{ steps = [8, 16, 32] }}, bump = {{}}, displaced = {{ levels = {levels} }}, mesh = {{}} }}
+techniques = {{ vdm = {{ k = [1, 2, 4, 8, "all"] }}, pom = {{ steps = [8, 16, 32] }}, relief = {{ iterations = [8, 16, 32] }}, bump = {{}}, displaced = {{ levels = {levels} }}, mesh = {{}} }}
 """
 
 

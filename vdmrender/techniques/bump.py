@@ -5,4 +5,4 @@ from .mesostructure import MesostructurePass
 
 
 def build(ctx, src, value):
-    return MesostructurePass(ctx, src, "bump.frag", heights=False)
+    return MesostructurePass(ctx, src, "bump.frag", heights=False, cull=False)

@@ -36,6 +36,16 @@ def skirt_scene(src):
     return RayScene(v, f) if len(f) else None
 
 
+def back_faces(mesh) -> str | None:
+    """Which faces a stage that discards fragments seen from behind (V . N <= 0, N the interpolated normal)
+    can leave to the rasteriser to cull: "back" when every face's winding agrees with its vertex normals,
+    "front" when every one disagrees, None for a mixed mesh."""
+    v, f = mesh.vertices, mesh.faces
+    g = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    agree = np.einsum("ij,ij->i", g, mesh.normals[f].sum(1))
+    return "back" if (agree >= 0).all() else "front" if (agree <= 0).all() else None
+
+
 def texture(tex, repeat: bool, mipmaps: bool):
     tex.repeat_x = tex.repeat_y = repeat
     if mipmaps:
@@ -51,10 +61,14 @@ class MesostructurePass(RasterPasses):
 
     NORMAL_OFFSET_TEXELS = 1.5   # the lookups are at the base surface, which the shadow map also holds
 
-    def __init__(self, ctx, src, frag: str, heights: bool = True, curvature: bool = False, **uniforms):
+    def __init__(self, ctx, src, frag: str, heights: bool = True, curvature: bool = False, cull: bool = True,
+                 defines: tuple = (), **uniforms):
         """heights: the stage marches the height field (u_height, u_depth; bump reads only normals).
-        curvature: the stage reads the curvature frame (in_curv, in_d1: only vdm.frag); one vertex
-        layout serves every stage, and the others compile those attributes away."""
+        curvature: the stage reads the curvature frame (in_curv, in_d1); one vertex layout serves every
+        stage, and the others compile those attributes away. cull: the stage discards the base surface
+        seen from behind, so the frame pass lets the rasteriser cull those faces (back_faces: on llvmpipe
+        a discard at the top of a stage still costs about the whole stage). defines: of the stage, e.g.
+        ("COUNT",) for an instrumented build."""
         mesh = src.bundle.read(src.entry["mesh"], parts.MESH)
         anchor, radius = mesh.bounding_sphere()
         super().__init__(ctx, src.scene.light, src.obj.material, anchor, radius, src.shadow_map)
@@ -64,7 +78,8 @@ class MesostructurePass(RasterPasses):
         cols = [mesh.vertices - anchor, mesh.normals, mesh.uvs, f.dpdu, f.dpdv, np.stack([f.k1, f.k2], 1), f.d1]
         vbo = ctx.buffer(np.ascontiguousarray(np.concatenate(cols, 1), "f4").tobytes())
         ibo = ctx.buffer(np.ascontiguousarray(mesh.faces, "i4").tobytes())
-        self.add("mesostructure.vert", (), [vbo, ibo],
+        self.cull_face = back_faces(mesh) if cull else None
+        self.add("mesostructure.vert", defines, [vbo, ibo],
                  [(vbo, "3f 3f 2f 3f 3f 2f 3f", "in_pos", "in_normal", "in_uv", "in_dpdu", "in_dpdv", "in_curv",
                    "in_d1")],
                  [(vbo, "3f 64x", "in_pos")], ibo, frag=frag, depth_vertex="mesh.vert",

@@ -16,6 +16,7 @@ class RasterPasses:
 
     POLYGON_OFFSET = (2.0, 2.0)   # slope-scaled and constant depth bias of the shadow-map pass
     NORMAL_OFFSET_TEXELS = 0.0    # shadow lookups move this far along the normal, in shadow-map texels
+    cull_face = None              # faces the frame pass leaves out ("back" or "front"); the shadow pass draws all
     UNIFORM_ALBEDO = True         # the material's albedo as u_albedo (False: colours per instance)
 
     def __init__(self, ctx, light, material, anchor, radius: float, shadow_size: int):
@@ -50,6 +51,9 @@ class RasterPasses:
                 vao.render(instances=n)
         ctx.polygon_offset = (0.0, 0.0)
         target.begin()
+        if self.cull_face:
+            ctx.enable(moderngl.CULL_FACE)
+            ctx.cull_face = self.cull_face
         mvp = camera.projection() @ camera.view() @ translation(self.anchor)
         for stage, prog, vao, n in self.draws:
             if stage == "frame":
@@ -58,6 +62,7 @@ class RasterPasses:
                 self.shadow.bind(prog, normal_offset=self.NORMAL_OFFSET_TEXELS * self.shadow.texel)
                 self.bind_frame(prog, camera)
                 vao.render(instances=n)
+        ctx.disable(moderngl.CULL_FACE)
 
     def release(self) -> None:
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.buffers, self.shadow)
