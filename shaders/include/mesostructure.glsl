@@ -1,6 +1,7 @@
 // Mesostructure texture space per pixel (VDM sec. 3.2), the GLSL twin of vdmbake/texspace.py.
 // A tile spans 1 x 1 texture units; the mesostructure lies u_depth (texture units) below the
 // reference surface. Near the pixel, texture space maps to world space by M = [J | s_n N].
+#include "fetch_count.glsl"
 uniform vec2 u_tiling;          // tiles over the UV square
 uniform float u_depth;          // mesostructure depth, texture units
 uniform sampler2D u_height;     // heights in [0, 1] (1 = reference surface), repeat, mip-mapped
@@ -68,7 +69,7 @@ vec3 world_normal(Frame F, vec3 n) {
 
 // Depth below the reference surface at tile coordinate T, texture units.
 float depth_at(vec2 T, vec2 dx, vec2 dy) {
-    return u_depth * (1.0 - textureGrad(u_height, T, dx, dy).r);
+    return u_depth * (1.0 - FETCH(2, textureGrad(u_height, T, dx, dy)).r);
 }
 
 // Window-space depth of an anchor-relative point, for gl_FragDepth.
