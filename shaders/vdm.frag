@@ -71,7 +71,7 @@ void main() {
         if (thetaL <= dl.y && dl.x < h / L.z - u_shadow_eps) lit = 0.0;
     }
     // 4. Shading: the mesostructure normal at T'; macro shadows from the base mesh's shadow map.
-    vec3 n = world_normal(F, textureGrad(u_normals, T1, dx, dy).xyz);
+    vec3 n = mesostructure_normal(F, T1);
     lit *= shadow_lit(v_pos, N);
     gl_FragDepth = window_depth(P);
     frag = vec4(shade(u_albedo, n, Vw, lit), 1.0);

@@ -77,7 +77,7 @@ class MesostructurePass(RasterPasses):
         n = vdm.height_normals(h, m.depth)
         self.textures = {
             "u_height": _texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"), True, True),
-            "u_normals": _texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, True)}
+            "u_normals": _texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, False)}
         self.uniforms = {"u_tiling": tuple(m.tiling), "u_depth": m.depth, **uniforms}
 
     def bind_frame(self, prog, camera) -> None:
