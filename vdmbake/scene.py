@@ -41,6 +41,7 @@ class TechniqueSpec:
     kinds: tuple[str, ...]                 # object kinds it draws: "surface" (mesh, primitive), "quadrics"
     knob: Knob | None = None
     options: tuple[tuple[str, float, float, float], ...] = ()   # scalar options: (name, default, lo, hi)
+    lists: tuple[Knob, ...] = ()           # more list-valued options; each value with each knob value is a variant
     mesostructure: bool = False            # draws the object's [objects.mesostructure] (which it then needs)
 
 
@@ -64,9 +65,12 @@ TECHNIQUES: dict[str, TechniqueSpec] = {
     "tessellated": TechniqueSpec(("quadrics",), Knob("levels", "level", (0, 1, 2, 3), _int_in(0, 6),
                                                       "integers in [0, 6]")),
     # view-dependent displacement mapping (Wang et al. 2003) reconstructed from k eigenfunctions of the
-    # SVD; "all" keeps every one (the uncompressed table, up to float32 rounding)
+    # SVD; "all" keeps every one (the uncompressed table, up to float32 rounding). refine: 0 is the
+    # paper's algorithm; R > 0 finishes the hit on the height field with R + 1 samples around the lookup's
+    # and tests the self-shadow with R samples toward the light (variants vdm@K and vdm@KrR)
     "vdm": TechniqueSpec(("surface",), Knob("k", "k", (1, 2, 4, 8), lambda x: x == "all" or _int_in(1, 256)(x),
-                                            "integers in [1, 256] or 'all'"), mesostructure=True),
+                                            "integers in [1, 256] or 'all'"), mesostructure=True,
+                         lists=(Knob("refine", "refine", (0,), _int_in(0, 64), "integers in [0, 64]"),)),
     # the base mesh with the mesostructure's normals only (Blinn 1978)
     "bump": TechniqueSpec(("surface",), mesostructure=True),
     # parallax occlusion mapping: a linear search of this many steps plus one secant step, and the same
@@ -472,8 +476,7 @@ def _techniques(t: _Table, name: str, kind: str, has_meso: bool) -> dict:
                              f"(patterns: {', '.join(PATTERNS)}).")
         opts = t.table(tech)
         out[tech] = {}
-        if spec.knob:
-            k = spec.knob
+        for k in (spec.knob, *spec.lists) if spec.knob else ():
             v = opts.raw(k.key, list(k.default))
             if not isinstance(v, list) or not v or len(set(map(str, v))) != len(v) or not all(map(k.check, v)):
                 opts._fail(k.key, v, f"a non-empty list of distinct values, each one of: {k.allowed}")
