@@ -1,12 +1,15 @@
 """The VDM weights' storage (vdmbake/vdm_storage.py): 8-bit codes with a per-eigenfunction scale and
 offset, half floats, float32; the error each adds, measured through the eigenfunctions' Gram matrices
-without rebuilding the tables."""
+without rebuilding the tables; the bake's choice and what it writes."""
 from __future__ import annotations
+
+import json
 
 import numpy as np
 import pytest
 
-from vdmbake import vdm_storage
+from vdmbake import vdm, vdm_storage
+from vdmbake.bundle import Bundle
 
 RNG = np.random.default_rng(3)
 
@@ -53,3 +56,46 @@ def test_choose_the_smallest_storage_the_truncation_hides():
     assert vdm_storage.choose(errors, 10 * u8, 10 * errors["uint8"]["rms_mvm"]) == "uint8"
     assert vdm_storage.choose(errors, 2 * u8, 2 * errors["uint8"]["rms_mvm"]) == "float16"
     assert vdm_storage.choose(errors, 0.0, 0.0) == "float32"
+
+
+SCENE = """\
+[render]
+resolution = [32, 32]
+[camera]
+orbit = { count = 1 }
+[[objects]]
+name = "t"
+primitive = "torus"
+params = { segments = 32, rings = 16 }
+techniques = { vdm = { k = [K] } }
+[objects.mesostructure]
+height = "bricks"
+size = 16
+phi = 8
+curvatures = 3
+"""
+
+
+@pytest.mark.parametrize("k,storage", [(4, "uint8"), ('"all"', "float32")])
+def test_bake_writes_the_chosen_storage(tmp_path, k, storage):
+    """k = 4 keeps 8-bit weights (4 bytes of W per texel and view); "all" (every eigenfunction, the
+    truncation's error ~1e-5) keeps float32. The manifest records the error every storage adds."""
+    from vdmbake.bake import bake
+
+    (tmp_path / "s.toml").write_text(SCENE.replace("K", str(k)))
+    bake(tmp_path / "s.toml", tmp_path / "b.bundle")
+    b = Bundle(tmp_path / "b.bundle")
+    meso = b.manifest["objects"]["t"]["mesostructure"]
+    assert meso["storage"] == storage
+    assert set(meso["storage_errors"]) == set(vdm_storage.FORMATS)
+    parts = b.exr(meso["vdm"])
+    n, kk = 16 * 16 * 8, meso["k"]
+    e_bytes = 4 * kk * (8 * 3 + 3)
+    assert meso["compressed_bytes"] == n * kk * vdm_storage.BYTES[storage] + e_bytes
+    w = parts["W"]["W.000"]
+    if storage == "uint8":
+        assert w.dtype == np.uint32 and w.max() <= 255 and w.max() > 200
+        assert parts["W_dequant"]["scale"].shape == (1, kk)
+    else:
+        assert w.dtype == np.float32 and "W_dequant" not in parts
+    json.dumps(meso)                                                      # plain JSON values

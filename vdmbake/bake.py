@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, coarse, curvature, heightfields, primitives, quadrics, texspace, vdm
+from . import __version__, coarse, curvature, heightfields, primitives, quadrics, texspace, vdm, vdm_storage
 from .bundle import FORMAT_VERSION, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
@@ -184,19 +184,29 @@ def _bake_mesostructure(writer: BundleWriter, obj: Object, mesh: TriMesh, base: 
     comp = vdm.compress(table, theta_mvm, k, report=[x for x in ks if x != "all"])
     t2 = time.perf_counter()
     n, k = m.size, comp.W.shape[-1]
-    W = comp.W.transpose(2, 0, 1, 3).reshape(m.phi * n, n, k)          # rows: phi-major blocks of y
-    parts = {"W": {f"W.{i:03d}": W[..., i] for i in range(k)},
+    # W in the smallest storage whose rounding the truncation's error hides (vdm_storage); EXR has no
+    # 8-bit channels, so uint8 codes are written as UINT (zip keeps the file near a byte per code).
+    storage_errors = vdm_storage.storage_errors(comp.W, comp.E_vdm, comp.E_mvm)
+    storage = vdm_storage.choose(storage_errors, comp.errors[k].rms_vdm, comp.errors[k].rms_mvm)
+    stored, scale, offset = vdm_storage.quantise(comp.W, storage)
+    t3 = time.perf_counter()
+    W = stored.transpose(2, 0, 1, 3).reshape(m.phi * n, n, k)          # rows: phi-major blocks of y
+    parts = {"W": {f"W.{i:03d}": W[..., i].astype(np.uint32) if storage == "uint8" else W[..., i] for i in range(k)},
              "E_vdm": {f"E.{i:03d}": comp.E_vdm[i].T for i in range(k)},   # rows c, columns theta
              "E_mvm": {f"E.{i:03d}": comp.E_mvm[i][None] for i in range(k)}}
+    if storage == "uint8":
+        parts["W_dequant"] = {"scale": scale[None], "offset": offset[None]}
     rel = writer.add_exr(f"objects/{name}/vdm.exr", parts, "vdm")
     out.update({
         "vdm": rel, "k": k, "rank": comp.rank, "curvatures": list(sampling.curvatures), "rays": rays,
         "table_bytes": table.nbytes + theta_mvm.nbytes,
-        "compressed_bytes": comp.W.nbytes + comp.E_vdm.nbytes + comp.E_mvm.nbytes,
+        "compressed_bytes": stored.nbytes + comp.E_vdm.nbytes + comp.E_mvm.nbytes,
+        "storage": storage,
+        "storage_errors": {f: {q: round(v, 7) for q, v in e.items()} for f, e in storage_errors.items()},
         "errors": {str(kk): {f: round(getattr(e, f), 6) for f in ("energy", "rms_vdm", "rms_mvm", "max_abs_vdm")}
                    for kk, e in comp.errors.items()}})
-    steps.update(vdm_tables_s=round(t1 - t0, 3), vdm_svd_s=round(t2 - t1, 3))
+    steps.update(vdm_tables_s=round(t1 - t0, 3), vdm_svd_s=round(t2 - t1, 3), vdm_storage_s=round(t3 - t2, 3))
     log(f"{name}: VDM {n}^2 x {m.phi} phi x {m.theta} theta x {len(sampling.curvatures)} curvatures "
         f"[{lo:.3g}, {hi:.3g}], {rays:,} rays in {t1 - t0:.2f} s; SVD k = {k} (rank {comp.rank}) in {t2 - t1:.2f} s, "
-        f"{out['table_bytes'] / 2**20:.1f} MB -> {out['compressed_bytes'] / 2**20:.2f} MB")
+        f"{out['table_bytes'] / 2**20:.1f} MB -> {out['compressed_bytes'] / 2**20:.2f} MB (W as {storage})")
     return out

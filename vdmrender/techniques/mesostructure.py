@@ -8,7 +8,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from vdmbake import displace, vdm
+from vdmbake import displace, vdm, vdm_storage
 
 from .. import gl
 from .mesh import RasterMesh, RasterPasses
@@ -92,6 +92,17 @@ class MesostructurePass(RasterPasses):
             tex.release()
 
 
+def vdm_weights(bundle, meso_entry, m) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The stored weights W (phi, y, x, k) as written (float32, float16 or uint8 codes) and the
+    per-eigenfunction (scale, offset) that turn them into weights (vdmbake/vdm_storage.py)."""
+    parts = bundle.exr(meso_entry["vdm"])
+    k = meso_entry["k"]
+    W = np.stack([parts["W"][f"W.{i:03d}"] for i in range(k)], -1).reshape(m.phi, m.size, m.size, k)
+    if "W_dequant" in parts:
+        return W.astype(np.uint8), parts["W_dequant"]["scale"][0], parts["W_dequant"]["offset"][0]
+    return W, np.ones(k, np.float32), np.zeros(k, np.float32)
+
+
 class VDMPass(MesostructurePass):
     """VDM with the first k eigenfunctions of the baked SVD (sec. 3.3)."""
 
@@ -101,7 +112,7 @@ class VDMPass(MesostructurePass):
         parts = bundle.exr(meso["vdm"])
         stored = meso["k"]
         k = stored if k == "all" else min(k, stored)
-        W = np.stack([parts["W"][f"W.{i:03d}"] for i in range(stored)], -1).reshape(m.phi, m.size, m.size, stored)
+        W = vdm_storage.dequantise(*vdm_weights(bundle, meso, m))
         W = _groups(W, 3).transpose(3, 0, 1, 2, 4)                        # (groups, phi, y, x, 4)
         E_vdm = _groups(np.stack([parts["E_vdm"][f"E.{i:03d}"] for i in range(stored)]), 0)  # (groups, 4, c, theta)
         E_mvm = _groups(np.stack([parts["E_mvm"][f"E.{i:03d}"][0] for i in range(stored)]), 0)  # (groups, 4, c)
