@@ -79,6 +79,11 @@ float depth_at(vec2 T, vec2 dx, vec2 dy) {
     return u_depth * (1.0 - FETCH(2, textureGrad(u_height, T, dx, dy)).r);
 }
 
+// The same at the height field's finest level: the surface the reference traces.
+float depth_at_lod0(vec2 T) {
+    return u_depth * (1.0 - FETCH(2, textureLod(u_height, T, 0.0)).r);
+}
+
 // Window-space depth of an anchor-relative point, for gl_FragDepth.
 float window_depth(vec3 p) {
     vec4 c = u_mvp * vec4(p, 1.0);

@@ -19,6 +19,10 @@ from .mesh import RasterMesh, RasterPasses
 # paper's 128^2 x 32 x 8 on the same torus (512^2) 0.1 + 1 gives vdm@8 2.56 against 2.50, and a light 0.6 deg
 # above the horizon 1.32 against 1.13; but 2 texels of a 16^2 field are long: cliffs on a plane 0.95 (0.82).
 SHADOW_EPS_DEPTH, SHADOW_EPS_TEXELS = 0.2, 2.0
+# Refined VDM: the height field is searched within this fraction of the depth (along the ray's descent)
+# on either side of the lookup's hit: wide enough for the tables' interpolation error, narrow enough
+# that a few samples still resolve a brick's edge (docs/vdm-render-notes.md has the sweep).
+REFINE_WINDOW = 0.25
 
 
 def heights(bundle, meso_entry) -> np.ndarray:
@@ -44,6 +48,12 @@ def _texture(tex, repeat: bool, mipmaps: bool):
     return tex
 
 
+def _vec4s(a: np.ndarray):
+    """A (n, 4) array as a GLSL vec4[n] uniform's value (moderngl takes a one-element array as its element)."""
+    rows = [tuple(map(float, r)) for r in a]
+    return rows if len(rows) > 1 else rows[0]
+
+
 def _groups(a: np.ndarray, axis: int) -> np.ndarray:
     """Pad the eigenfunction axis to a multiple of 4 and split it into (groups, 4) at that axis."""
     k = a.shape[axis]
@@ -58,7 +68,7 @@ class MesostructurePass(RasterPasses):
 
     NORMAL_OFFSET_TEXELS = 1.5   # the lookups are at the base surface, which the shadow map also holds
 
-    def __init__(self, ctx, obj, entry, bundle, scene, frag: str, **uniforms):
+    def __init__(self, ctx, obj, entry, bundle, scene, frag: str, defines: tuple = (), **uniforms):
         mesh = bundle.mesh(entry["mesh"])
         anchor, radius = mesh.bounding_sphere()
         super().__init__(ctx, scene.light, obj.material, anchor, radius, scene.render.shadow_map)
@@ -68,7 +78,7 @@ class MesostructurePass(RasterPasses):
         cols = [mesh.vertices - anchor, mesh.normals, mesh.uvs, f.dpdu, f.dpdv, np.stack([f.k1, f.k2], 1), f.d1]
         vbo = ctx.buffer(np.ascontiguousarray(np.concatenate(cols, 1), "f4").tobytes())
         ibo = ctx.buffer(np.ascontiguousarray(mesh.faces, "i4").tobytes())
-        self.add("mesostructure.vert", (), [vbo, ibo],
+        self.add("mesostructure.vert", defines, [vbo, ibo],
                  [(vbo, "3f 3f 2f 3f 3f 2f 3f", "in_pos", "in_normal", "in_uv", "in_dpdu", "in_dpdv", "in_curv",
                    "in_d1")],
                  [(vbo, "3f 64x", "in_pos")], ibo, frag=frag, depth_vertex="mesh.vert",
@@ -104,27 +114,47 @@ def vdm_weights(bundle, meso_entry, m) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 class VDMPass(MesostructurePass):
-    """VDM with the first k eigenfunctions of the baked SVD (sec. 3.3)."""
+    """VDM with the first k eigenfunctions of the baked SVD (sec. 3.3); refine > 0 finishes the view
+    ray's hit and the self-shadow on the height field (shaders/vdm.frag). original: the first
+    implementation's lookup, float weights mip-mapped (for before/after measurements); as_float:
+    the weights dequantised to float32 on upload (to measure what their storage costs)."""
 
-    def __init__(self, ctx, obj, entry, bundle, scene, k):
+    def __init__(self, ctx, obj, entry, bundle, scene, k, refine: int = 0, original: bool = False,
+                 as_float: bool = False, defines: tuple = ()):
         meso = entry["mesostructure"]
         m = obj.mesostructure
         parts = bundle.exr(meso["vdm"])
         stored = meso["k"]
         k = stored if k == "all" else min(k, stored)
-        W = vdm_storage.dequantise(*vdm_weights(bundle, meso, m))
+        W, scale, offset = vdm_weights(bundle, meso, m)
+        E_vdm = np.stack([parts["E_vdm"][f"E.{i:03d}"] for i in range(stored)])
+        E_mvm = np.stack([parts["E_mvm"][f"E.{i:03d}"][0] for i in range(stored)])
+        if original or as_float:
+            W = vdm_storage.dequantise(W, scale, offset)
+            scale, offset = np.ones_like(scale), np.zeros_like(offset)
+        if not original:                       # the first k only, so that E is 0 past k and k can be compiled in
+            W, E_vdm, E_mvm, scale, offset = W[..., :k], E_vdm[:k], E_mvm[:k], scale[:k], offset[:k]
+        dtype = {"uint8": "f1", "float16": "f2"}.get(W.dtype.name, "f4")     # f1: unsigned normalised bytes
+        if dtype == "f1":
+            scale = scale * 255                                          # the sampler returns code / 255
         W = _groups(W, 3).transpose(3, 0, 1, 2, 4)                        # (groups, phi, y, x, 4)
-        E_vdm = _groups(np.stack([parts["E_vdm"][f"E.{i:03d}"] for i in range(stored)]), 0)  # (groups, 4, c, theta)
-        E_mvm = _groups(np.stack([parts["E_mvm"][f"E.{i:03d}"][0] for i in range(stored)]), 0)  # (groups, 4, c)
+        E_vdm, E_mvm = _groups(E_vdm, 0), _groups(E_mvm, 0)               # (groups, 4, c, theta), (groups, 4, c)
+        scale, offset = _groups(scale, 0), _groups(offset, 0)             # (groups, 4)
         cs = meso["curvatures"]
         n_c = len(cs)
         axis = (cs[0], (n_c - 1) / (cs[-1] - cs[0]) if n_c > 1 else 0.0, n_c)
-        super().__init__(ctx, obj, entry, bundle, scene, "vdm.frag", u_k=int(k), u_groups=W.shape[0], u_n_phi=m.phi,
-                         u_curv_axis=tuple(float(x) for x in axis),
-                         u_shadow_eps=SHADOW_EPS_DEPTH * m.depth + SHADOW_EPS_TEXELS / m.size)
         g = W.shape[0]
-        self.textures["u_W"] = _texture(ctx.texture_array(
-            (m.size, m.size, g * m.phi), 4, np.ascontiguousarray(W, "f4").tobytes(), dtype="f4"), True, True)
+        half_bin = 0.25 * np.pi / m.theta                                 # theta samples are bin centres
+        defines = (f"K {k}", f"REFINE {refine}", *(("ORIGINAL_LOOKUP",) if original else ()), *defines)
+        super().__init__(ctx, obj, entry, bundle, scene, "vdm.frag", defines, u_k=int(k), u_groups=g, u_n_phi=m.phi,
+                         u_curv_axis=tuple(float(x) for x in axis),
+                         u_cos_range=(float(np.cos(0.5 * np.pi - half_bin)), float(np.cos(half_bin))),
+                         u_shadow_eps=SHADOW_EPS_DEPTH * m.depth + SHADOW_EPS_TEXELS / m.size,
+                         u_window=REFINE_WINDOW * m.depth,
+                         u_W_scale=_vec4s(scale), u_W_offset=_vec4s(offset))
+        data = np.ascontiguousarray(W if dtype != "f4" else W.astype(np.float32))
+        self.textures["u_W"] = _texture(ctx.texture_array((m.size, m.size, g * m.phi), 4, data.tobytes(), dtype=dtype),
+                                        True, original)
         self.textures["u_E_vdm"] = _texture(ctx.texture_array(
             (m.theta, n_c, g), 4, np.ascontiguousarray(E_vdm.transpose(0, 2, 3, 1), "f4").tobytes(), dtype="f4"),
             False, False)
@@ -133,7 +163,9 @@ class VDMPass(MesostructurePass):
 
 
 def vdm_variants(obj, entry, bundle, scene, options):
-    return [(k, lambda ctx, k=k: VDMPass(ctx, obj, entry, bundle, scene, k)) for k in options["k"]]
+    """One variant per k and refine setting: vdm@K (the paper's algorithm) and vdm@KrR (refined, R samples)."""
+    return [(k if r == 0 else f"{k}r{r}", lambda ctx, k=k, r=r: VDMPass(ctx, obj, entry, bundle, scene, k, r))
+            for r in options["refine"] for k in options["k"]]
 
 
 def pom_variants(obj, entry, bundle, scene, options):
