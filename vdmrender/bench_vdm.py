@@ -4,8 +4,11 @@
    16 curvatures in [-2, 3]): seconds per step, and the table bake's rays per second against raw
    Embree on the same rays in the same run; sizes raw and compressed, and the error each k adds.
 2. Error against time on a torus and a vase with brick and gravel heights at 512^2: VDM at several
-   k and uncompressed, POM at several step counts, bump mapping, displacement mapping at several
-   subdivision levels, and the plain base mesh, against the displaced geometry traced by Embree.
+   k, each at refine 0 (the paper's algorithm), 1, 2 and 4, POM at several step counts, bump mapping,
+   displacement mapping at several subdivision levels, and the plain base mesh, against the
+   displaced geometry traced by Embree; then, interleaved in one process, the first implementation's
+   VDM lookup against today's, 8-bit against float32 weights, the refine settings against POM, and
+   texture fetches per shaded fragment.
 
     python -m vdmrender.bench_vdm -o out/bench [--quick]
 """
@@ -18,10 +21,11 @@ from pathlib import Path
 import click
 import numpy as np
 
-from vdmbake import heightfields, vdm
+from vdmbake import heightfields, vdm, vdm_storage
 
-from . import report
+from . import gl, interleave, report
 from .bench import measure_scene
+from .techniques.mesostructure import MesostructurePass, VDMPass
 
 # (name, primitive, params, tiling): tilings keep a tile about as long as it is wide
 SURFACES = [("torus", "torus", "{ segments = 256, rings = 64 }", (16, 4)),
@@ -40,8 +44,15 @@ name = "{name}"
 primitive = "{primitive}"
 params = {params}
 mesostructure = {{ height = "{height}", size = {size}, depth = 0.06, tiling = [{tu}, {tv}], phi = {phi}, theta = 8, curvatures = {n_c} }}
-techniques = {{ vdm = {{ k = [1, 2, 4, 8, "all"] }}, pom = {{ steps = [8, 16, 32] }}, bump = {{}}, displaced = {{ levels = {levels} }}, mesh = {{}} }}
+techniques = {{ vdm = {{ k = [2, 4, 8, 16], refine = [0, 1, 2, 4] }}, pom = {{ steps = [16, 32] }}, bump = {{}}, displaced = {{ levels = {levels} }}, mesh = {{}} }}
 """
+# Measured again interleaved in one process (wall and CPU time, interleave.py): the first implementation's
+# lookup against today's, the weights' 8-bit storage against float32, the refine settings against POM.
+INTERLEAVED = {"vdm@8 original lookup": dict(k=8, original=True), "vdm@8": dict(k=8),
+               "vdm@8 float weights": dict(k=8, as_float=True), "vdm@8r1": dict(k=8, refine=1),
+               "vdm@8r2": dict(k=8, refine=2), "vdm@8r4": dict(k=8, refine=4), "vdm@4r4": dict(k=4, refine=4),
+               "pom@16": 16, "pom@32": 32}
+COUNTED = ("vdm@8 original lookup", "vdm@8", "vdm@8r2", "vdm@8r4", "pom@16", "pom@32")
 
 
 def paper_bake(size: int, n_phi: int, n_c: int) -> dict:
@@ -60,8 +71,12 @@ def paper_bake(size: int, n_phi: int, n_c: int) -> dict:
     t4 = time.perf_counter()
     table, theta_mvm, _ = vdm.bake_tables(h, depth, s)
     t5 = time.perf_counter()
-    vdm.compress(table, theta_mvm, 8)           # what a bake for k = 8 does (the paper's default)
+    comp8 = vdm.compress(table, theta_mvm, 8)   # what a bake for k = 8 does (the paper's default)
     t6 = time.perf_counter()
+    added = vdm_storage.storage_errors(comp8.W, comp8.E_vdm, comp8.E_mvm)
+    e_bytes = comp8.E_vdm.nbytes + comp8.E_mvm.nbytes
+    storage = {f: {"bytes": comp8.W.size * vdm_storage.BYTES[f] + e_bytes, **added[f]} for f in vdm_storage.FORMATS}
+    chosen = vdm_storage.choose(added, comp8.errors[8].rms_vdm, comp8.errors[8].rms_mvm)
     ks = (1, 2, 4, 8, 16)
     comp = vdm.compress(table, theta_mvm, 10_000, report=ks)   # every k's error, for the table (not timed)
     n_cols = s.n_theta * n_c
@@ -74,7 +89,8 @@ def paper_bake(size: int, n_phi: int, n_c: int) -> dict:
             "flat_mrays_per_s": round(rays / (t1 - t0) / 1e6, 3), "raw_mrays_per_s": round(rays / (t3 - t2) / 1e6, 3),
             "throughput_ratio": round((t3 - t2) / (t1 - t0), 3),
             "tables_s": round(t5 - t4, 3), "svd_s": round(t6 - t5, 3), "bake_s": round(t6 - t4, 3),
-            "rank": comp.rank, "raw_bytes": table.nbytes + theta_mvm.nbytes, "compressed": per_k}
+            "rank": comp.rank, "raw_bytes": table.nbytes + theta_mvm.nbytes, "compressed": per_k,
+            "storage_k8": storage, "storage_chosen": chosen}
 
 
 def _scene_rows(out: Path, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c, levels) -> list[dict]:
@@ -87,7 +103,27 @@ def _scene_rows(out: Path, name, primitive, params, tiling, hname, height, w, h,
     return [{**r, "surface": name, "height": hname, "curvature_range": [c[0], c[-1]]} for r in rows]
 
 
-def _markdown(paper: dict, rows: list[dict], device: str) -> str:
+def _interleaved(out: Path, tag: str, rounds: int) -> dict:
+    """INTERLEAVED measured on the scene's bundle against its reference; fetch counts of COUNTED."""
+    bundle, scene, obj, entry, cams = interleave.scene_of(out / "bundles" / f"vdm-{tag}.bundle")
+    ref8 = interleave.reference8(out / "renders" / f"vdm-{tag}", obj.name, len(cams), scene.render.background)
+
+    def build(spec, defines=()):
+        if isinstance(spec, int):
+            return lambda ctx: MesostructurePass(ctx, obj, entry, bundle, scene, "pom.frag", defines, u_steps=spec)
+        return lambda ctx: VDMPass(ctx, obj, entry, bundle, scene, defines=defines, **spec)
+
+    ctx = gl.create_context()
+    try:
+        rows = interleave.measure(ctx, {k: build(v) for k, v in INTERLEAVED.items()}, cams, ref8,
+                                  scene.render.background, rounds)
+        counts = {k: interleave.fetches(ctx, build(INTERLEAVED[k], ("COUNT",)), cams) for k in COUNTED}
+    finally:
+        ctx.release()
+    return {"rows": rows, "fetches": counts}
+
+
+def _markdown(paper: dict, rows: list[dict], device: str, inter: dict) -> str:
     p = paper
     lines = [f"# VDM benchmark ({device})", "",
              f"## Bake, the paper's configuration ({p['size']}^2, {p['n_phi']} x {p['n_theta']} views, "
@@ -101,12 +137,30 @@ def _markdown(paper: dict, rows: list[dict], device: str) -> str:
     for key, c in p["compressed"].items():
         lines.append(f"| {key} ({c['k']}) | {c['bytes'] / 2**20:.2f} | {c['energy']:.5f} | {c['rms_vdm']:.4f} | "
                      f"{c['max_abs_vdm']:.3f} | {c['rms_mvm']:.4f} |")
+    lines += ["", f"Weights' storage at k = 8 (the bake keeps {p['storage_chosen']}: the smallest adding at most "
+              f"{vdm_storage.TOLERANCE:.0%} to the truncation's RMS in quadrature; RMS over every table entry):", "",
+              "| W storage | size MB (W + E) | added RMS d | added RMS theta_MVM |", "|---|---:|---:|---:|"]
+    for f, e in p["storage_k8"].items():
+        lines.append(f"| {f} | {e['bytes'] / 2**20:.3f} | {e['rms_vdm']:.5f} | {e['rms_mvm']:.5f} |")
     lines += ["", "## Error against time (mean ΔLuv against the displaced geometry traced by Embree)", "",
               "| surface | height | variant | faces | median ms | ratio to mesh | mean ΔLuv | p95 | IoU |",
               "|---|---|---|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['surface']} | {r['height']} | {r['label']} | {r['faces'] or ''} | {r['median_ms']:.1f} | "
                      f"{r.get('ratio_to_baseline', 1.0):.2f} | {r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
+    for tag, m in inter.items():
+        lines += ["", f"## {tag}: interleaved in one process (wall and CPU ms per frame, medians)", "",
+                  "| variant | median ms | CPU ms | CPU ratio to pom@16 | mean ΔLuv | p95 | IoU |",
+                  "|---|---:|---:|---:|---:|---:|---:|"]
+        base = m["rows"]["pom@16"]["median_cpu_ms"]
+        for k, r in m["rows"].items():
+            lines.append(f"| {k} | {r['median_ms']:.1f} | {r['median_cpu_ms']:.1f} | {r['median_cpu_ms'] / base:.2f} | "
+                         f"{r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
+        lines += ["", "Texture fetches per shaded fragment (COUNT builds):", "",
+                  "| variant | W | E | height | other | total | max |", "|---|---:|---:|---:|---:|---:|---:|"]
+        for k, c in m["fetches"].items():
+            lines.append(f"| {k} | {c['table_weights']} | {c['eigenfunctions']} | {c['height']} | {c['other']} | "
+                         f"{c['total']} | {c['max']} |")
     return "\n".join(lines) + "\n"
 
 
@@ -119,19 +173,24 @@ def main(out: Path, quick: bool):
     paper = paper_bake(size, n_phi, n_c)
     click.echo(f"paper configuration: {paper['bake_s']:.2f} s, {paper['flat_mrays_per_s']:.2f} Mrays/s "
                f"(raw Embree {paper['raw_mrays_per_s']:.2f})", err=True)
-    rows = []
+    rows, inter = [], {}
     for name, primitive, params, tiling in SURFACES[:1] if quick else SURFACES:
         for hname, height in HEIGHTS[:1] if quick else HEIGHTS:
             for r in _scene_rows(out, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c,
-                                 (0, 1) if quick else (1, 2, 3)):
+                                 (0, 1) if quick else (1, 2)):
                 rows.append(r)
                 click.echo(f"{name:5} {hname:6} {r['label']:13} {r['median_ms']:9.1f} ms  dLuv {r['mean_dluv']:.3f}  "
                            f"IoU {r['iou']:.4f}", err=True)
+            tag = f"{name}-{hname}"
+            inter[tag] = _interleaved(out, tag, 2 if quick else 5)
+            for k, r in inter[tag]["rows"].items():
+                click.echo(f"{tag} interleaved {k:22} {r['median_ms']:8.1f} ms  CPU {r['median_cpu_ms']:8.1f} ms  "
+                           f"dLuv {r['mean_dluv']:.3f}", err=True)
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
     (out / "vdm.json").write_text(json.dumps({"device": device, "resolution": [w, h], "paper_bake": paper,
-                                              "rows": rows}, indent=1) + "\n")
-    (out / "vdm.md").write_text(_markdown(paper, rows, device))
+                                              "rows": rows, "interleaved": inter}, indent=1) + "\n")
+    (out / "vdm.md").write_text(_markdown(paper, rows, device, inter))
     report.plot(out / "vdm.png", {"rows": rows, "resolution": [w, h], "device": device})
     click.echo(f"wrote {out / 'vdm.json'}, {out / 'vdm.md'}, {out / 'vdm.png'}")
 
