@@ -13,7 +13,8 @@ void main() {
     if (!gl_FrontFacing) N = -N;
     Frame F = surface_frame(N);
     vec2 T = v_uv * u_tiling;
-    vec3 n = world_normal(F, texture(u_normals, T).xyz);
+    vec3 n = mesostructure_normal(F, T);
     vec3 Vw = normalize(u_eye - v_pos);
     frag = vec4(shade(u_albedo, n, Vw, shadow_lit(v_pos, N)), 1.0);
+    COUNT_OUT(frag);
 }

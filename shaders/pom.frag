@@ -47,8 +47,9 @@ void main() {
             if (depth_at(Tl, dx, dy) < r - 0.5 * step) lit = 0.0;
         }
     }
-    vec3 n = world_normal(F, textureGrad(u_normals, T1, dx, dy).xyz);
+    vec3 n = mesostructure_normal(F, T1);
     lit *= shadow_lit(v_pos, N);
     gl_FragDepth = window_depth(u_mvp, P);
     frag = vec4(shade(u_albedo, n, Vw, lit), 1.0);
+    COUNT_OUT(frag);
 }

@@ -15,7 +15,8 @@
 // FLAT: straight rays and the pixel's frame (the surface taken as locally flat, as POM does).
 // u_iterations caps the cell visits of each ray; a view ray stopped by the cap takes the point it had
 // reached (above the surface), a stopped shadow ray counts as lit. COUNT: the colour output holds the
-// view and shadow rays' cell visits (one pyramid fetch each) instead of a colour.
+// fetches per fragment by kind (fetch_count.glsl): the view and shadow rays' cell visits (one pyramid
+// fetch each) as height-field fetches, the normal map and the shadow map as the rest.
 #include "shading.glsl"
 #include "shadow.glsl"
 #include "mesostructure.glsl"
@@ -68,9 +69,6 @@ void main() {
         t = t_floor;                            // (or missed the deepest point by rounding)
     }
     if (t < 0.0) t = hf_t_reached;
-#if defined(COUNT)
-    int view_visits = hf_visits;
-#endif
     vec3 h = vec3(o.xy + d.xy * t, t * (V.z + kV * t));
     // Self-shadow: from the hit toward the light, its depth h.z - L.z t + kL t^2, until it reaches the
     // reference surface (depth 0) or, bending back on a concave surface, the deepest point. The ray starts
@@ -81,15 +79,15 @@ void main() {
     float lit = (L.z > 0.0 && ts < 0.0) ? 1.0 : 0.0;
     vec2 T1 = T0 + (h.xy + 0.5) / n;
     vec3 P = v_pos - Vw * (t * world_length(F, V));
-    vec3 nw = world_normal(F, textureLod(u_normals, T1, 0.0).xyz);
+    vec3 nw = mesostructure_normal(F, T1);
 #if !defined(FLAT)
     nw = turned(nw, N, F, T1 - T);          // the normal map's frame is the one at the hit
 #endif
     lit *= shadow_lit(v_pos, N);
     gl_FragDepth = window_depth(u_mvp, P);
-#if defined(COUNT)
-    frag = vec4(float(view_visits), float(hf_visits - view_visits), 0.0, 1.0);
-#else
     frag = vec4(shade(u_albedo, nw, Vw, lit), 1.0);
+#if defined(COUNT)
+    fetches[2] += hf_visits;
+    COUNT_OUT(frag);
 #endif
 }

@@ -136,6 +136,9 @@ SCENE_CASES = {
     "duplicate_object_names": (GOOD_SCENE + BALL, ["two objects are named 'ball'"]),
     "bad_primitive_name": (GOOD_SCENE.replace('"sphere"', '"icosahedron"'),
                            ["objects[0].primitive", "'icosahedron'", "'sphere'"]),
+    "vdm_refine_negative": (GOOD_SCENE.replace("{ mesh = {} }", "{ vdm = { k = [8], refine = [0, -1] } }")
+                            + '[objects.mesostructure]\nheight = "bricks"\n',
+                            ["refine", "[0, -1]", "an integer in [0, 64]"]),
 }
 
 

@@ -188,8 +188,12 @@ def test_bench_quick_smoke(tmp_path):
     assert r.exit_code == 0, r.output
     report = json.loads((tmp_path / "vdm.json").read_text())
     labels = {row["label"] for row in report["rows"]}
-    assert {"vdm@1", "vdm@8", "vdm@all", "pom@16", "bump", "displaced@1", "mesh"} <= labels
+    assert {"vdm@2", "vdm@8", "vdm@8r1", "vdm@8r4", "pom@16", "bump", "displaced@1", "mesh"} <= labels
     assert all(row["nonfinite"] == 0 for row in report["rows"])
     paper = report["paper_bake"]
     assert paper["rays"] == 32 * 32 * 8 * 8 and paper["compressed"]["all"]["rms_vdm"] < 1e-4
+    assert paper["storage_chosen"] in paper["storage_k8"] and paper["storage_k8"]["float32"]["rms_vdm"] == 0
+    inter = report["interleaved"]["torus-bricks"]
+    assert {"vdm@8 original lookup", "vdm@8", "vdm@8r4", "pom@16"} <= set(inter["rows"])
+    assert inter["fetches"]["vdm@8r4"]["max"] == 18
     assert (tmp_path / "vdm.md").read_text().count("\n") > 20 and (tmp_path / "vdm.png").is_file()

@@ -376,13 +376,18 @@ class Technique:
     options: type                     # dataclass of its settings
     mesostructure: bool = False       # draws the object's [objects.mesostructure] (which it then needs)
     bake: Callable | None = None      # bake(job) -> its manifest entry (vdmbake.bake.Job)
+    combine: Callable | None = None   # options -> variant values (with .plain(): the report's spelling), where
+                                      # more settings than the knob make a variant
 
     @property
     def knob(self) -> dataclasses.Field | None:
         return knob(self.options)
 
     def values(self, options) -> tuple:
-        """The knob's values in scene order: one variant each (one variant, None, without a knob)."""
+        """The variants' values in scene order: the knob's values, or what `combine` makes of the
+        options (one variant, None, without a knob)."""
+        if self.combine:
+            return tuple(self.combine(options))
         k = self.knob
         return getattr(options, k.name) if k else (None,)
 

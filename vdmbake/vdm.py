@@ -127,19 +127,23 @@ def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RaySc
     return out, scene.rays_cast - before, scene
 
 
-def bend(s: np.ndarray, h: np.ndarray, c: float) -> tuple[np.ndarray, np.ndarray]:
+def bend(s: np.ndarray, h: np.ndarray, c) -> tuple[np.ndarray, np.ndarray]:
     """A point at arc length s along the view's azimuth and depth h below the reference surface,
     after bending the surface to curvature c about the entry point (origin, normal +z'):
     returns its 2-D position (x along the azimuth, y up): x = (1 - h c) sin(s c) / c,
     y = (cos(s c) - 1) / c - h cos(s c), written with the half-angle sine so that small s c loses no
-    digits ((cos a - 1) = -2 sin^2(a / 2)) and c = 0 is the flat case exactly."""
-    if c == 0:
+    digits ((cos a - 1) = -2 sin^2(a / 2)) and c = 0 is the flat case exactly. c may be an array too."""
+    if np.ndim(c) == 0 and c == 0:
         return np.asarray(s, np.float64) + 0.0, -np.asarray(h, np.float64)
+    flat = np.asarray(c) == 0
+    c = np.where(flat, 1.0, c) if np.ndim(c) else c
     sc = s * c
     half = np.sin(0.5 * sc)
     sin2 = 2.0 * half * half                      # 1 - cos(s c)
     x = (1.0 - h * c) * np.sin(sc) / c
     y = -sin2 / c - h * (1.0 - sin2)
+    if np.ndim(flat) and flat.any():
+        x, y = np.where(flat, s, x), np.where(flat, -np.asarray(h, np.float64), y)
     return x, y
 
 

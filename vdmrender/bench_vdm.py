@@ -4,9 +4,12 @@
    16 curvatures in [-2, 3]): seconds per step, and the table bake's rays per second against raw
    Embree on the same rays in the same run; sizes raw and compressed, and the error each k adds.
 2. Error against time on a torus and a vase with brick and gravel heights at 512^2: VDM at several
-   k and uncompressed, POM at several step counts, relief mapping (exact hierarchical tracing) at several
-   iteration caps, bump mapping, displacement mapping at several
-   subdivision levels, and the plain base mesh, against the displaced geometry traced by Embree.
+   k, each at refine 0 (the paper's algorithm), 1, 2 and 4, POM at several step counts, relief mapping
+   (exact hierarchical tracing) at several iteration caps, bump mapping, displacement mapping at several
+   subdivision levels, and the plain base mesh, against the displaced geometry traced by Embree; then,
+   interleaved in one process, the first implementation's VDM lookup against today's, 8-bit against
+   float32 weights, the refine settings against POM, relief and displacement, and texture fetches per
+   shaded fragment.
 
     python -m vdmrender.bench_vdm -o out/bench [--quick]
 """
@@ -20,10 +23,14 @@ from pathlib import Path
 import click
 import numpy as np
 
-from vdmbake import heightfields, vdm
+from vdmbake import heightfields, vdm, vdm_storage
 
-from . import progress, report
+from . import gl, interleave, progress, report
 from .bench import measure_scene
+from .techniques import Source, variants
+from .techniques.mesostructure import MesostructurePass
+from .techniques.relief import ReliefPass
+from .techniques.vdm import VDMPass
 
 # (name, primitive, params, tiling): tilings keep a tile about as long as it is wide
 SURFACES = [("torus", "torus", "{ segments = 256, rings = 64 }", (16, 4)),
@@ -42,8 +49,16 @@ name = "{name}"
 primitive = "{primitive}"
 params = {params}
 mesostructure = {{ height = "{height}", size = {size}, depth = 0.06, tiling = [{tu}, {tv}], phi = {phi}, theta = 8, curvatures = {n_c} }}
-techniques = {{ vdm = {{ k = [1, 2, 4, 8, "all"] }}, pom = {{ steps = [8, 16, 32] }}, relief = {{ iterations = [8, 16, 32] }}, bump = {{}}, displaced = {{ levels = {levels} }}, mesh = {{}} }}
+techniques = {{ vdm = {{ k = [2, 4, 8], refine = [0, 1, 2, 4] }}, pom = {{ steps = [16, 32] }}, relief = {{ iterations = [8, 16, 32] }}, bump = {{}}, displaced = {{ levels = {levels} }}, mesh = {{}} }}
 """
+# k up to 8 (the paper's): the bake chooses the weights' storage for the largest k a scene renders.
+# Measured again interleaved in one process (wall and CPU time, interleave.py): the first implementation's
+# lookup against today's, the weights' 8-bit storage against float32, the refine settings against POM,
+# relief and displacement (the issue's goals compare with pom@16 and displaced@2).
+EXTRA = {"vdm@8 original lookup": dict(original=True), "vdm@8 float weights": dict(as_float=True)}
+INTERLEAVED = ("vdm@8", "vdm@8r1", "vdm@8r2", "vdm@8r4", "vdm@4r2", "vdm@4r4", "pom@16", "pom@32", "relief@16",
+               "relief@32", "displaced@1", "displaced@2")
+COUNTED = ("vdm@8 original lookup", "vdm@8", "vdm@8r2", "vdm@8r4", "pom@16", "pom@32", "relief@32")
 
 
 def paper_bake(size: int, n_phi: int, n_c: int) -> dict:
@@ -62,8 +77,12 @@ def paper_bake(size: int, n_phi: int, n_c: int) -> dict:
     t4 = time.perf_counter()
     table, theta_mvm, _ = vdm.bake_tables(h, depth, s)
     t5 = time.perf_counter()
-    vdm.compress(table, theta_mvm, 8)           # what a bake for k = 8 does (the paper's default)
+    comp8 = vdm.compress(table, theta_mvm, 8)   # what a bake for k = 8 does (the paper's default)
     t6 = time.perf_counter()
+    added = vdm_storage.storage_errors(comp8.W, comp8.E_vdm, comp8.E_mvm)
+    e_bytes = comp8.E_vdm.nbytes + comp8.E_mvm.nbytes
+    storage = {f: {"bytes": comp8.W.size * vdm_storage.BYTES[f] + e_bytes, **added[f]} for f in vdm_storage.FORMATS}
+    chosen = vdm_storage.choose(added, comp8.errors[8].rms_vdm, comp8.errors[8].rms_mvm)
     ks = (1, 2, 4, 8, 16)
     comp = vdm.compress(table, theta_mvm, 10_000, report=ks)   # every k's error, for the table (not timed)
     n_cols = s.n_theta * n_c
@@ -76,7 +95,8 @@ def paper_bake(size: int, n_phi: int, n_c: int) -> dict:
             "flat_mrays_per_s": round(rays / (t1 - t0) / 1e6, 3), "raw_mrays_per_s": round(rays / (t3 - t2) / 1e6, 3),
             "throughput_ratio": round((t3 - t2) / (t1 - t0), 3),
             "tables_s": round(t5 - t4, 3), "svd_s": round(t6 - t5, 3), "bake_s": round(t6 - t4, 3),
-            "rank": comp.rank, "raw_bytes": table.nbytes + theta_mvm.nbytes, "compressed": per_k}
+            "rank": comp.rank, "raw_bytes": table.nbytes + theta_mvm.nbytes, "compressed": per_k,
+            "storage_k8": storage, "storage_chosen": chosen}
 
 
 def _scene_rows(out: Path, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c, levels) -> list[dict]:
@@ -89,7 +109,39 @@ def _scene_rows(out: Path, name, primitive, params, tiling, hname, height, w, h,
     return [{**r, "surface": name, "height": hname, "curvature_range": [c[0], c[-1]]} for r in rows]
 
 
-def _markdown(paper: dict, rows: list[dict], device: str) -> str:
+def _interleaved(out: Path, tag: str, rounds: int) -> dict:
+    """INTERLEAVED (the scene's own variants) and EXTRA measured on the scene's bundle against its reference;
+    fetch counts of COUNTED from COUNT builds of their stages."""
+    bundle, scene, obj, entry, cams = interleave.scene_of(out / "bundles" / f"vdm-{tag}.bundle")
+    ref8 = interleave.reference8(out / "renders" / f"vdm-{tag}", obj.name, len(cams), scene.render.background)
+    src = {t: Source(obj, entry, entry["techniques"].get(t), bundle, scene, obj.techniques[t])
+           for t in ("vdm", "pom", "relief")}
+    scene_builds = {v.label: v.build for v in variants(obj, entry, bundle, scene)}
+    builds = {**{k: scene_builds[k] for k in INTERLEAVED if k in scene_builds},
+              **{k: (lambda ctx, o=o: VDMPass(ctx, src["vdm"], 8, **o)) for k, o in EXTRA.items()}}
+
+    def counted(label):
+        """The stage of `label` built with COUNT: it writes its fetches per fragment instead of a colour."""
+        if label in EXTRA:
+            return lambda ctx: VDMPass(ctx, src["vdm"], 8, defines=("COUNT",), **EXTRA[label])
+        technique, _, value = label.partition("@")
+        if technique == "vdm":
+            k, _, r = value.partition("r")
+            return lambda ctx: VDMPass(ctx, src["vdm"], int(k), int(r or 0), defines=("COUNT",))
+        if technique == "pom":
+            return lambda ctx: MesostructurePass(ctx, src["pom"], "pom.frag", defines=("COUNT",), u_steps=int(value))
+        return lambda ctx: ReliefPass(ctx, src["relief"], int(value), defines=("COUNT",))
+
+    ctx = gl.create_context()
+    try:
+        rows = interleave.measure(ctx, builds, cams, ref8, scene.render.background, rounds)
+        counts = {k: interleave.fetches(ctx, counted(k), cams) for k in COUNTED}
+    finally:
+        ctx.release()
+    return {"rows": rows, "fetches": counts}
+
+
+def _markdown(paper: dict, rows: list[dict], device: str, inter: dict) -> str:
     p = paper
     lines = [f"# VDM benchmark ({device})", "",
              f"## Bake, the paper's configuration ({p['size']}^2, {p['n_phi']} x {p['n_theta']} views, "
@@ -103,13 +155,39 @@ def _markdown(paper: dict, rows: list[dict], device: str) -> str:
     for key, c in p["compressed"].items():
         lines.append(f"| {key} ({c['k']}) | {c['bytes'] / 2**20:.2f} | {c['energy']:.5f} | {c['rms_vdm']:.4f} | "
                      f"{c['max_abs_vdm']:.3f} | {c['rms_mvm']:.4f} |")
+    lines += ["", f"Weights' storage at k = 8 (the bake keeps {p['storage_chosen']}: the smallest adding at most "
+              f"{vdm_storage.TOLERANCE:.0%} to the truncation's RMS in quadrature; RMS over every table entry):", "",
+              "| W storage | size MB (W + E) | added RMS d | added RMS theta_MVM |", "|---|---:|---:|---:|"]
+    for f, e in p["storage_k8"].items():
+        lines.append(f"| {f} | {e['bytes'] / 2**20:.3f} | {e['rms_vdm']:.5f} | {e['rms_mvm']:.5f} |")
     lines += ["", "## Error against time (mean ΔLuv against the displaced geometry traced by Embree)", "",
               "| surface | height | variant | faces | median ms | ratio to mesh | mean ΔLuv | p95 | IoU |",
               "|---|---|---|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['surface']} | {r['height']} | {r['label']} | {r['faces'] or ''} | {r['median_ms']:.1f} | "
                      f"{r.get('ratio_to_baseline', 1.0):.2f} | {r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
+    for tag, m in inter.items():
+        lines += ["", f"## {tag}: interleaved in one process (wall and CPU ms per frame, medians)", "",
+                  "| variant | median ms | CPU ms | CPU ratio to pom@16 | mean ΔLuv | p95 | IoU |",
+                  "|---|---:|---:|---:|---:|---:|---:|"]
+        base = m["rows"]["pom@16"]["median_cpu_ms"]
+        for k, r in m["rows"].items():
+            lines.append(f"| {k} | {r['median_ms']:.1f} | {r['median_cpu_ms']:.1f} | {r['median_cpu_ms'] / base:.2f} | "
+                         f"{r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
+        lines += ["", "Texture fetches per shaded fragment (COUNT builds):", "",
+                  "| variant | W | E | height | other | total | max |", "|---|---:|---:|---:|---:|---:|---:|"]
+        for k, c in m["fetches"].items():
+            lines.append(f"| {k} | {c['table_weights']} | {c['eigenfunctions']} | {c['height']} | {c['other']} | "
+                         f"{c['total']} | {c['max']} |")
     return "\n".join(lines) + "\n"
+
+
+def _series(rows: list[dict]) -> list[dict]:
+    """Rows for the plot: each refine setting of vdm its own line (vdm@8r2 is on "vdm r2")."""
+    def series(r):
+        v = r["value"]
+        return f"vdm r{v.split('r')[1]}" if r["technique"] == "vdm" and isinstance(v, str) and "r" in v else r["technique"]
+    return [{**r, "technique": series(r)} for r in rows]
 
 
 @click.command()
@@ -121,20 +199,25 @@ def main(out: Path, quick: bool):
     paper = paper_bake(size, n_phi, n_c)
     click.echo(f"paper configuration: {paper['bake_s']:.2f} s, {paper['flat_mrays_per_s']:.2f} Mrays/s "
                f"(raw Embree {paper['raw_mrays_per_s']:.2f})", err=True)
-    rows = []
+    rows, inter = [], {}
     runs = list(itertools.product(SURFACES[:1] if quick else SURFACES, HEIGHTS[:1] if quick else HEIGHTS))
     for (name, primitive, params, tiling), (hname, height) in progress.bar(runs, "bench-vdm", unit="scene"):
         for r in _scene_rows(out, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c,
-                             (0, 1) if quick else (1, 2, 3)):
+                             (0, 1) if quick else (1, 2)):
             rows.append(r)
             click.echo(f"{name:5} {hname:6} {r['label']:13} {r['median_ms']:9.1f} ms  dLuv {r['mean_dluv']:.3f}  "
                        f"IoU {r['iou']:.4f}", err=True)
+        tag = f"{name}-{hname}"
+        inter[tag] = _interleaved(out, tag, 2 if quick else 5)
+        for k, r in inter[tag]["rows"].items():
+            click.echo(f"{tag} interleaved {k:22} {r['median_ms']:8.1f} ms  CPU {r['median_cpu_ms']:8.1f} ms  "
+                       f"dLuv {r['mean_dluv']:.3f}", err=True)
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
     (out / "vdm.json").write_text(json.dumps({"device": device, "resolution": [w, h], "paper_bake": paper,
-                                              "rows": rows}, indent=1) + "\n")
-    (out / "vdm.md").write_text(_markdown(paper, rows, device))
-    report.plot(out / "vdm.png", {"rows": rows, "resolution": [w, h], "device": device})
+                                              "rows": rows, "interleaved": inter}, indent=1) + "\n")
+    (out / "vdm.md").write_text(_markdown(paper, rows, device, inter))
+    report.plot(out / "vdm.png", {"rows": _series(rows), "resolution": [w, h], "device": device})
     click.echo(f"wrote {out / 'vdm.json'}, {out / 'vdm.md'}, {out / 'vdm.png'}")
 
 

@@ -90,7 +90,7 @@ def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = (), may_
         prog = ctx.program(vertex_shader=_with_defines(source(vertex), defines),
                            fragment_shader=_with_defines(source(fragment), defines))
         prog.extra = {"name": f"{vertex} + {fragment}" + (f" [{', '.join(defines)}]" if defines else ""),
-                      "may_lack": frozenset(may_lack)}
+                      "may_lack": frozenset(may_lack), "instrumented": "COUNT" in defines}
         ctx.extra[key] = prog
     prog = ctx.extra[key]
     if prog.extra["may_lack"] != frozenset(may_lack):
@@ -109,7 +109,8 @@ def _lacks(prog, name: str, what: str) -> bool:
     if name in prog:
         return False
     info = _info(prog)
-    if strict() and name not in info["may_lack"]:
+    # an instrumented build (COUNT: it writes counts instead of a colour) may compile anything away
+    if strict() and name not in info["may_lack"] and not info.get("instrumented"):
         raise GLError(f"{info['name']}: no active {what} {name!r} (renamed, misspelt, or unused by the "
                       "shader; declare it in gl.program(..., may_lack=...) if a pass variant drops it)")
     return True

@@ -1,21 +1,44 @@
 """Technique `vdm`: view-dependent displacement mapping (Wang et al. 2003). The bake casts the
 zero-curvature tables, bends them to the curvature range the base mesh has (the Appendix), adds the
-MVM, and compresses [A_VDM, A_MVM] by SVD to the largest k the scene renders (sec. 3.1-3.3);
-vdmbake/vdm.py holds the kernels."""
+MVM, compresses [A_VDM, A_MVM] by SVD to the largest k the scene renders (sec. 3.1-3.3), and stores
+the weights in the smallest format whose rounding the truncation hides (vdmbake/vdm_storage.py);
+vdmbake/vdm.py holds the kernels. Each variant is a k and a refine setting: refine 0 is the paper's
+per-pixel algorithm, R > 0 finishes the view ray's hit and the self-shadow on the height field."""
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
 
-from .. import parts, texspace, vdm
+from .. import parts, texspace, vdm, vdm_storage
 from ..schema import Choice, Either, Integer, ListOf, Technique, setting
+
+
+@dataclass(frozen=True)
+class Variant:
+    k: int | str      # eigenfunctions reconstructed, or "all"
+    refine: int       # 0: the paper's algorithm; R: R + 1 height samples around the lookup's hit, R toward the light
+
+    def __str__(self) -> str:
+        return f"{self.k}" if self.refine == 0 else f"{self.k}r{self.refine}"
+
+    def plain(self):
+        """The report's value: k alone for the paper's algorithm (as before refinement), else the label's."""
+        return self.k if self.refine == 0 else str(self)
 
 
 @dataclass(frozen=True)
 class Options:
     k: tuple = setting((1, 2, 4, 8), ListOf(Either(Integer(1, 256), Choice("all"))),
                        "eigenfunctions of the SVD reconstructed per pixel; \"all\" keeps every one (the "
-                       "uncompressed table, up to float32 rounding)", knob="k")
+                       "uncompressed table, up to the weights' storage)", knob="k")
+    refine: tuple[int, ...] = setting((0,), ListOf(Integer(0, 64)),
+                                      "0: the paper's algorithm; R: the hit finished with R + 1 samples of the height "
+                                      "field around the lookup's, the self-shadow with R samples toward the light "
+                                      "(each value with each k: variants vdm@K and vdm@KrR)")
+
+
+def variants(options: Options) -> list[Variant]:
+    return [Variant(k, r) for r in options.refine for k in options.k]
 
 
 def bake(job) -> dict:
@@ -29,23 +52,29 @@ def bake(job) -> dict:
     k = table.shape[3] * table.shape[4] + table.shape[4] if "all" in ks else max(ks)
     comp = vdm.compress(table, theta_mvm, k, report=[x for x in ks if x != "all"])
     t2 = time.perf_counter()
-    tables = parts.VDMTables(W=comp.W.transpose(2, 0, 1, 3), E_vdm=comp.E_vdm.transpose(0, 2, 1),
-                             E_mvm=comp.E_mvm)
     k = comp.W.shape[-1]
+    errors = vdm_storage.storage_errors(comp.W, comp.E_vdm, comp.E_mvm)
+    storage = vdm_storage.choose(errors, comp.errors[k].rms_vdm, comp.errors[k].rms_mvm)
+    stored, scale, offset = vdm_storage.quantise(comp.W, storage)
+    t3 = time.perf_counter()
+    tables = parts.VDMTables(W=stored.transpose(2, 0, 1, 3), E_vdm=comp.E_vdm.transpose(0, 2, 1), E_mvm=comp.E_mvm,
+                             scale=scale, offset=offset)
     entry = {
         "tables": job.write("vdm", parts.VDM, tables), "k": k, "rank": comp.rank,
         "curvatures": list(sampling.curvatures), "rays": rays, "table_bytes": table.nbytes + theta_mvm.nbytes,
-        "compressed_bytes": comp.W.nbytes + comp.E_vdm.nbytes + comp.E_mvm.nbytes,
+        "compressed_bytes": stored.nbytes + comp.E_vdm.nbytes + comp.E_mvm.nbytes, "storage": storage,
+        "storage_errors": {f: {q: round(v, 7) for q, v in e.items()} for f, e in errors.items()},
         "errors": {str(kk): {f: round(getattr(e, f), 6) for f in ("energy", "rms_vdm", "rms_mvm", "max_abs_vdm")}
                    for kk, e in comp.errors.items()}}
-    job.steps.update(vdm_tables_s=round(t1 - t0, 3), vdm_svd_s=round(t2 - t1, 3))
+    job.steps.update(vdm_tables_s=round(t1 - t0, 3), vdm_svd_s=round(t2 - t1, 3), vdm_storage_s=round(t3 - t2, 3))
     job.log(f"VDM {m.size}^2 x {m.phi} phi x {m.theta} theta x {len(sampling.curvatures)} curvatures "
             f"[{lo:.3g}, {hi:.3g}], {rays:,} rays in {t1 - t0:.2f} s; SVD k = {k} (rank {comp.rank}) in "
-            f"{t2 - t1:.2f} s, {entry['table_bytes'] / 2**20:.1f} MB -> {entry['compressed_bytes'] / 2**20:.2f} MB")
+            f"{t2 - t1:.2f} s, {entry['table_bytes'] / 2**20:.1f} MB -> {entry['compressed_bytes'] / 2**20:.2f} MB "
+            f"(W as {storage})")
     return entry
 
 
 TECHNIQUE = Technique("vdm", "view-dependent displacement mapping, the paper's four steps per pixel over the base "
                       "mesh: silhouette from the MVM, real texture coordinate, self-shadow by a second lookup, "
-                      "shading; d and theta_MVM rebuilt from the SVD", ("surface",), Options, mesostructure=True,
-                      bake=bake)
+                      "shading; d and theta_MVM rebuilt from the SVD; refined on the height field as an option",
+                      ("surface",), Options, mesostructure=True, bake=bake, combine=variants)

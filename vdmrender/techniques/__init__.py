@@ -48,7 +48,8 @@ def variants(obj: Object, entry: dict, bundle, scene: Scene, only=None) -> list[
         t = REGISTRY[name]
         module = importlib.import_module(f"{__name__}.{name}")
         src = Source(obj, entry, entry["techniques"].get(name), bundle, scene, options)
-        knob, plain = (t.knob.metadata["knob"], t.knob.metadata["type"].item.dump) if t.knob else (None, None)
+        knob = t.knob and t.knob.metadata["knob"]
+        plain = (lambda v: v.plain()) if t.combine else t.knob.metadata["type"].item.dump if t.knob else None
         out += [Variant(name, knob, plain and plain(value), t.label(value),
                         lambda ctx, build=module.build, src=src, value=value: build(ctx, src, value))
                 for value in t.values(options)]

@@ -89,7 +89,7 @@ class MesostructurePass(RasterPasses):
         # Height fields are indexed [v, u] with row 0 at v = 0 (vdmbake.heightfields); GL's first row is
         # t = 0, so the arrays go up as they are and texture(T) reads h at T = (u, v).
         self.textures = {
-            "u_normals": texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, True)}
+            "u_normals": texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, False)}
         self.uniforms = {"u_tiling": tuple(m.tiling), **uniforms}
         if heights:
             self.textures["u_height"] = texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"),

@@ -1,0 +1,95 @@
+"""Alternatives measured against each other in one process, interleaved (A, B, C, A, B, C, ...), for
+the benchmarks: on a shared machine a sequential run gives each variant different neighbours. Per frame,
+wall time and the process's CPU time (llvmpipe's rasteriser threads are the process's own, so CPU
+time is the work done, much less disturbed by other processes than wall time), and each variant's
+error against the reference frames of a previous vdmrender run. Also texture fetches per shaded
+fragment from a COUNT build of a stage (shaders/include/fetch_count.glsl)."""
+from __future__ import annotations
+
+import statistics
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from vdmbake import exr
+from vdmbake.bundle import MANIFEST, Bundle
+from vdmbake.scene import parse_scene_dict
+
+from . import gl, images
+from .camera import cameras_for
+from .metrics import compare
+
+
+def scene_of(bundle_path: Path):
+    """The bundle, its scene, first object, that object's manifest entry and its cameras."""
+    bundle = Bundle(Path(bundle_path))
+    scene = parse_scene_dict(bundle.manifest["scene"], str(bundle.path / MANIFEST))
+    obj = scene.objects[0]
+    entry = bundle.manifest["objects"][obj.name]
+    w, h = scene.render.resolution
+    return bundle, scene, obj, entry, cameras_for(scene.camera, entry["centre"], entry["radius"], w, h)
+
+
+def reference8(render_dir: Path, name: str, count: int, background) -> list[np.ndarray]:
+    """A vdmrender output folder's reference frames of object `name`, encoded as the frames are."""
+    out = []
+    for k in range(count):
+        ch = exr.read(Path(render_dir) / f"reference/{name}/{k:03d}.exr")["reference"]
+        out.append(images.encode(np.stack([ch[c] for c in "RGBA"], -1), background))
+    return out
+
+
+def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: int = 5) -> dict[str, dict]:
+    """Each build(ctx) -> renderer, warmed up once per camera, then `rounds` rounds of every variant on
+    every camera; medians over all timed frames, error over all frames (thesis eq. 2.2)."""
+    target = gl.Target(ctx, cams[0].width, cams[0].height)
+    renderers = {k: b(ctx) for k, b in builds.items()}
+    wall = {k: [] for k in builds}
+    cpu = {k: [] for k in builds}
+    for r in renderers.values():
+        for cam in cams:
+            r.render(cam, target)
+            ctx.finish()
+    for _ in range(rounds):
+        for k, r in renderers.items():
+            for cam in cams:
+                c0, t0 = time.process_time(), time.perf_counter()
+                r.render(cam, target)
+                ctx.finish()
+                wall[k].append((time.perf_counter() - t0) * 1e3)
+                cpu[k].append((time.process_time() - c0) * 1e3)
+    rows = {}
+    for k, r in renderers.items():
+        dists, ious = [], []
+        for cam, r8 in zip(cams, ref8):
+            r.render(cam, target)
+            c = compare(images.encode(target.read(), background), r8)
+            dists.append(c["values"])
+            ious.append(c["iou"])
+        d = np.concatenate(dists)
+        rows[k] = {"median_ms": round(statistics.median(wall[k]), 2), "min_ms": round(min(wall[k]), 2),
+                   "median_cpu_ms": round(statistics.median(cpu[k]), 2),
+                   "mean_dluv": round(float(d.mean()), 4), "p95_dluv": round(float(np.percentile(d, 95)), 3),
+                   "iou": round(float(np.mean(ious)), 5)}
+        r.release()
+    target.release()
+    return rows
+
+
+def fetches(ctx, build: Callable, cams) -> dict[str, float]:
+    """Mean texture fetches per shaded fragment of a COUNT build, by kind, over every covered pixel."""
+    target = gl.Target(ctx, cams[0].width, cams[0].height)
+    r = build(ctx)
+    counts = []
+    for cam in cams:
+        r.render(cam, target)
+        f = target.read()
+        counts.append(f[f[..., 3] > 0])
+    r.release()
+    target.release()
+    c = np.concatenate(counts)
+    return {"table_weights": round(float(c[:, 0].mean()), 2), "eigenfunctions": round(float(c[:, 1].mean()), 2),
+            "height": round(float(c[:, 2].mean()), 2), "other": round(float(c[:, 3].mean()), 2),
+            "total": round(float(c.sum(1).mean()), 2), "max": int(c.sum(1).max())}
