@@ -319,6 +319,8 @@ class SpecReader:
         meta = self.manifest["parts"][rel]
         k, n_phi = meta["k"], meta["n_phi"]
         w = np.stack([x["W"].channels[f"W.{i:03d}"] for i in range(k)], -1)     # (n_phi*N, N, k)
+        if meta["storage"] == "uint8":                  # codes: weight = code * scale + offset per eigenfunction
+            w = w.astype(np.float32) * x["W_dequant"].channels["scale"][0] + x["W_dequant"].channels["offset"][0]
         n = w.shape[1]
         if w.shape[0] != n_phi * n:
             raise BundleError(f"{rel}: W has {w.shape[0]} rows, want n_phi * N = {n_phi * n}")
@@ -789,7 +791,7 @@ def test_exr_files_layout(meso, shapes):
             if entry["kind"] == "mesostructure":
                 assert {k: sorted(p.channels) for k, p in x.items()} == want_parts["mesostructure"]
             elif entry["kind"] == "vdm":
-                assert sorted(x) == ["E_mvm", "E_vdm", "W"]
+                assert sorted(x) == ["E_mvm", "E_vdm", "W"] + (["W_dequant"] if entry["storage"] == "uint8" else [])
                 assert sorted(x["W"].channels) == [f"W.{i:03d}" for i in range(entry["k"])]
                 assert sorted(x["E_vdm"].channels) == [f"E.{i:03d}" for i in range(entry["k"])]
                 assert sorted(x["E_mvm"].channels) == [f"E.{i:03d}" for i in range(entry["k"])]
@@ -805,8 +807,11 @@ def test_exr_files_layout(meso, shapes):
                 assert (lo == 0).all()
                 sizes.append(size)
                 for c, a in p.channels.items():
-                    assert "FLOAT" in p.channel_types[c]
-                    assert a.dtype == np.float32 and a.shape == (size[1], size[0])
+                    if entry["kind"] == "vdm" and c.startswith("W.") and entry["storage"] != "float32":
+                        assert {"uint8": "UINT", "float16": "HALF"}[entry["storage"]] in p.channel_types[c]
+                    else:
+                        assert "FLOAT" in p.channel_types[c] and a.dtype == np.float32
+                    assert a.shape == (size[1], size[0])
             union = np.max(sizes, 0)
             for p in x.values():
                 lo, size = _window_size(p.header["displayWindow"])
@@ -1052,7 +1057,8 @@ def test_reader_agrees_with_project_unpacking(meso, shapes):
 
     rel = torus["techniques"]["vdm"]["tables"]
     ours, theirs = meso.vdm(rel), Bundle(meso.root).read(rel, parts.VDM)
-    for key in ("W", "E_vdm", "E_mvm"):
+    np.testing.assert_array_equal(ours["W"], theirs.W.astype(np.float32) * theirs.scale + theirs.offset)
+    for key in ("E_vdm", "E_mvm"):
         np.testing.assert_array_equal(ours[key], getattr(theirs, key))
 
     atoms = shapes.manifest["objects"]["atoms"]

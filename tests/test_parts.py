@@ -45,13 +45,17 @@ def test_mesostructure_maps():
     assert np.array_equal(back.heights, m.heights) and np.array_equal(back.normals, m.normals)
 
 
-def test_vdm_tables():
-    t = parts.VDMTables(f32(RNG.normal(size=(4, 8, 8, 5))), f32(RNG.normal(size=(5, 3, 2))),
-                        f32(RNG.normal(size=(5, 3))))
+@pytest.mark.parametrize("storage", [np.float32, np.float16, np.uint8])
+def test_vdm_tables(storage):
+    W = RNG.uniform(0, 255, size=(4, 8, 8, 5)).astype(storage)
+    scale, offset = (f32(RNG.uniform(size=5)), f32(RNG.normal(size=5))) if storage == np.uint8 else \
+        (np.ones(5, np.float32), np.zeros(5, np.float32))
+    t = parts.VDMTables(W, f32(RNG.normal(size=(5, 3, 2))), f32(RNG.normal(size=(5, 3))), scale, offset)
     data, meta = parts.VDM.pack(t)
-    assert meta == {"k": 5, "n_phi": 4}
+    assert meta == {"k": 5, "n_phi": 4, "storage": np.dtype(storage).name}
     back = parts.VDM.unpack(data, meta, "t")
-    for f in ("W", "E_vdm", "E_mvm"):
+    assert back.W.dtype == storage
+    for f in ("W", "E_vdm", "E_mvm", "scale", "offset"):
         assert np.array_equal(getattr(back, f), getattr(t, f)), f
 
 
@@ -69,7 +73,8 @@ def test_billboards():
 def test_missing_channels_and_wrong_kind_are_input_errors(tmp_path):
     data, meta = parts.MESOSTRUCTURE.pack(parts.MesostructureMaps(f32(np.ones((4, 4))), f32(np.ones((4, 4, 3)))))
     with pytest.raises(InputError, match="'height' with channels h is missing"):
+        one = np.ones(1, np.float32)
         parts.MESOSTRUCTURE.unpack(parts.VDM.pack(parts.VDMTables(f32(np.ones((1, 4, 4, 1))), f32(np.ones((1, 1, 1))),
-                                                                  f32(np.ones((1, 1)))))[0], meta, "x.exr")
+                                                                  f32(np.ones((1, 1))), one, 0 * one))[0], meta, "x.exr")
     with pytest.raises(InputError, match="unreadable EXR"):
         parts.MESOSTRUCTURE.unpack(data[:100], meta, "x.exr")
