@@ -8,7 +8,6 @@ Every bound below is the figure measured on Mesa llvmpipe (2-core machine) with 
 measurement in a comment beside it."""
 from __future__ import annotations
 
-import json
 
 import numpy as np
 import pytest
@@ -17,53 +16,14 @@ from PIL import Image
 from vdmbake import parts
 from vdmbake.bundle import Bundle
 
-from scenes import bake_and_render, rows_by_label
-
-HEAD = """\
-[render]
-resolution = [{res}, {res}]
-repeats = 1
-warmup = 0
-shadow_map = {shadow_map}
-"""
-TOP = "[camera]\nup = [0, 1, 0]\n[[camera.poses]]\neye = [0, 0, 1.5]\ntarget = [0, 0, 0]\nfov_deg = 40\n"
-OBLIQUE = "[camera]\nup = [0, 0, 1]\n[[camera.poses]]\neye = [0.2, -0.6, 0.6]\ntarget = [0, 0, 0]\nfov_deg = 35\n"
-GRAZING = "[camera]\nup = [0, 0, 1]\n[[camera.poses]]\neye = [0, -4.5, 0.2]\ntarget = [0, 0, 0]\nfov_deg = 30\n"
-ORBIT = "[camera]\norbit = {{ count = {count}, elevation_deg = 30 }}\n"
-
-PLANE = 'primitive = "plane"\nparams = { size = 2.0, segments = 8 }'
-BIG_PLANE = 'primitive = "plane"\nparams = { size = 8.0, segments = 16 }'
-TORUS = 'primitive = "torus"\nparams = { segments = 64, rings = 32 }'
+import meso_scenes
+from meso_scenes import BIG_PLANE, GRAZING, OBLIQUE, ORBIT, PLANE, TOP, TORUS, centre_dluv, manifest, mean, render
 
 ALL = 'mesh = {}, relief = { iterations = [32] }, pom = { steps = [16] }, displaced = { levels = [1] }'
 
 
-def scene(camera, obj, techniques=ALL, height="bricks", depth=0.06, tiling=(2, 2), size=16, res=48, light="",
-          shadow_map=256):
-    return (HEAD.format(res=res, shadow_map=shadow_map) + camera + light
-            + f'[[objects]]\nname = "p"\n{obj}\ntechniques = {{ {techniques} }}\n'
-            + f'[objects.mesostructure]\nheight = "{height}"\nsize = {size}\ndepth = {depth}\n'
-            + f"tiling = [{tiling[0]}, {tiling[1]}]\n")
-
-
-def render(tmp_path, text):
-    """Bake and render; every row's frames must be finite everywhere."""
-    r, out = bake_and_render(tmp_path, text)
-    assert r.exit_code == 0, r.output
-    rows = rows_by_label(r)
-    for label, row in rows.items():   # the figures the bounds come from (pytest -s shows them)
-        print(f"{label:>12}: mean {row['mean_dluv']:.3f}  p95 {row['p95_dluv']:.3f}  IoU {row['iou']:.4f}")
-    for label, row in rows.items():
-        assert row["nonfinite"] == 0, f"{label}: {row['nonfinite']} non-finite pixels"
-    return rows, out
-
-
-def mean(rows, label):
-    return rows[label]["mean_dluv"]
-
-
-def manifest(tmp_path) -> dict:
-    return json.loads((tmp_path / "b.bundle" / "manifest.json").read_text())
+def scene(camera, obj, techniques=ALL, **kw):
+    return meso_scenes.scene(camera, obj, techniques, **kw)
 
 
 def stage_errors(tmp_path, out, *defines_list, iterations=32):
@@ -104,14 +64,6 @@ def stage_errors(tmp_path, out, *defines_list, iterations=32):
         target.release()
         ctx.release()
     return result
-
-
-def centre_dluv(out, label):
-    from vdmrender.metrics import delta_luv
-    ref = np.asarray(Image.open(out / "reference/p/000.png"))[..., :3]
-    img = np.asarray(Image.open(out / f"frames/p/{label}/000.png"))[..., :3]
-    c = ref.shape[0] // 2
-    return float(delta_luv(img[c:c + 1, c:c + 1], ref[c:c + 1, c:c + 1])[0, 0])
 
 
 # ----------------------------------------------------------------------------- baseline and knob

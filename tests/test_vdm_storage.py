@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from vdmbake import exr, vdm, vdm_storage
+from vdmbake import exr, vdm_storage
 from vdmbake.bundle import Bundle
 
 RNG = np.random.default_rng(3)

@@ -18,7 +18,7 @@ def bent(s, h, c):
     return (R - h) * np.sin(s / R), (R - h) * np.cos(s / R) - R
 
 
-def vdm_exact(heights: np.ndarray, depth: float, sampling: Sampling, c: float) -> np.ndarray:
+def vdm_exact(heights: np.ndarray, depth: float, sampling: vdm.Sampling, c: float) -> np.ndarray:
     """The curved VDM by ray casting the truly bent mesostructure (the oracle for vdm.vdm_curved).
 
     For each azimuth the patch is bent into a cylinder of curvature c along that azimuth, about

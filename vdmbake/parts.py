@@ -14,7 +14,6 @@ import numpy as np
 
 from . import exr, ply, pyramid, quadrics
 from .errors import InputError
-from .meshes import TriMesh
 
 
 @dataclass(frozen=True)
