@@ -28,6 +28,11 @@ powers of two (GL mip sizes halve with floor). Level 0: the four corners (c00, c
 level L >= 1: (min, max, min, max). The min and max of the four components are then the interval at every
 level, so one texelFetch per cell visit serves both the interval test and, at level 0, the exact patch.
 Padding texels are never fetched (the traversal keeps indices inside each level's ceil(n / 2^L)).
+texture_atlas packs the same texels into one image without the padding (level origins passed to the
+include's HF_FETCH), for cell counts far from a power of two.
+
+Empty cells (build's `empty` mask, e.g. a billboard's uncovered texels): interval and corners HUGE, a
+surface no ray reaches, so rays pass them at every level.
 """
 from __future__ import annotations
 
@@ -78,8 +83,11 @@ def _reduce(a: np.ndarray) -> np.ndarray:
     return np.stack([b[..., 0].min(axis=(1, 3)), b[..., 1].max(axis=(1, 3))], -1)
 
 
-def build(samples: np.ndarray, mode: str) -> Pyramid:
-    """The min/max pyramid of a depth field (see the module's docstring for the layout)."""
+def build(samples: np.ndarray, mode: str, empty: np.ndarray | None = None) -> Pyramid:
+    """The min/max pyramid of a depth field (see the module's docstring for the layout). empty: optional
+    (ny, nx) bool over the level-0 cells, True where the field has no surface (a billboard's uncovered
+    texels): such a cell's interval is [HUGE, HUGE], a surface no ray reaches, so every ray passes it;
+    above it, min and max come from the non-empty cells (max becomes HUGE where any cell below is empty)."""
     s = np.asarray(samples, np.float32)
     if mode not in MODES:
         raise ValueError(f"pyramid mode {mode!r}: use one of {MODES}")
@@ -89,6 +97,10 @@ def build(samples: np.ndarray, mode: str) -> Pyramid:
         raise ValueError("depth field has non-finite values")
     c = corners(s, mode)
     levels = [np.stack([c.min(-1), c.max(-1)], -1)]
+    if empty is not None:
+        if np.shape(empty) != levels[0].shape[:2]:
+            raise ValueError(f"empty mask of shape {np.shape(empty)}: the field has {levels[0].shape[:2]} cells")
+        levels[0][np.asarray(empty, bool)] = HUGE
     while max(levels[-1].shape[:2]) > 1:
         levels.append(_reduce(levels[-1]))
     return Pyramid(s, mode, tuple(np.ascontiguousarray(a) for a in levels))
@@ -102,9 +114,37 @@ def texture_levels(p: Pyramid) -> list[np.ndarray]:
     out = []
     for L, a in enumerate(p.levels):
         t = np.zeros((max(1, py >> L), max(1, px >> L), 4), np.float32)
-        t[:a.shape[0], :a.shape[1]] = corners(p.samples, p.mode) if L == 0 else np.concatenate([a, a], -1)
+        t[:a.shape[0], :a.shape[1]] = level_texels(p, L)
         out.append(t)
     return out
+
+
+def level_texels(p: Pyramid, L: int) -> np.ndarray:
+    """(ceil(ny / 2^L), ceil(nx / 2^L), 4) what the tracer fetches at level L: the corners at level 0 (HUGE
+    for empty cells), (min, max, min, max) above."""
+    if L == 0:
+        return np.where(p.levels[0][..., :1] >= HUGE, np.float32(HUGE), corners(p.samples, p.mode))
+    return np.concatenate([p.levels[L], p.levels[L]], -1)
+
+
+def texture_atlas(p: Pyramid) -> tuple[np.ndarray, np.ndarray]:
+    """The same texels as texture_levels without power-of-two padding, for fields whose cell count is not a
+    power of two (a billboard's R + 1 cells: padding would quadruple it): one RGBA32F image, level 0 at
+    (0, 0), levels 1.. stacked top to bottom in a column to its right. Returns the image (rows, columns, 4)
+    and origins (levels, 2): the (x, y) texel where each level starts (the include's HF_FETCH adds it)."""
+    ny, nx = p.cells
+    col = p.levels[1].shape[1] if p.top > 0 else 0
+    height = max(ny, sum(a.shape[0] for a in p.levels[1:]))
+    out = np.zeros((height, nx + col, 4), np.float32)
+    origins = np.zeros((len(p.levels), 2), np.int32)
+    y = 0
+    for L in range(len(p.levels)):
+        t = level_texels(p, L)
+        if L > 0:
+            origins[L] = (nx, y)
+            y += t.shape[0]
+        out[origins[L, 1]:origins[L, 1] + t.shape[0], origins[L, 0]:origins[L, 0] + t.shape[1]] = t
+    return out, origins
 
 
 # ------------------------------------------------------------------------------------------ the exact patch
@@ -228,7 +268,10 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, max_ite
                 st.t_reached = t + s
                 return t + s
         else:
-            inside = below
+            # a skipped cell holding an empty cell leaves the ray's side unknown where it leaves (there is no
+            # surface across an empty cell): it must then come from above the next surface to hit it, so a
+            # ray passing beneath a surface's border finds no wall there
+            inside = below or zmax >= HUGE
         # leave the cell by the side(s) the ray exits through; ascend if a parent boundary was crossed
         if te >= t1:
             st.t_reached = t1

@@ -33,6 +33,8 @@
 //               [j 2^L, (j+1) 2^L). Read with texelFetch only (no filtering). One fetch serves a visit at
 //               any level, which on llvmpipe beats an RG32F min/max chain plus a gather of the corner
 //               samples (every branch's fetches are paid there; docs/relief-notes.md).
+//               Empty cells (pyramid.build's `empty`, e.g. a billboard's uncovered texels) hold HF_HUGE:
+//               rays pass them.
 //   u_hf_cells  ivec2 (cells along x, cells along y) at level 0;  u_hf_top  the top level (one texel).
 //   Define HF_FETCH(ivec2 cell, int level) before the include to read another texture (e.g. a layer of a
 //   texture array; then u_hf is not declared).
@@ -179,7 +181,10 @@ float hf_run(vec3 o, vec3 d, float t0, float t1, bool inside) {
             }
             inside = h.y > 0.5;
         } else {
-            inside = below;
+            // a skipped cell holding an empty cell (pyramid.py `empty`: zmax HUGE) leaves the ray's side
+            // unknown where it leaves: it must come from above the next surface to hit it (no wall at the
+            // border of a surface)
+            inside = below || zmax >= HF_HUGE;
         }
         // leave the cell by the side(s) the ray exits through; ascend if a parent boundary was crossed
         if (te >= t1) {
