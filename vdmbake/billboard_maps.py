@@ -1,0 +1,122 @@
+"""Enhanced billboards: what the renderer needs from each billboard's maps, computed once in the bake
+(pure numpy; the maps themselves come from vdmbake.billboards).
+
+The surface a billboard stands for is the bilinear interpolation of its depth map (Vichitvejpaisal 2005,
+sec. 3.1: the depth map is a height field over the billboard plane, ray-marched in sec. 3.3). Its samples
+sit at texel centres, so the bilinear surface of the R x R map runs between them; with a one-texel border
+it covers the whole box, [0, 1]^2 in map coordinates, as (R + 1)^2 bilinear cells ("texels" of the surface:
+the square between four neighbouring samples).
+
+* padded_maps: normal and depth with that border; the border and the empty texels within PAD rings of
+  covered ones are extrapolated from the covered ones (pad), so the surface continues with its slope past
+  a silhouette or the map's edge instead of bending towards the empty texels' depth.
+* empty_cells: the cells a ray passes through. A cell is covered if any of its four corner texels is
+  (the improved march's coverage test, a textureGather of the alpha map at the hit): neighbouring
+  billboards then overlap by up to a texel instead of leaving cracks between them.
+* depth_pyramid: the min/max pyramid (vdmbake.pyramid, CLAMP mode) of the padded depth over those cells,
+  the empty ones marked so that the hierarchical march skips them at every level.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import pyramid
+
+PAD = 2   # rings of empty texels extrapolated around the covered ones (the bilinear surface reaches 1)
+
+
+def pad(values: np.ndarray, valid: np.ndarray, rings: int = PAD) -> np.ndarray:
+    """Empty texels within `rings` of covered ones, filled by linear extrapolation from them: each
+    covered 8-neighbour n1 with a covered n2 beyond it (same direction) proposes 2 n1 - n2 (n1 alone
+    otherwise); the proposals are averaged. Bilinear filtering between a covered texel and an empty one
+    then continues the surface's slope (a steep rim stays steep), instead of bending it to depth 1."""
+    h, w = valid.shape
+    big = 2 * rings + 2
+    v = values.astype(np.float32).copy()
+    ok = valid.copy()
+    for _ in range(rings):
+        vp = np.pad(v, ((big, big), (big, big), (0, 0)))
+        op = np.pad(ok, big)
+        acc, cnt = np.zeros_like(v), np.zeros((h, w), np.float32)
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                if di == dj == 0:
+                    continue
+                n1 = vp[big + di:big + di + h, big + dj:big + dj + w]
+                n2 = vp[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
+                ok1 = op[big + di:big + di + h, big + dj:big + dj + w]
+                ok2 = op[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
+                acc += np.where(ok1[..., None], np.where(ok2[..., None], 2 * n1 - n2, n1), 0.0)
+                cnt += ok1
+        fill = ~ok & (cnt > 0)
+        v[fill] = acc[fill] / cnt[fill, None]
+        ok |= fill
+    return v
+
+
+def map_texels(b) -> tuple[np.ndarray, np.ndarray]:
+    """(R+2, R+2, 4) normal + depth with a one-texel border, and (R, R) coverage. The border and the
+    empty texels near covered ones are extrapolated (pad): bilinear filtering in the outer half texel
+    of the map then follows the surface's slope rather than the clamped edge texel."""
+    covered = np.asarray(b.alpha) > 0.5
+    res = covered.shape[0]
+    values = np.zeros((res + 2, res + 2, 4), np.float32)
+    values[..., 3] = 1.0
+    values[1:-1, 1:-1, :3] = np.asarray(b.normal, np.float32)
+    values[1:-1, 1:-1, 3] = np.asarray(b.depth, np.float32)
+    valid = np.zeros((res + 2, res + 2), bool)
+    valid[1:-1, 1:-1] = covered
+    return pad(values, valid), covered
+
+
+def empty_cells(covered: np.ndarray) -> np.ndarray:
+    """(R+1, R+1) True for the bilinear cells of the bordered map with no covered corner. Corners in the
+    border count as the map's edge texel next to them (the clamped textureGather of the improved march)."""
+    c = np.pad(np.asarray(covered, bool), 1, mode="edge")
+    return ~(c[:-1, :-1] | c[:-1, 1:] | c[1:, :-1] | c[1:, 1:])
+
+
+def depth_pyramid(b) -> tuple[np.ndarray, pyramid.Pyramid]:
+    """The bordered maps (map_texels) and the min/max pyramid of their depth, empty cells marked."""
+    values, covered = map_texels(b)
+    return values, pyramid.build(values[..., 3], pyramid.CLAMP, empty_cells(covered))
+
+
+def occupied_boxes(p: pyramid.Pyramid, level: int) -> np.ndarray:
+    """(n, 2, 3) the boxes [lo, hi] in the bordered map's sample coordinates (x, y, depth) of the non-empty
+    cells at `level` of a pyramid: each the cell's square times the depth interval of its non-empty level-0
+    cells. Every point of the bilinear surface lies in one of them, so a ray that enters none reaches no
+    surface, and one that does reaches none before its first entry (the renderer's occupancy pre-pass)."""
+    level = min(level, p.top)
+    ny, nx = p.cells
+    lo0, hi0 = p.levels[0][..., 0], p.levels[0][..., 1]
+    hi0 = np.where(lo0 >= pyramid.HUGE, -np.inf, hi0)          # max over non-empty cells only
+    k = 1 << level
+    pad_y, pad_x = -ny % k, -nx % k
+    hi = np.pad(hi0, ((0, pad_y), (0, pad_x)), constant_values=-np.inf)
+    hi = hi.reshape(hi.shape[0] // k, k, hi.shape[1] // k, k).max(axis=(1, 3))
+    lo = p.levels[level][..., 0]
+    i, j = np.nonzero(lo < pyramid.HUGE)
+    return np.stack([np.stack([j * k, i * k, lo[i, j]], 1),
+                     np.stack([np.minimum((j + 1) * k, nx), np.minimum((i + 1) * k, ny), hi[i, j]], 1)], 1)
+
+
+def to_parts(billboards) -> dict[str, dict[str, np.ndarray]]:
+    """EXR parts (vdmbake.exr) of every billboard's bordered maps and pyramid: 'bbNNN' (channels normal.X/Y/Z,
+    depth.Z, (R+2)^2) and 'bbNNN.LMM' per pyramid level (min.Z, max.Z)."""
+    parts = {}
+    for i, b in enumerate(billboards):
+        values, pyr = depth_pyramid(b)
+        parts[f"bb{i:03d}"] = {**{f"normal.{a}": values[..., k] for k, a in enumerate("XYZ")}, "depth.Z": values[..., 3]}
+        for L, a in enumerate(pyr.levels):
+            parts[f"bb{i:03d}.L{L:02d}"] = {"min.Z": a[..., 0], "max.Z": a[..., 1]}
+    return parts
+
+
+def from_parts(parts: dict[str, dict[str, np.ndarray]], name: str) -> tuple[np.ndarray, pyramid.Pyramid]:
+    """The bordered maps and the pyramid of billboard `name` ('bbNNN') that to_parts wrote."""
+    m = parts[name]
+    values = np.stack([m["normal.X"], m["normal.Y"], m["normal.Z"], m["depth.Z"]], -1).astype(np.float32)
+    keys = sorted(k for k in parts if k.startswith(name + ".L"))
+    levels = tuple(np.stack([parts[k]["min.Z"], parts[k]["max.Z"]], -1).astype(np.float32) for k in keys)
+    return values, pyramid.Pyramid(values[..., 3].copy(), pyramid.CLAMP, levels)
