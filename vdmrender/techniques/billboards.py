@@ -18,8 +18,8 @@ The hit is shaded with the shared model (normal map, shadow map) and writes its 
 
 Texture layout: two texture arrays, one layer per billboard. RGBA32F normal (world, xyz) + depth (w),
 (R+2)^2 with a one-texel border, linear filtering; the border and the empty texels within PAD of covered
-ones are linearly extrapolated from them, so filtering at a map's edge or silhouette follows the
-surface's slope. R8 alpha, R^2, read per texel (texelFetch, textureGather).
+ones are linearly extrapolated from them (vdmbake/billboard_maps.py map_texels), so filtering at a map's
+edge or silhouette follows the surface's slope. R8 alpha, R^2, read per texel (texelFetch, textureGather).
 
 Passes per frame: the shadow map, then the frame. The shadow map holds what the frame draws: the
 billboards ray-marched with the same method from the light's orthographic camera (gl_FragDepth), plus
@@ -42,6 +42,7 @@ from typing import NamedTuple
 import moderngl
 import numpy as np
 
+from vdmbake.billboard_maps import map_texels
 from vdmbake.errors import InputError
 
 from .. import gl
@@ -53,7 +54,6 @@ NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in
 BOARD_TEXELS = 1.0           # ... plus this many of the billboard's map texels. Mean dLuv of the improved method,
                              # torus, R 128, 96x96, 512 map: 0 -> 0.77 (acne where billboards overlap), 0.5 -> 0.30,
                              # 1 -> 0.19, 1.5 -> 0.17; with a 1024 map 0.37, 0.24, 0.18 (sphere: 0.053 for all)
-PAD = 2                      # rings of empty texels extrapolated around the covered ones (bilinear reaches 1)
 COARSE_BEHIND = 0.05         # the coarse mesh is depth-tested as if this far (x radius) behind where it is, so that
                              # it fills holes rather than poking through the billboards (its vertices lie off the
                              # surface). Improved, with coarse, mean dLuv at 96x96 (sphere, torus): 0 -> 0.38, 1.22;
@@ -81,50 +81,6 @@ def surface_points(b) -> np.ndarray:
     i, j = np.nonzero(np.asarray(b.alpha) > 0.5)
     s = np.stack([(j + 0.5) / res, (i + 0.5) / res, np.asarray(b.depth, np.float64)[i, j]], -1)
     return np.asarray(b.origin, np.float64) + (s * np.asarray(b.size, np.float64)) @ np.asarray(b.axes, np.float64)
-
-
-def pad(values: np.ndarray, valid: np.ndarray, rings: int = PAD) -> np.ndarray:
-    """Empty texels within `rings` of covered ones, filled by linear extrapolation from them: each
-    covered 8-neighbour n1 with a covered n2 beyond it (same direction) proposes 2 n1 - n2 (n1 alone
-    otherwise); the proposals are averaged. Bilinear filtering between a covered texel and an empty one
-    then continues the surface's slope (a steep rim stays steep), instead of bending it to depth 1."""
-    h, w = valid.shape
-    big = 2 * rings + 2
-    v = values.astype(np.float32).copy()
-    ok = valid.copy()
-    for _ in range(rings):
-        vp = np.pad(v, ((big, big), (big, big), (0, 0)))
-        op = np.pad(ok, big)
-        acc, cnt = np.zeros_like(v), np.zeros((h, w), np.float32)
-        for di in (-1, 0, 1):
-            for dj in (-1, 0, 1):
-                if di == dj == 0:
-                    continue
-                n1 = vp[big + di:big + di + h, big + dj:big + dj + w]
-                n2 = vp[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
-                ok1 = op[big + di:big + di + h, big + dj:big + dj + w]
-                ok2 = op[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
-                acc += np.where(ok1[..., None], np.where(ok2[..., None], 2 * n1 - n2, n1), 0.0)
-                cnt += ok1
-        fill = ~ok & (cnt > 0)
-        v[fill] = acc[fill] / cnt[fill, None]
-        ok |= fill
-    return v
-
-
-def map_texels(b) -> tuple[np.ndarray, np.ndarray]:
-    """(R+2, R+2, 4) normal + depth with a one-texel border, and (R, R) coverage. The border and the
-    empty texels near covered ones are extrapolated (pad): bilinear filtering in the outer half texel
-    of the map then follows the surface's slope rather than the clamped edge texel."""
-    covered = np.asarray(b.alpha) > 0.5
-    res = covered.shape[0]
-    values = np.zeros((res + 2, res + 2, 4), np.float32)
-    values[..., 3] = 1.0
-    values[1:-1, 1:-1, :3] = np.asarray(b.normal, np.float32)
-    values[1:-1, 1:-1, 3] = np.asarray(b.depth, np.float32)
-    valid = np.zeros((res + 2, res + 2), bool)
-    valid[1:-1, 1:-1] = covered
-    return pad(values, valid), covered
 
 
 def infinite_far(projection: np.ndarray) -> np.ndarray:
