@@ -137,7 +137,7 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
 def _bake_billboards(writer: BundleWriter, obj: Object, mesh: TriMesh, log, steps: dict) -> dict:
     """Enhanced billboards (thesis ch. 3) for each projection the variants name, and the coarse mesh
     only if a variant fills holes with it. Maps: alpha, depth (0..1 of the box depth), world normal."""
-    from . import billboards
+    from . import billboard_maps, billboards
 
     opts = obj.techniques["billboards"]
     variants = opts["variants"]
@@ -158,7 +158,16 @@ def _bake_billboards(writer: BundleWriter, obj: Object, mesh: TriMesh, log, step
                                  "faces": len(b.faces)} for b in res.billboards]}
         log(f"{obj.name}: {mode} billboards: {len(res.billboards)} from {res.candidates} candidate directions, "
             f"{writer.parts[rel]['bytes'] / 2**20:.2f} MB; faces left out {res.leftover}")
-    if any(v.endswith("+coarse") for v in variants):
+        if any(v.startswith(mode + "-hier") for v in variants):   # the hierarchical march's maps and pyramids
+            t0 = time.perf_counter()
+            parts = billboard_maps.to_parts(res.billboards)
+            steps[f"billboards_{mode}_hier_s"] = round(time.perf_counter() - t0, 3)
+            out[mode]["hier"] = writer.add_exr(f"objects/{obj.name}/billboards-{mode}-hier.exr", parts, "billboards")
+            out[mode]["pyramid_bytes"] = sum(a.nbytes for k, p in parts.items() if ".L" in k for a in p.values())
+            log(f"{obj.name}: {mode} billboards: pyramids {out[mode]['pyramid_bytes'] / 2**20:.2f} MB (float32) in "
+                f"{steps[f'billboards_{mode}_hier_s']:.2f} s")
+    # the coarse mesh fills holes (+coarse) and casts the hierarchical march's shadows
+    if any(v.endswith("+coarse") or "-hier" in v for v in variants):
         c = coarse.simplify(mesh, opts["coarse_ratio"])
         out["coarse"] = writer.add_mesh(f"objects/{obj.name}/billboards-coarse.ply", c, "coarse")
         log(f"{obj.name}: billboards' coarse mesh {len(c.faces)} faces")

@@ -78,14 +78,15 @@ TECHNIQUES: dict[str, TechniqueSpec] = {
     "displaced": TechniqueSpec(("surface",), Knob("levels", "level", (1, 2, 3), _int_in(0, 8),
                                                   "integers in [0, 8]"), mesostructure=True),
     # enhanced billboards (Vichitvejpaisal 2005): PROJECTION-METHOD[+coarse]; projection greedy (sec. 3.2) or
-    # axis (+-X, +-Y, +-Z); method hit0.01 / hit0.02 (the thesis's 100-step march with that hit range) or
-    # improved (footprint steps, refinement); +coarse fills holes with the coarse mesh (sec. 3.4).
+    # axis (+-X, +-Y, +-Z); method hit0.01 / hit0.02 (the thesis's 100-step march with that hit range),
+    # improved (footprint steps, refinement) or hier (exact, through a baked min/max pyramid per map; its
+    # shadows cast by the coarse mesh); +coarse fills holes with the coarse mesh (sec. 3.4).
     # resolution: map side in texels; coarse_ratio: faces kept by the coarse mesh
     "billboards": TechniqueSpec(("surface",), Knob(
         "variants", "variant", ("greedy-hit0.01", "greedy-hit0.02", "greedy-improved", "greedy-hit0.01+coarse",
                                 "greedy-improved+coarse"),
-        lambda x: isinstance(x, str) and re.fullmatch(r"(greedy|axis)-(hit0\.01|hit0\.02|improved)(\+coarse)?", x)
-        is not None, "'greedy-' or 'axis-', then 'hit0.01', 'hit0.02' or 'improved', optionally '+coarse'"),
+        lambda x: isinstance(x, str) and re.fullmatch(r"(greedy|axis)-(hit0\.01|hit0\.02|improved|hier)(\+coarse)?", x)
+        is not None, "'greedy-' or 'axis-', then 'hit0.01', 'hit0.02', 'improved' or 'hier', optionally '+coarse'"),
         (("resolution", 512, 8, 4096), ("coarse_ratio", 0.1, 1e-4, 1.0))),
 }
 

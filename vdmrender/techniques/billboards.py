@@ -234,6 +234,13 @@ def variants(obj, entry, bundle, scene, options):
         method, _, fill = rest.partition("+")
 
         def build(ctx, projection=projection, method=method, fill=fill):
+            if method == "hier":
+                from . import billboards_hier
+                coarse = bundle.mesh(parts["coarse"])
+                return billboards_hier.HierBillboards(
+                    ctx, billboards_hier.load_boards(bundle, parts[projection]), scene.light, obj.material,
+                    scene.render.shadow_map, coarse if fill else None, (np.asarray(entry["centre"]), entry["radius"]),
+                    shadow_mesh=coarse)
             coarse = bundle.mesh(parts["coarse"]) if fill else None
             return Billboards(ctx, load_boards(bundle, parts[projection]), scene.light, obj.material,
                               scene.render.shadow_map, "improved" if method == "improved" else "thesis",
