@@ -36,8 +36,8 @@ def fields():
 
 
 def random_rays(pyr, rng, count, far=False):
-    """(count, 8): origin, t0, direction, t1; a mixture of generic, axis-aligned, straight-down, grazing
-    and on-the-grid rays."""
+    """(count, 9): origin, t0, direction, t1, bend; a mixture of generic, axis-aligned, straight-down,
+    grazing, on-the-grid and bent rays (depth o.z + d.z t + bend t^2, both signs)."""
     ny, nx = pyr.cells
     zhi = float(pyr.levels[-1][0, 0, 1])
     rays = []
@@ -65,7 +65,10 @@ def random_rays(pyr, rng, count, far=False):
             d[:2] = np.array([1.0, 1.0]) * rng.choice([-1, 1], 2)   # diagonal through cell corners
         elif kind == 6:
             d[2] = 0.0                                    # horizontal
-        rays.append([*o, 0.0, *d, rng.uniform(0.5, 20.0)])
+        elif kind == 7:
+            d[2] = abs(d[2])                              # bent: convex (turning back up) or concave
+            bend = rng.choice([-1.0, 1.0]) * rng.uniform(0.001, 0.2)
+        rays.append([*o, 0.0, *d, rng.uniform(0.5, 20.0), bend if kind == 7 else 0.0])
     return np.array(rays)
 
 
@@ -116,6 +119,16 @@ def test_texture_levels_follow_gl_mip_sizes():
     for L in range(1, len(t)):
         a = p.levels[L]
         assert np.array_equal(t[L][:a.shape[0], :a.shape[1]], np.concatenate([a, a], -1))
+
+
+def test_parts_round_trip(tmp_path):
+    """The bundle's EXR parts (vdmbake.exr) give back the same pyramid."""
+    from vdmbake import exr
+    p = P.build(np.random.default_rng(3).random((13, 6)).astype(np.float32), P.WRAP)
+    exr.write(tmp_path / "p.exr", P.to_parts(p))
+    q = P.from_parts(exr.read(tmp_path / "p.exr"), P.WRAP)
+    assert q.mode == P.WRAP and np.array_equal(q.samples, p.samples)
+    assert len(q.levels) == len(p.levels) and all(np.array_equal(a, b) for a, b in zip(q.levels, p.levels))
 
 
 def test_bad_fields_are_refused():
@@ -171,8 +184,8 @@ def test_traversal_matches_brute_force(mode, reentry):
         p = P.build(s, mode)
         for start in (1, 64):
             for r in random_rays(p, rng, 64):
-                a = P.trace(p, r[:3], r[4:7], r[3], r[7], reentry, start_level=start)
-                b = P.first_hit(s, mode, r[:3], r[4:7], r[3], r[7], reentry)
+                a = P.trace(p, r[:3], r[4:7], r[3], r[7], reentry, r[8], start_level=start)
+                b = P.first_hit(s, mode, r[:3], r[4:7], r[3], r[7], reentry, r[8])
                 assert agree(a, b), (name, start, r.tolist(), a, b)
 
 
@@ -198,12 +211,14 @@ PROBE = """#version 430
 #include "heightfield_trace.glsl"
 uniform sampler2D u_o;     // origin, t0
 uniform sampler2D u_d;     // direction, t1
+uniform sampler2D u_k;     // bend
 uniform int u_reentry;
 out vec4 frag;
 void main() {{
     ivec2 p = ivec2(gl_FragCoord.xy);
     vec4 a = texelFetch(u_o, p, 0), b = texelFetch(u_d, p, 0);
-    float t = u_reentry != 0 ? hf_trace_reentry(a.xyz, b.xyz, a.w, b.w) : hf_trace(a.xyz, b.xyz, a.w, b.w);
+    float k = texelFetch(u_k, p, 0).r;
+    float t = hf_trace_general(a.xyz, b.xyz, k, a.w, b.w, u_reentry != 0);
     frag = vec4(t, float(hf_visits), hf_exhausted ? 1.0 : 0.0, hf_t_reached);
 }}
 """
@@ -217,28 +232,31 @@ def ctx():
 
 
 def trace_gl(ctx, p: P.Pyramid, rays: np.ndarray, reentry=False, defines=()) -> np.ndarray:
-    """Each ray (origin, t0, direction, t1) traced by the include in one pixel: (t, visits, exhausted, t_reached)."""
+    """Each ray (origin, t0, direction, t1, bend) traced by the include in one pixel: (t, visits, exhausted,
+    t_reached)."""
     defs = ["COUNT"] + (["HF_CLAMP"] if p.mode == P.CLAMP else []) + list(defines)
     src = PROBE.format(defines="\n".join(f"#define {x}" for x in defs)).replace(
         '#include "heightfield_trace.glsl"', (gl.SHADERS / "include" / "heightfield_trace.glsl").read_text())
     prog = ctx.program(vertex_shader=gl.source("fullscreen.vert"), fragment_shader=src)
     w = len(rays)
     tex_o = ctx.texture((w, 1), 4, np.ascontiguousarray(rays[:, :4], np.float32).tobytes(), dtype="f4")
-    tex_d = ctx.texture((w, 1), 4, np.ascontiguousarray(rays[:, 4:], np.float32).tobytes(), dtype="f4")
-    for t in (tex_o, tex_d):
+    tex_d = ctx.texture((w, 1), 4, np.ascontiguousarray(rays[:, 4:8], np.float32).tobytes(), dtype="f4")
+    tex_k = ctx.texture((w, 1), 1, np.ascontiguousarray(rays[:, 8], np.float32).tobytes(), dtype="f4")
+    for t in (tex_o, tex_d, tex_k):
         t.filter = (ctx.NEAREST, ctx.NEAREST)
     hf = hftrace.pyramid_texture(ctx, p)
     target = gl.Target(ctx, w, 1)
     try:
         tex_o.use(1)
         tex_d.use(2)
+        tex_k.use(4)
         hftrace.bind(prog, hf, p, 3)
-        gl.set_uniforms(prog, u_o=1, u_d=2, u_reentry=int(reentry))
+        gl.set_uniforms(prog, u_o=1, u_d=2, u_k=4, u_reentry=int(reentry))
         target.begin()
         ctx.vertex_array(prog, []).render(mode=ctx.TRIANGLES, vertices=3)
         return target.read()[0].astype(np.float64)
     finally:
-        for o in (tex_o, tex_d, hf, target, prog):
+        for o in (tex_o, tex_d, tex_k, hf, target, prog):
             o.release()
 
 
@@ -259,13 +277,13 @@ def test_glsl_matches_brute_force(ctx, mode, reentry):
         rays = f32(random_rays(p, rng, 160))
         out = trace_gl(ctx, p, rays, reentry)
         for r, g in zip(rays, out):
-            b = P.first_hit(s, mode, r[:3], r[4:7], r[3], r[7], reentry)
+            b = P.first_hit(s, mode, r[:3], r[4:7], r[3], r[7], reentry, r[8])
             scale = r[7] - r[3]
             assert agree(g[0], b, scale, 2e-4), (name, r.tolist(), g.tolist(), b)
             if b >= 0:
                 worst = max(worst, abs(g[0] - b) / scale)
             st = P.TraceStats()
-            P.trace(p, r[:3], r[4:7], r[3], r[7], reentry, stats=st)
+            P.trace(p, r[:3], r[4:7], r[3], r[7], reentry, r[8], stats=st)
             same += int(st.visits == g[1])
             total += 1
     print(f"worst relative t error {worst:.2e}, visits equal to numpy's for {same}/{total}")
@@ -282,8 +300,8 @@ def test_glsl_thin_slot_and_wall(ctx):
     for slope in (0.02, 0.3, 1.0, 8.0):                    # depth per texel travelled
         for y in (3.0, 3.37):
             for sx in (1.0, -1.0):
-                rays += [("slot", [x, y, 0.0, 0.0, sx, 0.0, slope, 60.0]) for x in np.arange(7.0, 9.0, 1 / 32)]
-                rays += [("wall", [8.0 - 5.0 * sx, y, z, 0.0, sx, 0.0, slope * 0.01, 60.0])
+                rays += [("slot", [x, y, 0.0, 0.0, sx, 0.0, slope, 60.0, 0.0]) for x in np.arange(7.0, 9.0, 1 / 32)]
+                rays += [("wall", [8.0 - 5.0 * sx, y, z, 0.0, sx, 0.0, slope * 0.01, 60.0, 0.0])
                          for z in np.arange(-0.01, 1.0, 1 / 64)]
     for kind, p in fields_.items():
         r = f32(np.array([x for k, x in rays if k == kind]))
@@ -304,7 +322,7 @@ def test_glsl_far_from_origin(ctx):
     rays = f32(random_rays(p, rng, 300, far=True))
     out = trace_gl(ctx, p, rays)
     for r, g in zip(rays, out):
-        b = P.first_hit(s, P.WRAP, r[:3], r[4:7], r[3], r[7])
+        b = P.first_hit(s, P.WRAP, r[:3], r[4:7], r[3], r[7], bend=r[8])
         assert agree(g[0], b, r[7], 1e-3), (r.tolist(), g.tolist(), b)
 
 

@@ -147,20 +147,37 @@ def texture_atlas(p: Pyramid) -> tuple[np.ndarray, np.ndarray]:
     return out, origins
 
 
+def to_parts(p: Pyramid) -> dict[str, dict[str, np.ndarray]]:
+    """EXR parts (vdmbake.exr): 'samples' (channel 'depth.Z') and one part per level, 'L00', 'L01', ...
+    (channels 'min.Z', 'max.Z'). The mode is the caller's to record."""
+    parts = {"samples": {"depth.Z": p.samples}}
+    for L, a in enumerate(p.levels):
+        parts[f"L{L:02d}"] = {"min.Z": a[..., 0], "max.Z": a[..., 1]}
+    return parts
+
+
+def from_parts(parts: dict[str, dict[str, np.ndarray]], mode: str) -> Pyramid:
+    """The Pyramid that to_parts wrote."""
+    levels = tuple(np.stack([parts[k]["min.Z"], parts[k]["max.Z"]], -1).astype(np.float32)
+                   for k in sorted(k for k in parts if k.startswith("L")))
+    return Pyramid(np.asarray(parts["samples"]["depth.Z"], np.float32), mode, levels)
+
+
 # ------------------------------------------------------------------------------------------ the exact patch
 
 def patch_hit(c: np.ndarray, u0: float, v0: float, z0: float, du: float, dv: float, dz: float, length: float,
-              inside: bool) -> tuple[float, bool]:
+              inside: bool, bend: float = 0.0) -> tuple[float, bool]:
     """The first hit within one cell: the ray at local (u0, v0, z0) (u along x, v along y, 0..1 over the
-    cell) moving by (du, dv, dz) per unit s, for s in [0, length]. f(s) = depth of the ray - depth of the
-    patch = A s^2 + B s + C. `inside`: the ray was on or below the surface just before s = 0.
+    cell) moving by (du, dv) per unit s, its depth z0 + dz s + bend s^2, for s in [0, length]. f(s) = depth
+    of the ray - depth of the patch = A s^2 + B s + C. `inside`: the ray was on or below the surface just
+    before s = 0.
     Returns (s or -1, inside at s = length). A hit is where f passes from < 0 to >= 0, or s = 0 when
     f(0) >= 0 and the ray was not inside (it reaches the surface exactly at the cell's entry)."""
     c00, c01, c10, c11 = (float(x) for x in c)
     e = c00 - c01 - c10 + c11
     C = z0 - (c00 + (c01 - c00) * u0 + (c10 - c00) * v0 + e * u0 * v0)
     B = dz - (c01 - c00 + e * v0) * du - (c10 - c00 + e * u0) * dv
-    A = -e * du * dv
+    A = bend - e * du * dv
     end_inside = A * length * length + B * length + C >= 0.0
     if C >= 0.0 and not inside:
         return 0.0, True
@@ -193,10 +210,12 @@ class TraceStats:
     t_reached: float = 0.0   # the t the traversal had reached when it returned
 
 
-def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, max_iter: int = 1 << 16,
-          start_level: int = 64, stats: TraceStats | None = None) -> float:
+def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: float = 0.0,
+          max_iter: int = 1 << 16, start_level: int = 64, stats: TraceStats | None = None) -> float:
     """The first hit t in [t0, t1] of the ray o + d t (sample coordinates, depth) with the bilinear
-    surface, or -1: the numpy twin of heightfield_trace.glsl's hf_trace (same steps, float64).
+    surface, or -1: the numpy twin of heightfield_trace.glsl's hf_trace_general (same steps, float64).
+    bend: the ray's depth is o.z + d.z t + bend t^2 (a ray over a curved base surface; the path in x, y
+    stays straight).
     reentry=False: the first t at which the ray is on or below the surface (t0 itself if it starts there).
     reentry=True: the first t at which it passes from above the surface onto or below it; a ray that starts
     on or below must first come out (a shadow ray from a hit, or a call resumed after a rejected hit)."""
@@ -244,13 +263,16 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, max_ite
             exits.append((tile[a] * n[a] + bound - o[a]) * inv[a] if d[a] != 0.0 else HUGE)
         te = min(exits[0], exits[1], t1)
         zmin, zmax = (float(x) for x in p.levels[level][idx[1], idx[0]])
-        za, zb = o[2] + d[2] * t, o[2] + d[2] * te
-        above = max(za, zb) < zmin
-        below = inside and min(za, zb) > zmax
+        z = lambda x: o[2] + x * (d[2] + bend * x)
+        tv = min(max(-d[2] / (2.0 * bend), t), te) if bend != 0.0 else t    # the parabola's vertex, clamped
+        za, zb, zv = z(t), z(te), z(tv)
+        above = max(za, zb, zv) < zmin
+        below = inside and min(za, zb, zv) > zmax
         if not (above or below):
             if level > 0:                             # descend (Tevs et al. 2008)
-                if d[2] > 0.0 and za < zmin:          # nothing to hit before the ray reaches the cell's min depth
-                    t = max(t, (zmin - o[2]) / d[2])
+                if za < zmin:                         # nothing to hit before the ray reaches the cell's min depth
+                    lo, hi = _roots(bend, d[2] + 2.0 * bend * t, za - zmin)
+                    t = min(t + (lo if lo >= 0.0 else hi), te)
                     inside = False
                 pos = o + d * t
                 level -= 1
@@ -263,7 +285,7 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, max_ite
             ci = corners_at(p, idx[1], idx[0])
             u0 = o[0] + d[0] * t - (tile[0] * n[0] + idx[0])
             v0 = o[1] + d[1] * t - (tile[1] * n[1] + idx[1])
-            s, inside = patch_hit(ci, u0, v0, za, d[0], d[1], d[2], te - t, inside)
+            s, inside = patch_hit(ci, u0, v0, za, d[0], d[1], d[2] + 2.0 * bend * t, te - t, inside, bend)
             if s >= 0.0:
                 st.t_reached = t + s
                 return t + s
@@ -326,7 +348,8 @@ def bilinear(samples: np.ndarray, mode: str, x, y):
     return (1 - fy) * ((1 - fx) * s[i0, j0] + fx * s[i0, j1]) + fy * ((1 - fx) * s[i1, j0] + fx * s[i1, j1])
 
 
-def first_hit(samples: np.ndarray, mode: str, o, d, t0: float, t1: float, reentry: bool = False) -> float:
+def first_hit(samples: np.ndarray, mode: str, o, d, t0: float, t1: float, reentry: bool = False,
+              bend: float = 0.0) -> float:
     """The same answer as trace() by brute force, independent of its traversal and patch algebra: the cell
     lines the ray crosses cut [t0, t1] into pieces on which f(t) = ray depth - surface depth is a quadratic
     (fitted through three points of bilinear()); its roots cut them further into pieces of constant sign,
@@ -345,7 +368,7 @@ def first_hit(samples: np.ndarray, mode: str, o, d, t0: float, t1: float, reentr
         return -1.0
 
     def f(t):
-        return o[2] + d[2] * t - bilinear(s, mode, o[0] + d[0] * t, o[1] + d[1] * t)
+        return o[2] + (d[2] + bend * t) * t - bilinear(s, mode, o[0] + d[0] * t, o[1] + d[1] * t)
 
     cuts = [np.array([t0, t1])]
     for a in range(2):                                  # where the ray crosses cell lines x = k or y = k

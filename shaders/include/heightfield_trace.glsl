@@ -10,7 +10,11 @@
 //       The first t in [t0, t1] at which the ray passes from above the surface onto or below it: a ray that
 //       starts on or below must first come out. For a shadow ray from a hit, and to resume just past a hit
 //       the caller rejected (e.g. a billboard's empty texel): call again with t0 = the rejected t.
-//   After either call: hf_exhausted is true if HF_MAX_ITER cell visits ran out (the result is then -1.0);
+//   float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry)
+//       Either of the above (reentry selects) for a bent ray: its depth is o.z + d.z t + k t^2 while its
+//       path in (x, y) stays straight, e.g. a ray over a curved base surface of normal curvature c along
+//       the ray, k = -c |d.xy|^2 / 2 in the field's units (curved relief mapping, Oliveira & Policarpo 2005).
+//   After any call: hf_exhausted is true if HF_MAX_ITER cell visits ran out (the result is then -1.0);
 //   hf_t_reached is the t the traversal had reached (the hit, t1, or where the cap stopped it; the ray is
 //   above the surface there). With COUNT defined, hf_visits counts cell visits over all calls; each visit
 //   is one texelFetch of the pyramid, so it is also the tracer's fetch count.
@@ -46,14 +50,15 @@
 // THE TRAVERSAL (one pyramid fetch per loop iteration). At the current cell of level L, the ray's segment
 // [t, te] inside it (te: where it leaves through a cell side, or t1) is tested against the cell's depth
 // interval [zmin, zmax]: the ray cannot reach the surface there if its depth stays below zmin over the
-// segment (above the surface), nor, while it is known to be inside, if it stays beyond zmax. Then:
+// segment (above the surface), nor, while it is known to be inside, if it stays beyond zmax (the depth's
+// range over the segment: its ends, and the vertex of a bent ray's parabola if it lies between). Then:
 //   miss     step into the neighbour cell through the side the ray leaves by (both on a corner), and
 //            ascend one level if that crossed a boundary of the parent level (Tevs et al. 2008);
 //   L > 0    descend into the child that holds the ray, first moving t to where the ray reaches zmin;
 //   L = 0    solve the ray against the cell's bilinear patch: along the ray the patch's depth is quadratic
-//            in t, so f(t) = ray depth - patch depth = A t^2 + B t + C, solved by the stable form of
-//            Numerical Recipes (sec. 5.6). A hit is where f passes from < 0 to >= 0 (or the cell's entry,
-//            if f >= 0 there and the ray was not inside).
+//            in t (and a bent ray's too), so f(t) = ray depth - patch depth = A t^2 + B t + C exactly,
+//            solved by the stable form of Numerical Recipes (sec. 5.6). A hit is where f passes from < 0
+//            to >= 0 (or the cell's entry, if f >= 0 there and the ray was not inside).
 // Robustness in float32: cells are tracked by integer indices (level, cell, tile) and stepped by integer
 // arithmetic, never re-derived from a rounded position, so the loop cannot stall on a cell boundary and
 // every cell along the ray is visited in order; exits come from exact integer boundaries; the patch is
@@ -96,24 +101,14 @@ vec2 hf_roots(float A, float B, float C) {
     return vec2(min(r1, r2), max(r1, r2));
 }
 
-// The first hit in one level-0 cell: corners c, the ray at cell-local (uv0, z0) moving by d per unit s,
-// for s in [0, len]; inside: the ray was on or below the surface just before s = 0. Returns (s or -1, 1 if
-// the ray is on or below the surface at s = len, else 0).
-vec2 hf_patch(vec4 c, vec2 uv0, float z0, vec3 d, float len, bool inside) {
-    float e = c.x - c.y - c.z + c.w;
-    float C = z0 - (c.x + (c.y - c.x) * uv0.x + (c.z - c.x) * uv0.y + e * uv0.x * uv0.y);
-    float B = d.z - (c.y - c.x + e * uv0.y) * d.x - (c.z - c.x + e * uv0.x) * d.y;
-    float A = -e * d.x * d.y;
-    float end_inside = (A * len + B) * len + C >= 0.0 ? 1.0 : 0.0;
-    if (C >= 0.0 && !inside) return vec2(0.0, 1.0);
+// The first root >= 0 of A s^2 + B s + C (HF_HUGE if none): e.g. where a bent ray reaches a given depth.
+float hf_first_root(float A, float B, float C) {
     vec2 r = hf_roots(A, B, C);
-    // above at s = 0: the first root at or after 0 is where f rises to 0; inside: f must dip below 0
-    // between the roots (A > 0) and the ray returns at the second
-    float s = C < 0.0 ? (r.x >= 0.0 ? r.x : r.y) : ((A > 0.0 && r.x < r.y && r.y > 0.0) ? r.y : HF_HUGE);
-    return (s >= 0.0 && s <= len) ? vec2(s, 1.0) : vec2(-1.0, end_inside);
+    return r.x >= 0.0 ? r.x : r.y;
 }
 
-float hf_run(vec3 o, vec3 d, float t0, float t1, bool inside) {
+float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry) {
+    bool inside = reentry;
     ivec2 n = u_hf_cells;
     hf_exhausted = false;
     hf_t_reached = t0;
@@ -144,6 +139,7 @@ float hf_run(vec3 o, vec3 d, float t0, float t1, bool inside) {
     ivec2 idx = ivec2(floor(x));
     idx -= ivec2(hf_and(equal(x, vec2(idx)), back));
     idx = clamp(idx, ivec2(0), ((n - 1) >> level));
+    float tv0 = k != 0.0 ? -0.5 * d.z / k : t0;    // where a bent ray's depth turns (its parabola's vertex)
     for (int it = 0; it < HF_MAX_ITER; ++it) {
 #if defined(COUNT)
         hf_visits++;
@@ -156,14 +152,30 @@ float hf_run(vec3 o, vec3 d, float t0, float t1, bool inside) {
         vec4 c = HF_FETCH(idx, level);
         float zmin = min(min(c.x, c.y), min(c.z, c.w));
         float zmax = max(max(c.x, c.y), max(c.z, c.w));
-        float za = o.z + d.z * t, zb = o.z + d.z * te;
-        bool above = max(za, zb) < zmin;
-        bool below = inside && min(za, zb) > zmax;
+        float tv = clamp(tv0, t, te);
+        float za = o.z + t * (d.z + k * t), zb = o.z + te * (d.z + k * te), zv = o.z + tv * (d.z + k * tv);
+        float dz = d.z + 2.0 * k * t;                                // the ray's depth per unit t at t
+        bool above = max(max(za, zb), zv) < zmin;
+        bool below = inside && min(min(za, zb), zv) > zmax;
+        // One quadratic per visit. Level 0: f(s) = ray depth - patch depth at t + s, the ray at cell-local
+        // uv0 (corners c = c00, c01, c10, c11). Above it: where the ray's depth reaches zmin.
+        float e = c.x - c.y - c.z + c.w;
+        vec2 uv0 = o.xy + d.xy * t - vec2(tile * n + idx);
+        float A = k - e * d.x * d.y;
+        float B = dz - (c.y - c.x + e * uv0.y) * d.x - (c.z - c.x + e * uv0.x) * d.y;
+        float C = za - (c.x + (c.y - c.x) * uv0.x + (c.z - c.x) * uv0.y + e * uv0.x * uv0.y);
+        if (level > 0) {
+            A = k;
+            B = dz;
+            C = za - zmin;
+        }
+        vec2 r = hf_roots(A, B, C);
+        float first = r.x >= 0.0 ? r.x : r.y;
         if (!(above || below)) {
             if (level > 0) {
                 // descend (Tevs et al. 2008), first to where the ray reaches the cell's min depth
-                if (d.z > 0.0 && za < zmin) {
-                    t = max(t, (zmin - o.z) / d.z);
+                if (za < zmin) {
+                    t = clamp(t + first, t, te);
                     inside = false;
                 }
                 pos = o.xy + d.xy * t;
@@ -173,13 +185,16 @@ float hf_run(vec3 o, vec3 d, float t0, float t1, bool inside) {
                 idx = min(2 * idx + upper, (n - 1) >> level);
                 continue;
             }
-            vec2 uv0 = o.xy + d.xy * t - vec2(tile * n + idx);
-            vec2 h = hf_patch(c, uv0, za, d, te - t, inside);
-            if (h.x >= 0.0) {
-                hf_t_reached = t + h.x;
-                return t + h.x;
+            // A hit where f rises to 0 from above (the first root at or after 0), or at the cell's entry if
+            // the ray is on or below the surface there and was not inside; if it was inside, f must dip
+            // below 0 between the roots (A > 0) and the ray comes back at the second.
+            float s = C < 0.0 ? first : (!inside ? 0.0 : ((A > 0.0 && r.x < r.y && r.y > 0.0) ? r.y : HF_HUGE));
+            float len = te - t;
+            if (s >= 0.0 && s <= len) {
+                hf_t_reached = t + s;
+                return t + s;
             }
-            inside = h.y > 0.5;
+            inside = (A * len + B) * len + C >= 0.0;
         } else {
             // a skipped cell holding an empty cell (pyramid.py `empty`: zmax HUGE) leaves the ray's side
             // unknown where it leaves: it must come from above the next surface to hit it (no wall at the
@@ -218,9 +233,9 @@ float hf_run(vec3 o, vec3 d, float t0, float t1, bool inside) {
 }
 
 float hf_trace(vec3 o, vec3 d, float t0, float t1) {
-    return hf_run(o, d, t0, t1, false);
+    return hf_trace_general(o, d, 0.0, t0, t1, false);
 }
 
 float hf_trace_reentry(vec3 o, vec3 d, float t0, float t1) {
-    return hf_run(o, d, t0, t1, true);
+    return hf_trace_general(o, d, 0.0, t0, t1, true);
 }
