@@ -72,7 +72,11 @@ def test_empty_cells_let_rays_pass():
     s = rng.random((12, 15)).astype(np.float32) * 0.8
     empty = rng.random((11, 14)) < 0.33
     p = P.build(s, P.CLAMP, empty)
-    assert (p.levels[0][empty] == P.HUGE).all() and (p.levels[0][~empty, 0] < 1).all()
+    assert (p.levels[0][empty, 0] == P.HUGE).all() and (p.levels[0][~empty, 0] < 1).all()
+    assert np.array_equal(p.holes[0], empty) and p.holes[-1].all()
+    c = P.corners(s, P.CLAMP)                       # above level 0: intervals of the non-empty cells only
+    block = c[2:4, 4:6][~empty[2:4, 4:6]]
+    assert tuple(p.levels[1][1, 2]) == (block.min(), block.max())
     checked = hits = 0
     for k in range(600):
         o = np.array([rng.uniform(0, 14), rng.uniform(0, 11), rng.uniform(-0.3, 0.4)])
@@ -104,7 +108,7 @@ def test_billboard_maps():
     values, pyr = billboard_maps.depth_pyramid(b)
     covered = b.alpha > 0.5
     empty = billboard_maps.empty_cells(covered)
-    assert empty.shape == (33, 33) and np.array_equal(pyr.levels[0][..., 0] >= P.HUGE, empty)
+    assert empty.shape == (33, 33) and np.array_equal(pyr.holes[0], empty)
     c = np.pad(covered, 1, mode="edge")
     i, j = 10, 5
     assert empty[i, j] == (not c[i:i + 2, j:j + 2].any())

@@ -31,11 +31,16 @@ Padding texels are never fetched (the traversal keeps indices inside each level'
 texture_atlas packs the same texels into one image without the padding (level origins passed to the
 include's HF_FETCH), for cell counts far from a power of two.
 
-Empty cells (build's `empty` mask, e.g. a billboard's uncovered texels): interval and corners HUGE, a
-surface no ray reaches, so rays pass them at every level.
+Empty cells (build's `empty` mask, e.g. a billboard's uncovered texels) have no surface: an empty
+interval, HUGE corners (a surface no ray reaches), so rays pass them at every level; intervals above
+them come from the non-empty cells, and `holes` marks the cells that hold empty ones (see level_texels
+for how the texture says so). Leaving such a cell, the ray's side is unknown (no surface joins an empty
+cell to the next): it must come from above the next surface to hit it, so there is no wall at a
+surface's border.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -65,6 +70,16 @@ class Pyramid:
     def nbytes(self) -> int:
         return sum(a.nbytes for a in self.levels)
 
+    @functools.cached_property
+    def holes(self) -> tuple[np.ndarray, ...]:
+        """Per level, (rows, columns) bool: the cell holds an empty level-0 cell (build's `empty`)."""
+        out = [self.levels[0][..., 0] >= HUGE]
+        for a in self.levels[1:]:
+            h = out[-1]
+            h = np.pad(h, ((0, h.shape[0] % 2), (0, h.shape[1] % 2)), mode="edge")
+            out.append(h.reshape(h.shape[0] // 2, 2, h.shape[1] // 2, 2).any(axis=(1, 3)))
+        return tuple(out)
+
 
 def corners(samples: np.ndarray, mode: str) -> np.ndarray:
     """(ny, nx, 4) the corner samples (c00, c01, c10, c11) of every level-0 cell."""
@@ -86,8 +101,8 @@ def _reduce(a: np.ndarray) -> np.ndarray:
 def build(samples: np.ndarray, mode: str, empty: np.ndarray | None = None) -> Pyramid:
     """The min/max pyramid of a depth field (see the module's docstring for the layout). empty: optional
     (ny, nx) bool over the level-0 cells, True where the field has no surface (a billboard's uncovered
-    texels): such a cell's interval is [HUGE, HUGE], a surface no ray reaches, so every ray passes it;
-    above it, min and max come from the non-empty cells (max becomes HUGE where any cell below is empty)."""
+    texels): such a cell's interval is [HUGE, -HUGE] (empty), and above it min and max come from the
+    non-empty cells only; `holes` says which cells hold an empty one."""
     s = np.asarray(samples, np.float32)
     if mode not in MODES:
         raise ValueError(f"pyramid mode {mode!r}: use one of {MODES}")
@@ -100,7 +115,7 @@ def build(samples: np.ndarray, mode: str, empty: np.ndarray | None = None) -> Py
     if empty is not None:
         if np.shape(empty) != levels[0].shape[:2]:
             raise ValueError(f"empty mask of shape {np.shape(empty)}: the field has {levels[0].shape[:2]} cells")
-        levels[0][np.asarray(empty, bool)] = HUGE
+        levels[0][np.asarray(empty, bool)] = (HUGE, -HUGE)
     while max(levels[-1].shape[:2]) > 1:
         levels.append(_reduce(levels[-1]))
     return Pyramid(s, mode, tuple(np.ascontiguousarray(a) for a in levels))
@@ -121,10 +136,14 @@ def texture_levels(p: Pyramid) -> list[np.ndarray]:
 
 def level_texels(p: Pyramid, L: int) -> np.ndarray:
     """(ceil(ny / 2^L), ceil(nx / 2^L), 4) what the tracer fetches at level L: the corners at level 0 (HUGE
-    for empty cells), (min, max, min, max) above."""
+    for empty cells), (min, max, min, max) above; a cell above level 0 holding empty cells has (min, HUGE,
+    min, max): its components' max (HUGE) says it has holes, w keeps the max of its non-empty cells; HUGE
+    throughout if it is all empty."""
     if L == 0:
-        return np.where(p.levels[0][..., :1] >= HUGE, np.float32(HUGE), corners(p.samples, p.mode))
-    return np.concatenate([p.levels[L], p.levels[L]], -1)
+        return np.where(p.holes[0][..., None], np.float32(HUGE), corners(p.samples, p.mode))
+    mn, mx = p.levels[L][..., 0], p.levels[L][..., 1]
+    t = np.stack([mn, np.where(p.holes[L], np.float32(HUGE), mx), mn, mx], -1)
+    return np.where((mn >= HUGE)[..., None], np.float32(HUGE), t)
 
 
 def texture_atlas(p: Pyramid) -> tuple[np.ndarray, np.ndarray]:
@@ -263,6 +282,7 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: f
             exits.append((tile[a] * n[a] + bound - o[a]) * inv[a] if d[a] != 0.0 else HUGE)
         te = min(exits[0], exits[1], t1)
         zmin, zmax = (float(x) for x in p.levels[level][idx[1], idx[0]])
+        holey = bool(p.holes[level][idx[1], idx[0]])
         z = lambda x: o[2] + x * (d[2] + bend * x)
         tv = min(max(-d[2] / (2.0 * bend), t), te) if bend != 0.0 else t    # the parabola's vertex, clamped
         za, zb, zv = z(t), z(te), z(tv)
@@ -293,7 +313,7 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: f
             # a skipped cell holding an empty cell leaves the ray's side unknown where it leaves (there is no
             # surface across an empty cell): it must then come from above the next surface to hit it, so a
             # ray passing beneath a surface's border finds no wall there
-            inside = below or zmax >= HUGE
+            inside = below or holey
         # leave the cell by the side(s) the ray exits through; ascend if a parent boundary was crossed
         if te >= t1:
             st.t_reached = t1

@@ -37,8 +37,8 @@
 //               [j 2^L, (j+1) 2^L). Read with texelFetch only (no filtering). One fetch serves a visit at
 //               any level, which on llvmpipe beats an RG32F min/max chain plus a gather of the corner
 //               samples (every branch's fetches are paid there; docs/relief-notes.md).
-//               Empty cells (pyramid.build's `empty`, e.g. a billboard's uncovered texels) hold HF_HUGE:
-//               rays pass them.
+//               Empty cells (pyramid.build's `empty`, e.g. a billboard's uncovered texels) hold HF_HUGE
+//               corners: rays pass them. Above level 0 a cell holding empty ones is (min, HF_HUGE, min, max).
 //   u_hf_cells  ivec2 (cells along x, cells along y) at level 0;  u_hf_top  the top level (one texel).
 //   Define HF_FETCH(ivec2 cell, int level) before the include to read another texture (e.g. a layer of a
 //   texture array; then u_hf is not declared).
@@ -151,7 +151,10 @@ float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry
         float te = min(min(ex.x, ex.y), t1);
         vec4 c = HF_FETCH(idx, level);
         float zmin = min(min(c.x, c.y), min(c.z, c.w));
-        float zmax = max(max(c.x, c.y), max(c.z, c.w));
+        // a cell holding empty cells (pyramid.py level_texels: (min, HUGE, min, max) above level 0, HUGE
+        // corners at level 0) has holes; w keeps the max of its non-empty cells above level 0
+        bool holey = max(c.y, c.w) >= HF_HUGE;
+        float zmax = level > 0 ? c.w : max(max(c.x, c.y), max(c.z, c.w));
         float tv = clamp(tv0, t, te);
         float za = o.z + t * (d.z + k * t), zb = o.z + te * (d.z + k * te), zv = o.z + tv * (d.z + k * tv);
         float dz = d.z + 2.0 * k * t;                                // the ray's depth per unit t at t
@@ -199,7 +202,7 @@ float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry
             // a skipped cell holding an empty cell (pyramid.py `empty`: zmax HUGE) leaves the ray's side
             // unknown where it leaves: it must come from above the next surface to hit it (no wall at the
             // border of a surface)
-            inside = below || zmax >= HF_HUGE;
+            inside = below || holey;
         }
         // leave the cell by the side(s) the ray exits through; ascend if a parent boundary was crossed
         if (te >= t1) {
