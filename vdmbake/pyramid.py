@@ -192,20 +192,35 @@ def patch_hit(c: np.ndarray, u0: float, v0: float, z0: float, du: float, dv: flo
     before s = 0.
     Returns (s or -1, inside at s = length). A hit is where f passes from < 0 to >= 0, or s = 0 when
     f(0) >= 0 and the ray was not inside (it reaches the surface exactly at the cell's entry)."""
+    s, end_inside, _ = patch_hit_sides(c, u0, v0, z0, du, dv, dz, length, inside, bend)
+    return s, end_inside
+
+
+def patch_hit_sides(c: np.ndarray, u0: float, v0: float, z0: float, du: float, dv: float, dz: float,
+                    length: float, inside: bool, bend: float = 0.0, outside: bool | None = None
+                    ) -> tuple[float, bool, bool]:
+    """patch_hit, and with `outside` given, hits from below too (two-sided traces): `outside` False when the
+    ray was known to be below just before s = 0 (True: above or unknown). A hit from below is where f passes
+    from >= 0 to < 0, or s = 0 when f(0) < 0 and the ray was known below. Returns (s or -1, inside at
+    s = length, True if the hit is from below)."""
     c00, c01, c10, c11 = (float(x) for x in c)
     e = c00 - c01 - c10 + c11
     C = z0 - (c00 + (c01 - c00) * u0 + (c10 - c00) * v0 + e * u0 * v0)
     B = dz - (c01 - c00 + e * v0) * du - (c10 - c00 + e * u0) * dv
     A = bend - e * du * dv
     end_inside = A * length * length + B * length + C >= 0.0
-    if C >= 0.0 and not inside:
-        return 0.0, True
     lo, hi = _roots(A, B, C)
+    first = lo if lo >= 0.0 else hi
     if C < 0.0:
-        s = lo if lo >= 0.0 else hi              # the first root at or after 0 is an entry (f rises to 0)
+        s = first                                # the first root at or after 0 is an entry (f rises to 0)
+        back = 0.0 if outside is False else (hi if (A < 0.0 and lo < hi and hi > 0.0) else HUGE)
     else:                                        # inside: the ray must leave (f < 0 between the roots) and return
-        s = hi if (A > 0.0 and lo < hi and hi > 0.0) else HUGE
-    return (s, True) if 0.0 <= s <= length else (-1.0, end_inside)
+        s = 0.0 if not inside else (hi if (A > 0.0 and lo < hi and hi > 0.0) else HUGE)
+        back = first                             # where it leaves, from below
+    from_below = outside is not None and back < s
+    if from_below:
+        s = back
+    return (s, True, from_below) if 0.0 <= s <= length else (-1.0, end_inside, False)
 
 
 def _roots(A: float, B: float, C: float) -> tuple[float, float]:
@@ -225,19 +240,23 @@ def _roots(A: float, B: float, C: float) -> tuple[float, float]:
 @dataclass
 class TraceStats:
     visits: int = 0          # cell visits (loop iterations, one texture fetch each)
+    from_below: bool = False # two-sided traces: the hit is from below the surface
     exhausted: bool = False  # the iteration cap stopped it
     t_reached: float = 0.0   # the t the traversal had reached when it returned
 
 
 def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: float = 0.0,
-          max_iter: int = 1 << 16, start_level: int = 64, stats: TraceStats | None = None) -> float:
+          max_iter: int = 1 << 16, start_level: int = 64, stats: TraceStats | None = None,
+          two_sided: bool = False) -> float:
     """The first hit t in [t0, t1] of the ray o + d t (sample coordinates, depth) with the bilinear
     surface, or -1: the numpy twin of heightfield_trace.glsl's hf_trace_general (same steps, float64).
     bend: the ray's depth is o.z + d.z t + bend t^2 (a ray over a curved base surface; the path in x, y
     stays straight).
     reentry=False: the first t at which the ray is on or below the surface (t0 itself if it starts there).
     reentry=True: the first t at which it passes from above the surface onto or below it; a ray that starts
-    on or below must first come out (a shadow ray from a hit, or a call resumed after a rejected hit)."""
+    on or below must first come out (a shadow ray from a hit, or a call resumed after a rejected hit).
+    two_sided=True: the first t at which it passes through the surface either way (the ray's side unknown
+    at t0, as with reentry); stats.from_below says which way (hf_trace_two_sided, hf_from_below)."""
     st = stats if stats is not None else TraceStats()
     o, d = np.asarray(o, np.float64), np.asarray(d, np.float64)
     ny, nx = p.cells
@@ -270,7 +289,8 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: f
         if x == k * (1 << level) and step[a] < 0:
             k -= 1
         idx[a] = min(max(k, 0), p.levels[level].shape[1 - a] - 1)
-    inside = reentry
+    inside = reentry or two_sided          # below the surface, or on an unknown side
+    outside = True                         # above, or unknown: False only when known below (two-sided)
     for _ in range(max_iter):
         st.visits += 1
         size = 1 << level
@@ -286,14 +306,14 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: f
         z = lambda x: o[2] + x * (d[2] + bend * x)
         tv = min(max(-d[2] / (2.0 * bend), t), te) if bend != 0.0 else t    # the parabola's vertex, clamped
         za, zb, zv = z(t), z(te), z(tv)
-        above = max(za, zb, zv) < zmin
+        above = outside and max(za, zb, zv) < zmin
         below = inside and min(za, zb, zv) > zmax
         if not (above or below):
             if level > 0:                             # descend (Tevs et al. 2008)
-                if za < zmin:                         # nothing to hit before the ray reaches the cell's min depth
+                if za < zmin and outside:             # nothing to hit before the ray reaches the cell's min depth
                     lo, hi = _roots(bend, d[2] + 2.0 * bend * t, za - zmin)
                     t = min(t + (lo if lo >= 0.0 else hi), te)
-                    inside = False
+                    inside, outside = False, True
                 pos = o + d * t
                 level -= 1
                 half = 1 << level
@@ -305,15 +325,18 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: f
             ci = corners_at(p, idx[1], idx[0])
             u0 = o[0] + d[0] * t - (tile[0] * n[0] + idx[0])
             v0 = o[1] + d[1] * t - (tile[1] * n[1] + idx[1])
-            s, inside = patch_hit(ci, u0, v0, za, d[0], d[1], d[2] + 2.0 * bend * t, te - t, inside, bend)
+            s, inside, st.from_below = patch_hit_sides(ci, u0, v0, za, d[0], d[1], d[2] + 2.0 * bend * t, te - t,
+                                                       inside, bend, outside if two_sided else None)
             if s >= 0.0:
                 st.t_reached = t + s
                 return t + s
+            outside = not (two_sided and inside)
         else:
             # a skipped cell holding an empty cell leaves the ray's side unknown where it leaves (there is no
-            # surface across an empty cell): it must then come from above the next surface to hit it, so a
-            # ray passing beneath a surface's border finds no wall there
+            # surface across an empty cell): it must then come from the other side of the next surface to
+            # hit it, so a ray passing beneath (or above) a surface's border finds no wall there
             inside = below or holey
+            outside = not two_sided or above or holey
         # leave the cell by the side(s) the ray exits through; ascend if a parent boundary was crossed
         if te >= t1:
             st.t_reached = t1
