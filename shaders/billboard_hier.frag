@@ -5,8 +5,9 @@
 // hit so far, so a billboard behind a hit costs nothing and each pixel is shaded once. Per billboard,
 // heightfield_trace.glsl descends the min/max pyramid of its depth map (vdmbake/billboard_maps.py: the
 // bilinear surface of the bordered map, empty cells marked so that rays pass them) and returns the exact
-// first crossing from in front of the surface to behind it (hf_trace_reentry: a ray entering the box
-// behind the surface must come out first, as the improved march requires a sign change).
+// first crossing of the surface (hf_trace_two_sided: either way, so an open surface seen from behind or a
+// closed model seen from inside is drawn too, shaded two-sided; the ray's side is unknown where it enters
+// the box and beside empty cells, so it must come from one side of a surface to hit it: no walls).
 //   COARSE_DEPTH  the coarse mesh's depth pre-pass (pushed back as the frame's coarse pass is) bounds every
 //                 ray: what lies behind it would lose the depth test against the coarse mesh anyway;
 //   SHADOW        the light's pass (orthographic), depth only;
@@ -24,6 +25,7 @@ uniform sampler2DArray u_maps;        // RGBA32F bordered maps: normal (xyz), de
 uniform mat4 u_to_box[BOARDS];        // anchor-relative world -> the billboard's unit box (u, v, depth)
 uniform int u_layer[BOARDS];          // its layer in u_maps and u_pyramids
 uniform float u_texel[BOARDS];        // world size of one map texel (the larger of u and v)
+const float BACK_MARGIN = 2.0;        // map texels
 uniform mat4 u_view_proj;             // clip space from anchor-relative world (the true near and far planes)
 uniform mat4 u_inv_view_proj;
 uniform vec2 u_viewport;
@@ -96,23 +98,37 @@ void main() {
 #if !defined(COUNT)
     if (needed == 0) discard;               // no billboard to trace: the whole pixel group may stop here
 #endif
-    int hit = -1;
+    // The nearest crossing from above (front) and from below (back). Near a billboard's silhouette its
+    // surface is known to a texel, so a ray may slip under it and come out just before the true surface,
+    // which another billboard holds: a back hit wins only when no front hit lies within BACK_MARGIN of its
+    // map texels behind it (an open surface seen from behind, or a closed model from inside: none does).
+    float front = best, back = 2.0, margin = 0.0;
+    int hit = -1, hit_back = -1;
     int traced = 0;
+    float seg_len = length(seg);
     for (int i = 0; i < needed; i++) {
         int k = order[i];
-        if (t0[k] < best) {
+        float bound = min(front, back + margin);
+        if (t0[k] < bound) {
             vec3 o = (u_to_box[k] * vec4(p0, 1.0)).xyz;
             vec3 d = mat3(u_to_box[k]) * seg;
             g_layer = u_layer[k];
             traced++;
             // sample coordinates of the bordered map: x = u R + 0.5 (heightfield_trace.glsl)
-            float t = hf_trace_reentry(vec3(o.xy * R + 0.5, o.z), vec3(d.xy * R, d.z), t0[k], min(t1[k], best));
-            if (t >= 0.0) {
-                best = t;
+            float t = hf_trace_two_sided(vec3(o.xy * R + 0.5, o.z), vec3(d.xy * R, d.z), t0[k], min(t1[k], bound));
+            if (t >= 0.0 && !hf_from_below) {
+                front = t;
                 hit = k;
+            } else if (t >= 0.0 && t < back) {
+                back = t;
+                hit_back = k;
+                margin = BACK_MARGIN * u_texel[k] / seg_len;
             }
         }
     }
+    bool from_below = hit_back >= 0 && !(hit >= 0 && front <= back + margin);
+    if (from_below) hit = hit_back;
+    best = from_below ? back : front;
 #if defined(COUNT)
     frag = vec4(float(hf_visits), float(traced), 1.0, hit >= 0 ? 1.0 : 0.0);
     return;
@@ -124,6 +140,7 @@ void main() {
 #if !defined(SHADOW) && !defined(COUNT)
     vec3 st = (u_to_box[hit] * vec4(p, 1.0)).xyz;
     vec3 N = safe_normalize(texture(u_maps, vec3((st.xy * R + 1.0) / (R + 2.0), float(u_layer[hit]))).xyz);
+    if (from_below) N = -N;   // the surface seen from behind: shaded two-sided, as the mesh and the reference are
     // the shadow lookup moves along the normal by u_board_texels map texels on top of the shadow map's
     // own normal offset (the surface is known to about a texel)
     float lit = shadow_lit(p + N * (u_board_texels * u_texel[hit]), N);

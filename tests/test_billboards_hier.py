@@ -9,8 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from vdmbake import billboard_maps
+from vdmbake import billboard_maps, primitives
+from vdmbake import billboards as bb
 from vdmbake import pyramid as P
+from vdmbake.meshes import TriMesh, vertex_normals
 from vdmrender import gl, images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.billboards_hier import HierBillboards, HierBoard
@@ -20,11 +22,12 @@ from test_billboards_render import LIGHT, MATERIAL, BG, SHADOW, model, orbit_cam
 
 # ----------------------------------------------------------------------------- the pyramid with empty cells
 
-def brute_force(samples, empty, o, d, t0, t1):
-    """The first t in [t0, t1] where the ray passes from above the bilinear surface onto or below it inside
-    non-empty cells (CLAMP field); the ray starts on an unknown side, and crossing an empty cell makes its
-    side unknown again (it must come from above a surface to hit it). Independent of the traversal: the
-    ray is cut at cell lines and at the roots of ray depth - surface depth on each piece."""
+def brute_force(samples, empty, o, d, t0, t1, two_sided=False):
+    """The first t in [t0, t1] where the ray passes from above the bilinear surface onto or below it (or,
+    two-sided, either way: then also whether from below) inside non-empty cells (CLAMP field); the ray
+    starts on an unknown side, and crossing an empty cell makes its side unknown again (it must come from
+    the other side of a surface to hit it). Independent of the traversal: the ray is cut at cell lines and
+    at the roots of ray depth - surface depth on each piece."""
     s = np.asarray(samples, np.float64)
     h, w = s.shape
     o, d = np.asarray(o, np.float64), np.asarray(d, np.float64)
@@ -32,8 +35,9 @@ def brute_force(samples, empty, o, d, t0, t1):
         if d[a] != 0.0:
             ta, tb = sorted(((0.0 - o[a]) / d[a], (n - o[a]) / d[a]))
             t0, t1 = max(t0, ta), min(t1, tb)
+    miss = (-1.0, False) if two_sided else -1.0
     if not t0 < t1:
-        return -1.0
+        return miss
     f = lambda t: o[2] + d[2] * t - P.bilinear(s, P.CLAMP, o[0] + d[0] * t, o[1] + d[1] * t)
     cuts = [t0, t1]
     for a in range(2):
@@ -60,9 +64,11 @@ def brute_force(samples, empty, o, d, t0, t1):
             continue
         below = f(tm) >= 0.0
         if below and side == "above":
-            return float(ta)
+            return (float(ta), False) if two_sided else float(ta)
+        if two_sided and not below and side == "below":
+            return float(ta), True
         side = "below" if below else "above"
-    return -1.0
+    return miss
 
 
 def test_empty_cells_let_rays_pass():
@@ -77,7 +83,7 @@ def test_empty_cells_let_rays_pass():
     c = P.corners(s, P.CLAMP)                       # above level 0: intervals of the non-empty cells only
     block = c[2:4, 4:6][~empty[2:4, 4:6]]
     assert tuple(p.levels[1][1, 2]) == (block.min(), block.max())
-    checked = hits = 0
+    checked = hits = backs = 0
     for k in range(600):
         o = np.array([rng.uniform(0, 14), rng.uniform(0, 11), rng.uniform(-0.3, 0.4)])
         d = np.array([rng.normal(), rng.normal(), rng.uniform(-0.1, 0.4)])
@@ -88,9 +94,15 @@ def test_empty_cells_let_rays_pass():
         t = P.trace(p, o, d, 0.0, 12.0, reentry=True)
         ref = brute_force(s, empty, o, d, 0.0, 12.0)
         assert (t < 0) == (ref < 0) and (t < 0 or abs(t - ref) < 1e-6 * (1 + ref)), (k, t, ref)
+        st = P.TraceStats()
+        t2 = P.trace(p, o, d, 0.0, 12.0, two_sided=True, stats=st)
+        ref2, from_below = brute_force(s, empty, o, d, 0.0, 12.0, two_sided=True)
+        assert (t2 < 0) == (ref2 < 0) and (t2 < 0 or abs(t2 - ref2) < 1e-6 * (1 + ref2)), (k, t2, ref2)
+        assert t2 < 0 or st.from_below == from_below, k
         checked += 1
         hits += t >= 0
-    assert hits > 100 and checked - hits > 100
+        backs += t2 >= 0 and from_below
+    assert hits > 100 and checked - hits > 100 and backs > 30      # 244 hits, 46 from below
     atlas, origins = P.texture_atlas(p)
     for L, level in enumerate(P.texture_levels(p)):
         a = p.levels[L]
@@ -163,13 +175,14 @@ def test_hier_matches_improved(ctx, name):
     improved = render(ctx, baked.billboards, cam, "improved", bounds=bounds)
     hier = render_hier(ctx, boards, cam, bounds=bounds)
     same = metrics.compare(images.encode(hier, BG), images.encode(improved, BG))
-    # measured: sphere 0.0014 dLuv, IoU 0.99987 (a few silhouette pixels); torus 0.0001, IoU 1.0
-    assert same["iou"] > 0.9995 and same["mean"] < 0.01, (same["iou"], same["mean"])
+    # measured: sphere 0.004 dLuv, IoU 0.9996; torus 0.022, IoU 0.9993 (hier also draws what it hits from
+    # below: a few pixels the improved march leaves empty)
+    assert same["iou"] > 0.999 and same["mean"] < 0.03, (same["iou"], same["mean"])
     err_i, iou_i = score(improved, mesh, cam)
     err_h, iou_h = score(hier, mesh, cam)
-    assert err_h < err_i + 0.02 and iou_h > iou_i - 0.001, (err_h, err_i, iou_h, iou_i)   # 0.052 / 0.053, 0.183 / 0.183
+    assert err_h < err_i + 0.02 and iou_h > iou_i - 0.001, (err_h, err_i, iou_h, iou_i)   # 0.055 / 0.053, 0.190 / 0.183
     err_c, iou_c = score(render_hier(ctx, boards, cam, co, co, bounds), mesh, cam)
-    # measured: sphere 0.136 (IoU 0.9977), torus 0.412 (0.9922); improved + coarse: 0.136, 0.454
+    # measured: sphere 0.137 (IoU 0.9976), torus 0.423 (0.9922); improved + coarse: 0.136, 0.454
     assert err_c < {"sphere": 0.17, "torus": 0.47}[name] and iou_c > 0.99, (err_c, iou_c)
 
 
@@ -182,11 +195,11 @@ def test_hier_stiff_views(ctx):
     bounds = mesh.bounding_sphere()
     cam = orbit_camera(mesh, 20, 3)
     err, iou = score(render_hier(ctx, boards, cam, bounds=bounds), mesh, cam)
-    assert err < 0.22 and iou > 0.998, (err, iou)          # measured 0.190, 0.9993
+    assert err < 0.25 and iou > 0.998, (err, iou)          # measured 0.221, 1.0
     eye, tgt = np.zeros(3), np.array([1.0, 0.0, 0.0])
     inside = Camera(eye, tgt, np.array([0.0, 0.0, 1.0]), 70.0, 64, 64, *clip_planes(eye, tgt, np.zeros(3), bounds[1]))
     err, iou = score(render_hier(ctx, boards, inside, bounds=bounds), mesh, inside)
-    assert err < 0.25 and iou > 0.993, (err, iou)          # measured 0.215, 0.9949
+    assert err < 0.25 and iou > 0.993, (err, iou)          # measured 0.201, 0.9962
     near, near_baked, _ = model("sphere", 64)
     far, far_baked, _ = model("sphere", 64, (1e5, -1e5, 1e5))
     a = render_hier(ctx, hier_boards(near_baked), orbit_camera(near, 30, 25, size=64), bounds=near.bounding_sphere())
@@ -195,6 +208,51 @@ def test_hier_stiff_views(ctx):
     assert same["iou"] > 0.999 and same["mean"] < 0.05, same["mean"]   # measured: the same image
 
 
+# ----------------------------------------------------------------------------- artefacts of issue 9
+
+def wavy_sheet(n=48, amp=0.15) -> TriMesh:
+    """An open surface: a 2 x 2 height field z = amp sin 3x cos 2y, one-sided (a face scan's kind)."""
+    g = np.linspace(-1.0, 1.0, n + 1)
+    X, Y = np.meshgrid(g, g)
+    v = np.stack([X, Y, amp * np.sin(3 * X) * np.cos(2 * Y)], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    a = (i * (n + 1) + j).ravel()
+    f = np.concatenate([np.stack([a, a + 1, a + n + 2], 1), np.stack([a, a + n + 2, a + n + 1], 1)])
+    return TriMesh(v, f, vertex_normals(v, f))
+
+
+def look(eye, target, mesh, fov=50.0, size=64) -> Camera:
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    c, r = mesh.bounding_sphere()
+    return Camera(eye, target, np.array([0.0, 0.0, 1.0]), fov, size, size, *clip_planes(eye, target, c, r))
+
+
+def test_open_surface_seen_from_behind(ctx):
+    """An open sheet seen from behind: the reference (like the mesh) shades its back side, unlit. Before
+    issue 9 the thesis's march drew the lit front there (mean dLuv 45.95) and the improved march nothing
+    (IoU 0.000); now the thesis's hit is shaded from the side its ray comes from, and hier finds the
+    crossing from below. The improved march, kept as it was for the comparison, still draws nothing."""
+    mesh = wavy_sheet()
+    baked = bb.bake(mesh, bb.Settings(resolution=64))
+    bounds = mesh.bounding_sphere()
+    cam = look([0.3, -0.4, -2.5], [0.0, 0.0, 0.0], mesh)
+    err, iou = score(render(ctx, baked.billboards, cam, "thesis", bounds=bounds), mesh, cam)
+    assert err < 0.3 and iou > 0.99, (err, iou)              # measured 0.03, 0.998 (today's code: 45.95)
+    err, iou = score(render_hier(ctx, hier_boards(baked), cam, bounds=bounds), mesh, cam)
+    assert err < 0.2 and iou > 0.99, (err, iou)              # measured 0.01, 0.999 (improved: 10.64, 0.000)
+
+
+def test_camera_inside_a_closed_model(ctx):
+    """The camera inside a sphere, looking at its inner wall: every surface is seen from behind. Before
+    issue 9 nothing was drawn (improved: IoU 0.000, thesis 23.07 dLuv, IoU 0.72); hier draws the inner wall."""
+    mesh = primitives.sphere(1.0, 48, 24)
+    baked = bb.bake(mesh, bb.Settings(resolution=64))
+    cam = look([0.2, 0.1, 0.0], [1.0, 0.3, 0.2], mesh, fov=90.0)
+    err, iou = score(render_hier(ctx, hier_boards(baked), cam, bounds=mesh.bounding_sphere()), mesh, cam)
+    assert err < 0.5 and iou > 0.99, (err, iou)              # measured 0.24, 1.000
+
+
+# the command line last: its own GL context leaves the module's context no longer current
 def test_hier_through_the_command_line(tmp_path):
     """Scene -> bundle -> frames: a `hier` variant bakes the bordered maps and pyramids (and the coarse mesh,
     its shadow caster, even without +coarse); the frames are finite and close to the reference."""
