@@ -49,6 +49,18 @@ void main() {
 #if !defined(SHADOW)
     vec3 st = o + d * t;
     vec3 N = safe_normalize(map(st.xy, v_layer).xyz);
+#if defined(THESIS)
+    // The thesis's hit test (|ray depth - map depth| < e) takes either side of the surface. A ray that
+    // enters the box behind the surface and meets it from below (f = ray depth - map depth falling there,
+    // the map's slope from central differences half a texel apart) sees its back: shade that side, as the
+    // mesh and the reference do (an open surface seen from behind). A ray that entered in front and meets
+    // it from below went through one of the march's holes (sec. 3.4): left as the thesis shades it.
+    vec3 s0 = o + d * t0;
+    float h = 0.5 / float(textureSize(u_alpha, 0).x);
+    vec2 grad = vec2(map_depth(st.xy + vec2(h, 0.0), v_layer) - map_depth(st.xy - vec2(h, 0.0), v_layer),
+                     map_depth(st.xy + vec2(0.0, h), v_layer) - map_depth(st.xy - vec2(0.0, h), v_layer)) / (2.0 * h);
+    if (s0.z >= map_depth(s0.xy, v_layer) && d.z - dot(grad, d.xy) < 0.0) N = -N;
+#endif
     // The shadow lookup moves along the normal by the billboard's own uncertainty, on top of the shadow
     // map's normal offset: u_board_texels of its map texels (the surface is known to about a texel, and
     // where two billboards overlap the light may see the other one), plus for THESIS the hit range

@@ -69,13 +69,15 @@ def score(frame, mesh, camera) -> tuple[float, float]:
 
 # (mean dLuv bound, IoU bound) per (mesh, method, hit range, coarse): R 128, 96x96, azimuth 30, elevation 25.
 BOUNDS = {
-    ("sphere", "thesis", 0.01, False): (10.5, 0.86),    # measured 9.56, 0.872 (holes: sec. 3.4)
+    # measured 11.11, 0.872 (holes: sec. 3.4); 9.56 before issue 9, where a hit met from below after the ray
+    # entered behind the surface (a false hit beyond a hole, or an open surface's back) was shaded lit
+    ("sphere", "thesis", 0.01, False): (12.0, 0.86),
     ("sphere", "thesis", 0.01, True): (1.0, 0.99),      # 0.880, 0.9931
     ("sphere", "thesis", 0.02, False): (4.0, 0.97),     # 3.58, 0.9736
     ("sphere", "thesis", 0.02, True): (1.1, 0.984),     # 0.954, 0.9863
     ("sphere", "improved", 0.01, False): (0.08, 0.999),   # 0.053, 0.9994
     ("sphere", "improved", 0.01, True): (0.17, 0.997),    # 0.136, 0.9977
-    ("torus", "thesis", 0.01, False): (11.5, 0.90),     # 10.47, 0.9092
+    ("torus", "thesis", 0.01, False): (11.5, 0.90),     # 10.21, 0.9092 (10.47 before issue 9)
     ("torus", "thesis", 0.01, True): (2.3, 0.975),      # 2.07, 0.978
     ("torus", "thesis", 0.02, False): (6.0, 0.94),      # 5.44, 0.9439
     ("torus", "thesis", 0.02, True): (2.9, 0.95),       # 2.64, 0.9549
