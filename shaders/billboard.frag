@@ -6,7 +6,9 @@
 // mesh depth-test together (sec. 3.4). SHADOW: the light's pass; only the depth is written.
 // A camera inside the box needs nothing special: the ray starts on the near plane (as the reference's).
 #include "billboard.glsl"
-#if !defined(SHADOW)
+#if defined(COUNT)
+out vec4 frag;         // (march steps, texture fetches, 1, hit), summed over the pixel's box fragments
+#elif !defined(SHADOW)
 #include "shading.glsl"
 #include "shadow.glsl"
 uniform vec3 u_eye;       // anchor-relative
@@ -42,11 +44,15 @@ void main() {
     float t1 = min(min(hi.x, hi.y), min(hi.z, 1.0));
     if (t0 >= t1) discard;
     float t = march(o, d, t0, t1, v_layer);
+#if defined(COUNT)
+    frag = vec4(float(g_steps), float(g_fetches), 1.0, t < 0.0 ? 0.0 : 1.0);
+    return;
+#endif
     if (t < 0.0) discard;
     vec3 p = p0 + seg * t;
     vec4 clip = u_view_proj * vec4(p, 1.0);
     gl_FragDepth = clip.z / clip.w * 0.5 + 0.5;
-#if !defined(SHADOW)
+#if !defined(SHADOW) && !defined(COUNT)
     vec3 st = o + d * t;
     vec3 N = safe_normalize(map(st.xy, v_layer).xyz);
 #if defined(THESIS)

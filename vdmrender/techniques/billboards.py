@@ -93,11 +93,14 @@ def infinite_far(projection: np.ndarray) -> np.ndarray:
 
 class Billboards:
     def __init__(self, ctx, boards, light, material, shadow_size: int, method: str = "improved",
-                 hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0):
+                 hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0,
+                 count: bool = False):
         """boards: objects with origin, axes, size, alpha, depth, normal (Board, or the bake's Billboard);
         coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of the model, which fits
         the shadow map (default: the box of the covered texels' points, and of the coarse mesh);
-        steps_per_texel: the improved march's step density (its cost and quality knob; 1: a step per texel)."""
+        steps_per_texel: the improved march's step density (its cost and quality knob; 1: a step per texel);
+        count: the instrumented frame pass (COUNT: per pixel the march steps and texture fetches of all its
+        box fragments, summed, instead of a colour; the profile's)."""
         if method not in METHODS:
             raise InputError(f"billboards: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
         if not hit_range > 0:
@@ -127,6 +130,7 @@ class Billboards:
         self.objects, self.draws = [], []   # GL objects to release; (pass, program, vao, kind)
 
         defines = ("THESIS",) if method == "thesis" else ("IMPROVED",)
+        self.count_pass = count
         self.count = len(boards)
         self.shadow_raster = self.shadow.view_proj
         if boards:
@@ -149,7 +153,7 @@ class Billboards:
             cube = ctx.buffer(_CUBE.tobytes())
             ibuf = ctx.buffer(np.ascontiguousarray(inst, np.float32).tobytes())
             self.objects += [self.maps, self.alpha, cube, ibuf]
-            for stage, extra in (("shadow", ("SHADOW",)), ("frame", ())):
+            for stage, extra in (("shadow", ("SHADOW",)), ("frame", ("COUNT",) if count else ())):
                 prog = gl.program(ctx, "billboard.vert", "billboard.frag", defines + extra)
                 vao = ctx.vertex_array(prog, [(cube, "3f", "in_corner"),
                                               (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
@@ -168,7 +172,7 @@ class Billboards:
         mesh's depth push (a scaling about the eye, or a shift away from the light: same pixels, farther)."""
         ctx = self.ctx
         for name, prog, vao, kind in self.draws:
-            if name != stage:
+            if name != stage or (self.count_pass and stage == "frame" and kind == "mesh"):
                 continue
             if stage == "frame":
                 gl.set_shading(prog, self.light, self.material)
@@ -195,20 +199,37 @@ class Billboards:
                 vao.render()
                 ctx.polygon_offset = (0.0, 0.0)
 
-    def render(self, camera, target) -> None:
-        ctx = self.ctx
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        self.shadow.begin()
-        self._draw("shadow", self.shadow.view_proj, self.shadow_raster, self.shadow.texture.size,
-                   translation(-np.asarray(self.light.direction, np.float64) * self.behind))
-        target.begin()
+    def passes(self, camera, target) -> list:
+        """The frame's passes in order, as (name, callable): render runs them, the profile times each."""
         eye = camera.eye - self.anchor
         k = 1.0 + self.behind / max(float(np.linalg.norm(eye)), self.radius)
         push = translation(eye) @ np.diag([k, k, k, 1.0]) @ translation(-eye)
         to_anchor = camera.view() @ translation(self.anchor)
-        self._draw("frame", camera.projection() @ to_anchor, infinite_far(camera.projection()) @ to_anchor,
-                   target.size, push, u_eye=tuple(eye))
+
+        def shadow():
+            self.ctx.enable(moderngl.DEPTH_TEST)
+            self.ctx.disable(moderngl.CULL_FACE)
+            self.shadow.begin()
+            self._draw("shadow", self.shadow.view_proj, self.shadow_raster, self.shadow.texture.size,
+                       translation(-np.asarray(self.light.direction, np.float64) * self.behind))
+
+        def frame():
+            target.begin()
+            if self.count_pass:          # COUNT: every box fragment's counts summed, none hidden by depth
+                self.ctx.disable(moderngl.DEPTH_TEST)
+                self.ctx.enable(moderngl.BLEND)
+                self.ctx.blend_func = moderngl.ONE, moderngl.ONE
+            self._draw("frame", camera.projection() @ to_anchor, infinite_far(camera.projection()) @ to_anchor,
+                       target.size, push, u_eye=tuple(eye))
+            if self.count_pass:
+                self.ctx.disable(moderngl.BLEND)
+                self.ctx.blend_func = moderngl.DEFAULT_BLENDING
+                self.ctx.enable(moderngl.DEPTH_TEST)
+        return [("shadow", shadow), ("frame", frame)]
+
+    def render(self, camera, target) -> None:
+        for _, run in self.passes(camera, target):
+            run()
 
     def release(self) -> None:
         for _, _, vao, _ in self.draws:

@@ -161,7 +161,7 @@ class HierBillboards:
             out.append(("billboards", lambda: self._frame(view_proj, eye, target, state["occupancy"])))
         else:
             out.append(("clear", target.begin))
-        if "coarse" in self.draws:
+        if "coarse" in self.draws and not self.counting:
             out.append(("coarse", lambda: self._coarse(view_proj @ push, eye)))
         return out
 
