@@ -219,14 +219,17 @@ def test_bench_quick_smoke(tmp_path):
 
     from click.testing import CliRunner
 
-    from vdmrender.bench_billboards import main as bench_main
+    from vdmrender.bench_billboards import PROFILE, main as bench_main
 
     r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
     assert r.exit_code == 0, r.output
     report = json.loads((tmp_path / "billboards.json").read_text())
     labels = {row["label"] for row in report["rows"]}
-    assert {"mesh", "coarse@0.1", "billboards@greedy-hit0.01", "billboards@greedy-improved+coarse"} <= labels
+    assert {"mesh", "coarse@0.1", "billboards@greedy-hit0.01", "billboards@greedy-improved+coarse",
+            "billboards@greedy-hier+coarse"} <= labels
     assert all(row["nonfinite"] == 0 for row in report["rows"])
+    assert {p["label"] for p in report["profile"]} == set(PROFILE) and set(report["march_cost"]) == {"improved", "hier"}
+    assert report["bakes"]["sphere"]["pyramid_mb"] > 0
     assert report["bakes"]["sphere"]["greedy"] >= 1 and report["bakes"]["sphere"]["axis"] >= 1
     assert "| sphere |" in (tmp_path / "billboards.md").read_text()
 
