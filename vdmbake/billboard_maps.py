@@ -23,6 +23,8 @@ import numpy as np
 from . import pyramid
 
 PAD = 2   # rings of empty texels extrapolated around the covered ones (the bilinear surface reaches 1)
+STEEP = 6.0   # map texels of depth per texel: steeper than any captured face (75.5 deg, 3.9 along a texel's
+              # side, 5.5 along its diagonal), so only a depth discontinuity or a runaway extrapolation is
 
 
 def pad(values: np.ndarray, valid: np.ndarray, rings: int = PAD) -> np.ndarray:
@@ -76,10 +78,35 @@ def empty_cells(covered: np.ndarray) -> np.ndarray:
     return ~(c[:-1, :-1] | c[:-1, 1:] | c[1:, :-1] | c[1:, 1:])
 
 
-def depth_pyramid(b) -> tuple[np.ndarray, pyramid.Pyramid]:
-    """The bordered maps (map_texels) and the min/max pyramid of their depth, empty cells marked."""
+def depth_pyramid(b, steep: float | None = STEEP) -> tuple[np.ndarray, pyramid.Pyramid]:
+    """The bordered maps (map_texels) and the min/max pyramid of their depth, empty cells marked. With
+    `steep` (map texels of depth per texel), the surface does not bridge depth discontinuities: an
+    extrapolated sample stays within that of the covered samples next to it, so a surface continues past
+    its silhouette by a bounded skirt, not by a streak; and a cell whose corners still differ by more than
+    that holds two surfaces (a thin tip in front of what lies behind it), not the wall the bilinear patch
+    between them would make, so it is empty."""
     values, covered = map_texels(b)
-    return values, pyramid.build(values[..., 3], pyramid.CLAMP, empty_cells(covered))
+    depth = values[..., 3].copy()
+    empty = empty_cells(covered)
+    if steep is not None:
+        res = covered.shape[0]
+        limit = steep * max(b.size[0], b.size[1]) / res / b.size[2]          # in box depths
+        cov = np.zeros(depth.shape, bool)
+        cov[1:-1, 1:-1] = covered
+        # extrapolated samples: within `limit` of the covered ones among their 8 neighbours
+        lo, hi = np.where(cov, depth, np.inf), np.where(cov, depth, -np.inf)
+        pad_lo, pad_hi = np.pad(lo, 1, constant_values=np.inf), np.pad(hi, 1, constant_values=-np.inf)
+        h, w = depth.shape
+        n_lo = np.minimum.reduce([pad_lo[1 + i:1 + i + h, 1 + j:1 + j + w] for i in (-1, 0, 1) for j in (-1, 0, 1)])
+        n_hi = np.maximum.reduce([pad_hi[1 + i:1 + i + h, 1 + j:1 + j + w] for i in (-1, 0, 1) for j in (-1, 0, 1)])
+        near = ~cov & np.isfinite(n_lo)
+        depth[near] = np.clip(depth[near], n_lo[near] - limit, n_hi[near] + limit)
+        # a cell still steeper than that bridges a discontinuity (also through an extrapolated sample between
+        # a thin feature and what lies behind it): no surface there
+        c = pyramid.corners(depth, pyramid.CLAMP)
+        empty |= c.max(-1) - c.min(-1) > limit
+    values[..., 3] = depth
+    return values, pyramid.build(depth, pyramid.CLAMP, empty)
 
 
 def occupied_boxes(p: pyramid.Pyramid, level: int) -> np.ndarray:
