@@ -1,8 +1,9 @@
 #version 430
 // Enhanced billboards by the hierarchical march (Vichitvejpaisal 2005, sec. 3.3 step 2, beyond the thesis):
 // one fragment per pixel (a screen triangle, scissored to the billboards' screen box) traces the pixel's
-// ray through EVERY billboard, nearest box first, each clipped to its box (slab test) and to the nearest
-// hit so far, so a billboard behind a hit costs nothing and each pixel is shaded once. Per billboard,
+// ray through every billboard it meets, each clipped to its box (slab test), to where it enters the
+// billboard's occupied pyramid cells (OCCUPANCY pre-pass) and to the nearest hit so far, so a billboard
+// behind a hit costs little and each pixel is shaded once. Per billboard,
 // heightfield_trace.glsl descends the min/max pyramid of its depth map (vdmbake/billboard_maps.py: the
 // bilinear surface of the bordered map, empty cells marked so that rays pass them) and returns the exact
 // first crossing of the surface (hf_trace_two_sided: either way, so an open surface seen from behind or a
@@ -87,12 +88,9 @@ void main() {
         needed += need ? 1 : 0;
     }
     int order[BOARDS];
-#ifndef KEY
-#define KEY(j) cost[j]
-#endif
     for (int k = 0; k < BOARDS; k++) {       // rank by cost (ties by index), then place: a branch-free sort
         int r = 0;
-        for (int j = 0; j < BOARDS; j++) r += (KEY(j) < KEY(k) || (KEY(j) == KEY(k) && j < k)) ? 1 : 0;
+        for (int j = 0; j < BOARDS; j++) r += (cost[j] < cost[k] || (cost[j] == cost[k] && j < k)) ? 1 : 0;
         order[r] = k;
     }
 #if !defined(COUNT)

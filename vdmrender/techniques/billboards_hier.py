@@ -15,9 +15,9 @@ rejecting anything early on llvmpipe. Here a frame is:
      the ray parameter where the ray enters the first of them: nothing of that billboard lies before;
   4. one screen triangle scissored to the boxes' screen rectangle (billboard_hier.frag): per pixel, the ray
      through the billboards it meets in 3, each from its entry to its box's exit, to the depth of 2 and to
-     the nearest hit so far, traced exactly through the billboard's min/max pyramid (include
-     heightfield_trace.glsl, pyramid baked by vdmbake/billboard_maps.py); the nearest hit shaded once,
-     its exact depth written;
+     the nearest hit so far, traced exactly and two-sided through the billboard's min/max pyramid (include
+     heightfield_trace.glsl, pyramid baked by vdmbake/billboard_maps.py); the nearest hit shaded once
+     (from behind if it was met from below), its exact depth written;
   5. with hole filling, the coarse mesh shaded and depth-tested as if COARSE_BEHIND farther than it is
      (as techniques/billboards.py), so that it fills only the pixels no billboard hit; drawn after the
      billboards, its hidden fragments fail the early depth test unshaded.
@@ -258,9 +258,9 @@ class HierBillboards:
         vao.render()
 
     def _boards(self, stage: str, view_proj, viewer, viewport, rect, occupancy, **uniforms) -> None:
-        """Pass 4 (or its light version): the billboards ordered by the distance of their box centres from
-        `viewer` (the same order for every pixel: on SIMD lanes a shared order beats a per-pixel one), the
-        screen triangle scissored to rect; occupancy: pass 3's (tiles, off)."""
+        """Pass 4 (or its light version): the billboards in order of the distance of their box centres from
+        `viewer` (the shader orders each pixel's billboards by cost, ties in this order), the screen
+        triangle scissored to rect; occupancy: pass 3's (tiles, off)."""
         prog, vao = self.draws[stage]
         order = np.argsort(np.linalg.norm(self.centres - viewer, axis=1), kind="stable")
         gl.set_uniforms(prog, u_pyramids=1, u_maps=2, u_occupancy=4, u_view_proj=view_proj,
