@@ -72,6 +72,20 @@ def surface_points(b) -> np.ndarray:
     return np.asarray(b.origin, np.float64) + (s * np.asarray(b.size, np.float64)) @ np.asarray(b.axes, np.float64)
 
 
+def coarse_draws(ctx, mesh, anchor) -> tuple[dict, list]:
+    """The coarse mesh (sec. 3.4) uploaded once, anchor-relative, and drawn by mesh.vert two ways:
+    {"depth": (program, vao) writing depth only (depth.frag), "shaded": (program, vao) (mesh.frag)};
+    and the buffers to release."""
+    vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
+                     ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
+    draws = {}
+    for kind, frag, attrs in (("depth", "depth.frag", [(vbo, "3f", "in_pos")]),
+                              ("shaded", "mesh.frag", [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")])):
+        prog = gl.program(ctx, "mesh.vert", frag)
+        draws[kind] = (prog, gl.vertex_array(ctx, prog, attrs, ibo))
+    return draws, [vbo, nbo, ibo]
+
+
 def infinite_far(projection: np.ndarray) -> np.ndarray:
     """A perspective projection with its far plane at infinity: same x, y, w and near plane."""
     p = projection.copy()
@@ -148,14 +162,10 @@ class Billboards:
                 vao = gl.vertex_array(ctx, prog, [(cube, "3f", "in_corner"),
                                                   (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
                 self.draws.append((stage, prog, vao, "boards"))
-        if coarse is not None:   # sec. 3.4: the coarse mesh, drawn like RasterMesh
-            vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
-                             ((coarse.vertices - self.anchor, "f4"), (coarse.normals, "f4"), (coarse.faces, "i4")))
-            self.objects += [vbo, nbo, ibo]
-            for stage, frag, attrs in (("shadow", "depth.frag", [(vbo, "3f", "in_pos")]),
-                                       ("frame", "mesh.frag", [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")])):
-                prog = gl.program(ctx, "mesh.vert", frag)
-                self.draws.append((stage, prog, gl.vertex_array(ctx, prog, attrs, ibo), "mesh"))
+        if coarse is not None:   # sec. 3.4: the coarse mesh, in both passes
+            draws, buffers = coarse_draws(ctx, coarse, self.anchor)
+            self.objects += buffers
+            self.draws += [("shadow", *draws["depth"], "mesh"), ("frame", *draws["shaded"], "mesh")]
 
     def _draw(self, stage: str, view_proj, raster, viewport, push, **uniforms) -> None:
         """One pass. raster: the billboards' box matrix (wider depth range than view_proj); push: the coarse
