@@ -17,7 +17,7 @@ from vdmrender import gl, images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.billboards_hier import HierBillboards
 
-from test_billboards_render import LIGHT, MATERIAL, BG, SHADOW, model, orbit_camera, render, score
+from test_billboards_render import LIGHT, MATERIAL, BG, SHADOW, draw, model, orbit_camera, render, score
 
 
 # ----------------------------------------------------------------------------- the pyramid with empty cells
@@ -151,14 +151,7 @@ def hier_boards(baked):
 
 
 def render_hier(ctx, boards, camera, coarse=None, shadow_mesh=None, bounds=None) -> np.ndarray:
-    r = HierBillboards(ctx, *boards, LIGHT, MATERIAL, SHADOW, coarse, bounds, shadow_mesh=shadow_mesh)
-    target = gl.Target(ctx, camera.width, camera.height)
-    try:
-        r.render(camera, target)
-        return target.read()
-    finally:
-        target.release()
-        r.release()
+    return draw(HierBillboards(ctx, *boards, LIGHT, MATERIAL, SHADOW, coarse, bounds, shadow_mesh=shadow_mesh), camera)
 
 
 @pytest.fixture(scope="module")

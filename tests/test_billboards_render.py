@@ -56,8 +56,13 @@ def bordered(boards) -> list:
 
 
 def render(ctx, boards, camera, method="improved", hit_range=0.01, coarse_mesh=None, **kw) -> np.ndarray:
-    r = Billboards(ctx, boards, bordered(boards), LIGHT, MATERIAL, SHADOW, method, hit_range, coarse_mesh, **kw)
-    target = gl.Target(ctx, camera.width, camera.height)
+    return draw(Billboards(ctx, boards, bordered(boards), LIGHT, MATERIAL, SHADOW, method, hit_range, coarse_mesh, **kw),
+                camera)
+
+
+def draw(r, camera) -> np.ndarray:
+    """One frame of renderer r, which is released after."""
+    target = gl.Target(r.ctx, camera.width, camera.height)
     try:
         r.render(camera, target)
         return target.read()

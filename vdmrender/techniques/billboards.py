@@ -45,7 +45,7 @@ from vdmbake import parts
 from vdmbake.errors import InputError
 
 from .. import gl
-from .raster import RasterPasses
+from .raster import Passes, RasterPasses
 from .shadowmap import ShadowMap, translation
 
 METHODS = ("thesis", "improved")
@@ -94,7 +94,7 @@ def infinite_far(projection: np.ndarray) -> np.ndarray:
     return p
 
 
-class Billboards:
+class Billboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, method: str = "improved",
                  hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0,
                  count: bool = False):
@@ -228,10 +228,6 @@ class Billboards:
                 self.ctx.blend_func = moderngl.DEFAULT_BLENDING
                 self.ctx.enable(moderngl.DEPTH_TEST)
         return [("shadow", shadow), ("frame", frame)]
-
-    def render(self, camera, target) -> None:
-        for _, run in self.passes(camera, target):
-            run()
 
     def release(self) -> None:
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.objects, self.shadow)

@@ -32,7 +32,7 @@ from vdmbake.errors import InputError
 
 from .. import gl
 from .billboards import _CORNERS, _CUBE, BOARD_TEXELS, COARSE_BEHIND, NORMAL_OFFSET_TEXELS, coarse_draws, infinite_far
-from .raster import RasterPasses
+from .raster import Passes, RasterPasses
 from .shadowmap import ShadowMap, translation
 
 OCCUPANCY_LEVEL = 4   # pass 3 draws the boxes of the non-empty pyramid cells of this level (16^2 texels)
@@ -40,7 +40,7 @@ MAX_TEXTURE = 16384   # pass 3's tiles share one texture of at most this side
 LEVELS = 16           # pyramid levels the shader's origin table holds (maps up to 32768 texels)
 
 
-class HierBillboards:
+class HierBillboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, coarse=None, bounds=None,
                  shadow_mesh=None, count: bool = False):
         """boards: vdmbake.parts.Billboard (their boxes: origin, axes, size); bordered: their
@@ -149,10 +149,6 @@ class HierBillboards:
         if "coarse" in self.draws and not self.counting:
             out.append(("coarse", lambda: self._coarse(view_proj @ push, eye)))
         return out
-
-    def render(self, camera, target) -> None:
-        for _, run in self.passes(camera, target):
-            run()
 
     def _shadow(self) -> None:
         ctx = self.ctx

@@ -9,7 +9,19 @@ from .. import gl
 from .shadowmap import ShadowMap, translation
 
 
-class RasterPasses:
+class Passes:
+    """A renderer whose frame is a list of passes (`passes`: (name, callable) in order): render runs
+    them; a profile times each (bench_billboards)."""
+
+    def passes(self, camera, target) -> list:
+        raise NotImplementedError
+
+    def render(self, camera, target) -> None:
+        for _, run in self.passes(camera, target):
+            run()
+
+
+class RasterPasses(Passes):
     """Triangle meshes drawn in two passes per frame: the shadow map (depth.frag, with polygon
     offset), then the shaded frame (mesh.frag, or a subclass's fragment stage, whose extra
     uniforms and textures `bind_frame` sets). Subclasses fill `draws` through `add`."""
@@ -69,10 +81,6 @@ class RasterPasses:
                     vao.render(instances=n)
             ctx.disable(moderngl.CULL_FACE)
         return [("shadow", shadow), ("frame", frame)]
-
-    def render(self, camera, target) -> None:
-        for _, run in self.passes(camera, target):
-            run()
 
     def release(self) -> None:
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.buffers, self.shadow)
