@@ -35,11 +35,12 @@ def object_mesh(obj: Object, base: Path) -> TriMesh:
     return validate(world, f"object {obj.name!r}")
 
 
-def object_quadrics(obj: Object, base: Path) -> tuple[quadrics.QuadricSet, dict]:
-    """The object's spheres and cylinders in world space, and counts of what was dropped."""
+def object_quadrics(obj: Object, base: Path, warn=lambda m: None) -> tuple[quadrics.QuadricSet, dict]:
+    """The object's spheres and cylinders in world space, and counts of what was dropped; `warn` hears
+    what of the input file was ignored to read it."""
     if obj.molecule:
         from .molecules import load_molecule  # gemmi is imported only for molecule scenes
-        q = load_molecule(resolve_path(obj.molecule, base), obj.style)
+        q = load_molecule(resolve_path(obj.molecule, base), obj.style, warn)
     else:
         q = quadrics.inline(obj.spheres, obj.cylinders, obj.material.albedo)
     origin = f"object {obj.name!r}"
@@ -137,7 +138,7 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
     say = lambda m: log(f"{obj.name}: {m}")  # noqa: E731
     mesh = maps = None
     if obj.kind == "quadrics":
-        q, dropped = object_quadrics(obj, base)
+        q, dropped = object_quadrics(obj, base, lambda m: say(f"warning: {m}"))
         centre, radius = q.bounding_sphere()
         entry = {"kind": obj.kind, "centre": centre.tolist(), "radius": radius,
                  "quadrics": writer.add(f"objects/{obj.name}/quadrics", parts.QUADRICS, q), **dropped}
