@@ -35,6 +35,11 @@ def simplify(mesh: TriMesh, ratio: float) -> TriMesh:
     f = np.asarray(f, np.int64).reshape(-1, 3)
     f = remove_fins(f) if len(remove_fins(f)) else f   # all fins (a handful of faces): keep them, not nothing
     v, f = split_pinches(*compact(v, f))
+    # A collapse's optimal point may lie beyond the full mesh's bounding sphere (0.9% of the radius on a
+    # coarse torus), where the cameras' clip planes, which hug that sphere, would cut it: pulled back onto it.
+    sphere_centre, radius = mesh.bounding_sphere()
+    reach = np.linalg.norm(v - sphere_centre, axis=1, keepdims=True)
+    v = sphere_centre + (v - sphere_centre) * np.minimum(1.0, radius / np.maximum(reach, 1e-300))
     return TriMesh(v, f, vertex_normals(v, f))
 
 
