@@ -17,7 +17,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import __version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadrics, vdm
+from . import __version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadric_mesh, quadrics, vdm
 from .bundle import FORMAT_VERSION, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
@@ -144,6 +144,9 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
                  "quadrics": writer.add(f"objects/{obj.name}/quadrics", parts.QUADRICS, q), **dropped}
         say(f"{len(q.spheres)} spheres, {len(q.cylinders)} cylinders"
             + (f" (dropped without volume: {dropped})" if any(dropped.values()) else ""))
+        if obj.viewer_mesh is not None:
+            entry["viewer_mesh"] = writer.add(f"objects/{obj.name}/viewer-mesh", parts.VIEWER_MESH,
+                                              quadric_mesh.tessellate(q, obj.viewer_mesh))
     else:
         mesh = object_mesh(obj, base)
         if obj.mesostructure:
