@@ -18,11 +18,12 @@ from .meshes import TriMesh, vertex_normals, weld
 
 def simplify(mesh: TriMesh, ratio: float) -> TriMesh:
     """Keep about `ratio` of the faces (at least one) of the surface welded by position; vertex normals are
-    recomputed over the simplified surface, UVs dropped (no technique textures a coarse mesh)."""
+    recomputed over the simplified surface, UVs dropped (no technique textures a coarse mesh), per-vertex
+    colours carried (`collapsed_colors`)."""
     import fast_simplification
 
     if ratio >= 1.0:
-        return TriMesh(mesh.vertices, mesh.faces, mesh.normals)
+        return TriMesh(mesh.vertices, mesh.faces, mesh.normals, colors=mesh.colors)
     ids = weld(mesh.vertices)
     points = mesh.vertices[np.unique(ids, return_index=True)[1]]
     faces = ids[mesh.faces]
@@ -30,17 +31,39 @@ def simplify(mesh: TriMesh, ratio: float) -> TriMesh:
     # Simplify about the centre: quadric errors of a far-off mesh lose digits otherwise.
     centre = 0.5 * (points.min(0) + points.max(0))
     target = max(1, int(round(ratio * len(mesh.faces))))
-    v, f = fast_simplification.simplify(points - centre, faces, target_count=target)
+    v, f, collapses = fast_simplification.simplify(points - centre, faces, target_count=target, return_collapses=True)
     v = np.asarray(v, np.float64) + centre
     f = np.asarray(f, np.int64).reshape(-1, 3)
+    colors = None if mesh.colors is None else collapsed_colors(points, faces, ids, mesh.colors, collapses, len(v))
     f = remove_fins(f) if len(remove_fins(f)) else f   # all fins (a handful of faces): keep them, not nothing
-    v, f = split_pinches(*compact(v, f))
+    v, f, used = compact(v, f)
+    v, f, source = split_pinches(v, f)
+    colors = None if colors is None else colors[used][source]
     # A collapse's optimal point may lie beyond the full mesh's bounding sphere (0.9% of the radius on a
     # coarse torus), where the cameras' clip planes, which hug that sphere, would cut it: pulled back onto it.
     sphere_centre, radius = mesh.bounding_sphere()
     reach = np.linalg.norm(v - sphere_centre, axis=1, keepdims=True)
     v = sphere_centre + (v - sphere_centre) * np.minimum(1.0, radius / np.maximum(reach, 1e-300))
-    return TriMesh(v, f, vertex_normals(v, f))
+    return TriMesh(v, f, vertex_normals(v, f), colors=colors)
+
+
+def collapsed_colors(points, faces, ids, colors, collapses, count: int) -> np.ndarray:
+    """(count, 3) colours of the simplified vertices: each the area-weighted mean of the welded vertices
+    collapsed into it (fast-simplification's replay of the collapses maps every input vertex to its output
+    vertex); a welded vertex's colour is the mean of the vertices it welds."""
+    import fast_simplification
+
+    mapping = np.asarray(fast_simplification.replay_simplification(points, faces, collapses)[2])
+    welded = np.zeros((len(points), 3))
+    np.add.at(welded, ids, colors)
+    welded /= np.bincount(ids, minlength=len(points))[:, None]
+    tri = points[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    weight = np.bincount(faces.ravel(), np.repeat(area, 3), len(points)) + 1e-300
+    kept = mapping >= 0                          # -1: a vertex no face uses (a file may list such)
+    total = np.zeros((count, 3))
+    np.add.at(total, mapping[kept], (welded * weight[:, None])[kept])
+    return total / np.maximum(np.bincount(mapping[kept], weight[kept], count), 1e-300)[:, None]
 
 
 def remove_fins(faces: np.ndarray) -> np.ndarray:
@@ -59,10 +82,10 @@ def remove_fins(faces: np.ndarray) -> np.ndarray:
     return faces[keep]
 
 
-def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Drop the vertices no face uses."""
+def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Drop the vertices no face uses; also returns the kept vertices' old indices."""
     used, f = np.unique(faces, return_inverse=True)
-    return vertices[used], f.reshape(-1, 3)
+    return vertices[used], f.reshape(-1, 3), used
 
 
 def edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -75,15 +98,16 @@ def edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     return edges, inverse, count, np.bincount(inverse, sides[:, 0] < sides[:, 1], len(edges)).astype(np.int64)
 
 
-def split_pinches(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def split_pinches(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Split each vertex of a pinched edge (shared by 4, 6, ... faces, half running each way: sheets that a
     collapse pressed together) into one copy per fan: the faces around the vertex that connect through
     edges of exactly two faces. The sheets then touch there (same positions, separate vertices), each
-    edge-manifold. An edge of three faces (a T-junction, as a scan may have) is left as it is."""
+    edge-manifold. An edge of three faces (a T-junction, as a scan may have) is left as it is. Also returns
+    each output vertex's source vertex (the copies' originals)."""
     edges, side_edge, count, forward = edge_faces(faces)
     bad = np.unique(edges[(count > 2) & (2 * forward == count)])
     if len(bad) == 0:
-        return vertices, faces
+        return vertices, faces, np.arange(len(vertices))
     corners = faces.ravel()                         # corner c = 3 * face + k, at vertex corners[c]
     label = np.arange(len(corners))
     # Join the corners of two faces at a shared manifold edge, per end of that edge.
@@ -118,4 +142,5 @@ def split_pinches(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, 
     new_id[extra] = len(vertices) + np.arange(len(extra))
     out = corners.copy()
     out[pinched] = new_id[fan_of.ravel()]
-    return np.concatenate([vertices, vertices[fan_vertex[extra]]]), out.reshape(-1, 3)
+    source = np.concatenate([np.arange(len(vertices)), fan_vertex[extra]])
+    return vertices[source], out.reshape(-1, 3), source
