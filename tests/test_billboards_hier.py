@@ -181,8 +181,9 @@ def test_hier_matches_improved(ctx, name):
     err_h, iou_h = score(hier, mesh, cam)
     assert err_h < err_i + 0.02 and iou_h > iou_i - 0.001, (err_h, err_i, iou_h, iou_i)   # 0.055 / 0.053, 0.190 / 0.183
     err_c, iou_c = score(render_hier(ctx, boards, cam, co, co, bounds), mesh, cam)
-    # measured: sphere 0.137 (IoU 0.9976), torus 0.423 (0.9922); improved + coarse: 0.136, 0.454
-    assert err_c < {"sphere": 0.17, "torus": 0.47}[name] and iou_c > 0.99, (err_c, iou_c)
+    # measured: sphere 0.055 (IoU 0.9992), torus 0.510 (0.9920); improved + coarse: 0.053, 0.543 (with the
+    # coarse mesh before it was welded at UV seams: 0.137, 0.423)
+    assert err_c < {"sphere": 0.17, "torus": 0.56}[name] and iou_c > 0.99, (err_c, iou_c)
 
 
 def test_hier_stiff_views(ctx):

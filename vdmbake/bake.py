@@ -17,7 +17,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import __version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadrics, vdm
+from . import __version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadric_mesh, quadrics, vdm
 from .bundle import FORMAT_VERSION, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
@@ -35,11 +35,12 @@ def object_mesh(obj: Object, base: Path) -> TriMesh:
     return validate(world, f"object {obj.name!r}")
 
 
-def object_quadrics(obj: Object, base: Path) -> tuple[quadrics.QuadricSet, dict]:
-    """The object's spheres and cylinders in world space, and counts of what was dropped."""
+def object_quadrics(obj: Object, base: Path, warn=lambda m: None) -> tuple[quadrics.QuadricSet, dict]:
+    """The object's spheres and cylinders in world space, and counts of what was dropped; `warn` hears
+    what of the input file was ignored to read it."""
     if obj.molecule:
         from .molecules import load_molecule  # gemmi is imported only for molecule scenes
-        q = load_molecule(resolve_path(obj.molecule, base), obj.style)
+        q = load_molecule(resolve_path(obj.molecule, base), obj.style, warn)
     else:
         q = quadrics.inline(obj.spheres, obj.cylinders, obj.material.albedo)
     origin = f"object {obj.name!r}"
@@ -137,12 +138,15 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
     say = lambda m: log(f"{obj.name}: {m}")  # noqa: E731
     mesh = maps = None
     if obj.kind == "quadrics":
-        q, dropped = object_quadrics(obj, base)
+        q, dropped = object_quadrics(obj, base, lambda m: say(f"warning: {m}"))
         centre, radius = q.bounding_sphere()
         entry = {"kind": obj.kind, "centre": centre.tolist(), "radius": radius,
                  "quadrics": writer.add(f"objects/{obj.name}/quadrics", parts.QUADRICS, q), **dropped}
         say(f"{len(q.spheres)} spheres, {len(q.cylinders)} cylinders"
             + (f" (dropped without volume: {dropped})" if any(dropped.values()) else ""))
+        if obj.viewer_mesh is not None:
+            entry["viewer_mesh"] = writer.add(f"objects/{obj.name}/viewer-mesh", parts.VIEWER_MESH,
+                                              quadric_mesh.tessellate(q, obj.viewer_mesh))
     else:
         mesh = object_mesh(obj, base)
         if obj.mesostructure:

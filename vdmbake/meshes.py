@@ -34,16 +34,18 @@ class TriMesh:
     normals: np.ndarray             # (V, 3) float64, unit
     uvs: np.ndarray | None = None   # (V, 2) float64
     frame: SurfaceFrame | None = None
+    colors: np.ndarray | None = None   # (V, 3) linear RGB albedo per vertex (the asset's own), or None
 
     @staticmethod
     def concatenate(parts: list["TriMesh"]) -> "TriMesh":
         offsets = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
-        uvs, frames = [p.uvs for p in parts], [p.frame for p in parts]
+        uvs, frames, colors = [p.uvs for p in parts], [p.frame for p in parts], [p.colors for p in parts]
         return TriMesh(np.concatenate([p.vertices for p in parts]),
                        np.concatenate([p.faces + o for p, o in zip(parts, offsets)]),
                        np.concatenate([p.normals for p in parts]),
                        None if any(u is None for u in uvs) else np.concatenate(uvs),
-                       None if any(f is None for f in frames) else SurfaceFrame.concatenate(frames))
+                       None if any(f is None for f in frames) else SurfaceFrame.concatenate(frames),
+                       None if any(c is None for c in colors) else np.concatenate(colors))
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre of the bounding box and the radius that encloses every vertex."""
@@ -98,7 +100,7 @@ def transformed(mesh: TriMesh, transform) -> TriMesh:
     if mesh.frame is not None and sx == sy == sz:   # a non-uniform scale changes curvatures otherwise: dropped
         f = mesh.frame
         frame = SurfaceFrame(f.dpdu @ m.T, f.dpdv @ m.T, f.k1 / sx, f.k2 / sx, f.d1 @ rotation_xyz(transform.rotate_deg).T)
-    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs, frame)
+    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs, frame, mesh.colors)
 
 
 def validate(mesh: TriMesh, origin: str) -> TriMesh:
@@ -156,15 +158,43 @@ def load_mesh_file(path: Path) -> TriMesh:
     validate(TriMesh(vertices, faces, np.zeros_like(vertices)), str(path))
     # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces; vertices
     # with different texture coordinates stay apart (UV seams), and the UVs are kept.
-    uv = getattr(getattr(loaded, "visual", None), "uv", None)
+    visual = getattr(loaded, "visual", None)
+    uv = getattr(visual, "uv", None)
     uv = np.asarray(uv, np.float64) if uv is not None and len(uv) == len(vertices) else None
-    merged = trimesh.Trimesh(vertices, faces, process=False)
-    if uv is not None:
-        merged.visual = trimesh.visual.TextureVisuals(uv=uv)
-    merged.merge_vertices()
-    v, f = np.asarray(merged.vertices, np.float64), np.asarray(merged.faces, np.int64)
-    uvs = np.asarray(merged.visual.uv, np.float64) if uv is not None else None
+    rgb8 = vertex_colors(visual, len(vertices))
+    if rgb8 is not None:   # vertices that differ in colour stay apart: the colour is an attribute like the UV
+        v, f, uvs, colors = _merge_with_colors(vertices, faces, uv, rgb8)
+    else:
+        merged = trimesh.Trimesh(vertices, faces, process=False)
+        if uv is not None:
+            merged.visual = trimesh.visual.TextureVisuals(uv=uv)
+        merged.merge_vertices()
+        v, f = np.asarray(merged.vertices, np.float64), np.asarray(merged.faces, np.int64)
+        uvs, colors = (np.asarray(merged.visual.uv, np.float64) if uv is not None else None), None
     # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
     # of all its faces on both sides, so shading and displacement agree across the seam.
     w = weld(v)
-    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs)
+    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs, colors=colors)
+
+
+def vertex_colors(visual, count: int) -> np.ndarray | None:
+    """(V, 3) uint8 sRGB per-vertex colours when the file has them (trimesh's vertex-kind visual, e.g. a
+    PLY's red/green/blue properties or OBJ's `v x y z r g b`), else None."""
+    if visual is None or getattr(visual, "kind", None) != "vertex":
+        return None
+    rgb = np.asarray(visual.vertex_colors)[:, :3]
+    return rgb.astype(np.uint8) if len(rgb) == count else None
+
+
+def _merge_with_colors(vertices, faces, uv, rgb8):
+    """Coincident vertices merged where their UVs (if any) and colours agree; colours to linear RGB."""
+    from .colour import srgb8_to_linear
+
+    key = [vertices, rgb8.astype(np.float64)] + ([uv] if uv is not None else [])
+    _, first, inverse = np.unique(np.concatenate(key, 1), axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)                      # keep the file's vertex order
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    keep = first[order]
+    f = rank[inverse.ravel()][faces]
+    return (vertices[keep], f, uv[keep] if uv is not None else None, srgb8_to_linear(rgb8[keep]))

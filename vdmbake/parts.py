@@ -12,7 +12,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import exr, ply, pyramid, quadrics
+from . import exr, ply, pyramid, quadric_mesh, quadrics
 from .errors import InputError
 
 
@@ -48,6 +48,10 @@ MESH = PartKind("mesh", ".ply",
 QUADRICS = PartKind("quadrics", ".ply",
                     lambda q: (quadrics.to_bytes(q), {"spheres": len(q.spheres), "cylinders": len(q.cylinders)}),
                     lambda data, meta, origin: quadrics.from_bytes(data, origin))
+
+VIEWER_MESH = PartKind("viewer-mesh", ".ply",
+                       lambda mc: (quadric_mesh.to_bytes(*mc), {"vertices": len(mc[0].vertices), "faces": len(mc[0].faces)}),
+                       lambda data, meta, origin: quadric_mesh.from_bytes(data, origin))
 
 
 # --- mesostructure: the height field and its normal map --------------------------------------------
@@ -206,7 +210,7 @@ def _pack_pyramid(p: pyramid.Pyramid):
 PYRAMID = PartKind("pyramid", ".exr", _pack_pyramid,
                    lambda data, meta, origin: pyramid.from_parts(_channels(data, origin), meta["mode"]))
 
-KINDS = {k.name: k for k in (MESH, QUADRICS, MESOSTRUCTURE, VDM, BILLBOARDS, BORDERED, PYRAMID)}
+KINDS = {k.name: k for k in (MESH, QUADRICS, VIEWER_MESH, MESOSTRUCTURE, VDM, BILLBOARDS, BORDERED, PYRAMID)}
 
 
 def stored(kind: PartKind, value):

@@ -141,6 +141,10 @@ class Object:
                                                   "detail geometry over the surface's UVs (mesh or primitive)")
     techniques: dict = setting(REQUIRED, Custom("a table of technique tables (see the techniques below)"),
                                "the techniques to render and compare, each with its settings")
+    viewer_mesh: int | None = setting(None, Integer(0, 4),
+                                      "quadrics objects: also bake them as one triangle mesh for viewers (standard PLY "
+                                      "with vertex colours, part viewer-mesh), tessellated as `tessellated` draws them "
+                                      "at this level")
     expect_empty: bool = setting(False, Boolean(), "the object may cover no pixel in every frame (a camera test); "
                                  "otherwise a variant none of whose frames has a covered pixel is an error (exit 2)")
 
@@ -226,6 +230,8 @@ def _object(t: Reader, default_material: Material) -> Object:
         t.fail("style", t.data["style"], "a style only for molecule objects")
     style = t.value("style", Choice(*STYLES), STYLES[0]) if molecule is not None else None
     mesh = t.value("mesh", _PATH, None)
+    if (mesh or primitive) and t.has("viewer_mesh"):
+        t.fail("viewer_mesh", t.data["viewer_mesh"], "a viewer mesh only for quadrics objects (molecules, spheres)")
     if t.has("mesostructure") and not (mesh or primitive):
         t.fail("mesostructure", t.data["mesostructure"], "a mesostructure only on mesh or primitive objects")
     meso = t.value("mesostructure", Table(Mesostructure), None)

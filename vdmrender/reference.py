@@ -47,7 +47,9 @@ class MeshReference:
         to_eye = safe_normalize(camera.eye - p)
         L = np.broadcast_to(np.asarray(self.light.direction), p.shape)
         lit = ~self.scene.occluded(p + ng * self.eps, L)
-        return _frame(camera, hit, shade(self.material.albedo, n, to_eye, lit, self.light, self.material))
+        # The asset's colours where it has them, interpolated at the hit as the rasteriser interpolates them.
+        albedo = self.material.albedo if self.mesh.colors is None else (w * self.mesh.colors[tri]).sum(1)
+        return _frame(camera, hit, shade(albedo, n, to_eye, lit, self.light, self.material))
 
 
 _BOX = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)

@@ -87,7 +87,8 @@ class RasterPasses(Passes):
 
 
 class RasterMesh(RasterPasses):
-    """One triangle mesh with per-vertex normals and the material's albedo."""
+    """One triangle mesh with per-vertex normals and the material's albedo, or the mesh's own colours
+    per vertex where it has them."""
 
     def __init__(self, ctx, mesh, light, material, shadow_size: int):
         anchor, radius = mesh.bounding_sphere()
@@ -95,6 +96,10 @@ class RasterMesh(RasterPasses):
         self.faces = len(mesh.faces)
         vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
                          ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
-        self.add("mesh.vert", (), [vbo, nbo, ibo], [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")],
-                 [(vbo, "3f", "in_pos")], ibo)
+        buffers, attributes, defines = [vbo, nbo, ibo], [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")], ()
+        if mesh.colors is not None:
+            cbo = ctx.buffer(np.ascontiguousarray(mesh.colors, dtype="f4").tobytes())
+            buffers, attributes, defines = buffers + [cbo], attributes + [(cbo, "3f", "in_color")], ("VERTEX_COLOR",)
+            self.UNIFORM_ALBEDO = False
+        self.add("mesh.vert", defines, buffers, attributes, [(vbo, "3f", "in_pos")], ibo)
 
