@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import InputError
+from .safeio import read_regular
 from .heightfields import PATTERNS, SKIMAGE_PHOTOS
 from .molecules import STYLES
 from .primitives import PRIMITIVES
@@ -20,6 +21,7 @@ from .schema import (REQUIRED, Boolean, Choice, Custom, Direction, unit, Integer
                      Vector, dump, read, setting)
 from .techniques import REGISTRY
 
+MAX_SCENE_BYTES = 64 << 20
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
 
 
@@ -168,7 +170,7 @@ def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_regular(path, "scene file", limit=MAX_SCENE_BYTES).decode("utf-8")
     except FileNotFoundError:
         raise InputError(f"{path}: scene file not found.") from None
     except (OSError, UnicodeDecodeError) as e:

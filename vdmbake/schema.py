@@ -378,6 +378,9 @@ class Technique:
     bake: Callable | None = None      # bake(job) -> its manifest entry (vdmbake.bake.Job)
     combine: Callable | None = None   # options -> variant values (with .plain(): the report's spelling), where
                                       # more settings than the knob make a variant
+    reads: Callable | None = None     # (its manifest entry, a variant's value, the object) -> {part path: part
+                                      # kind} the variant's renderer reads; with `bake`. The bundle checks these
+                                      # before rendering (vdmbake.manifest); any lookup error is a bad entry
 
     @property
     def knob(self) -> dataclasses.Field | None:

@@ -13,9 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from vdmbake import __version__, code_fingerprint, exr, imported_closure, parts
-from vdmbake.bundle import MANIFEST, Bundle
+from vdmbake.bundle import Bundle
 from vdmbake.errors import InputError
-from vdmbake.scene import parse_scene_dict
 from vdmbake.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
@@ -149,7 +148,7 @@ def _technique_filter(opts: Options, scene) -> set | None:
 
 def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) -> dict:
     bundle = Bundle(bundle_path)
-    scene = parse_scene_dict(bundle.manifest["scene"], str(bundle.path / MANIFEST))
+    scene = bundle.scene
     width, height = opts.resolution or scene.render.resolution
     repeats = opts.repeats or scene.render.repeats
     warmup = scene.render.warmup if opts.warmup is None else opts.warmup

@@ -6,6 +6,7 @@ vdmbake/vdm.py holds the kernels. Each variant is a k and a refine setting: refi
 per-pixel algorithm, R > 0 finishes the view ray's hit and the self-shadow on the height field."""
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -74,7 +75,18 @@ def bake(job) -> dict:
     return entry
 
 
+def reads(entry: dict, variant: Variant, obj) -> dict:
+    """The tables; k, and the curvature samples (increasing finite numbers) the renderer's axis is made of."""
+    k, cs = entry["k"], entry["curvatures"]
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1 or not cs or not all(
+            isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in cs) or any(
+            b <= a for a, b in zip(cs, cs[1:])):
+        raise ValueError("k or curvatures")
+    return {entry["tables"]: parts.VDM}
+
+
 TECHNIQUE = Technique("vdm", "view-dependent displacement mapping, the paper's four steps per pixel over the base "
                       "mesh: silhouette from the MVM, real texture coordinate, self-shadow by a second lookup, "
                       "shading; d and theta_MVM rebuilt from the SVD; refined on the height field as an option",
-                      ("surface",), Options, mesostructure=True, bake=bake, combine=variants)
+                      ("surface",), Options, mesostructure=True, bake=bake, combine=variants,
+                      reads=reads)
