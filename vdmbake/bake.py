@@ -145,6 +145,11 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
             + (f" (dropped without volume: {dropped})" if any(dropped.values()) else ""))
     else:
         mesh = object_mesh(obj, base)
+        if mesh.uvs is not None and not np.isfinite(mesh.uvs).all():
+            if obj.mesostructure:
+                raise InputError(f"object {obj.name!r}: {int((~np.isfinite(mesh.uvs)).any(1).sum())} vertices have NaN "
+                                 "or Inf texture coordinates, which the mesostructure is mapped by; fix the mesh's UVs.")
+            mesh.uvs = None                        # nothing else reads them
         if obj.mesostructure:
             if mesh.uvs is None:
                 raise InputError(f"object {obj.name!r}: a mesostructure needs a base mesh with texture coordinates "

@@ -47,7 +47,10 @@ class BundleWriter:
         """Write `value` as a part of `kind` at `rel` (its suffix appended); returns the part's path."""
         rel += kind.suffix
         data, meta = kind.pack(value)
-        kind.unpack(data, meta, f"{self.stage.path / rel} (as baked)")   # what the renderer will check
+        origin = f"{self.stage.path / rel} (as baked)"
+        from .manifest import check_meta
+        check_meta(kind, meta, rel, origin)                 # what the renderer will check: the manifest entry
+        kind.unpack(data, meta, origin)                     # and the part
         self.stage.file(rel).write_bytes(data)
         self.parts[rel] = {"kind": kind.name, "sha256": _sha256(data), "bytes": len(data), **meta}
         return rel

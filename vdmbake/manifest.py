@@ -59,6 +59,11 @@ def _table(t: Reader, key: str) -> dict:
     return value
 
 
+def check_meta(kind, meta: dict, rel: str, origin: str) -> None:
+    """A part kind's manifest metadata checked by the kind's schema."""
+    _typed(kind.meta, meta, f"parts.{rel}", origin)
+
+
 def validate(manifest, origin: str):
     """The scene (vdmbake.scene.Scene) of a manifest whose format and version were checked, after
     checking everything the renderer reads from it; raises InputError naming the key."""
@@ -69,7 +74,7 @@ def validate(manifest, origin: str):
     parts = _table(top, "parts")
     for rel, meta in parts.items():
         entry = _typed(PartEntry, meta, f"parts.{rel}", origin)
-        _typed(KINDS[entry.kind].meta, meta, f"parts.{rel}", origin)
+        check_meta(KINDS[entry.kind], meta, rel, origin)
     objects = _table(top, "objects")
     scene = parse_scene_dict(manifest["scene"], f"{origin} (scene)")
     if set(objects) != {o.name for o in scene.objects}:

@@ -77,6 +77,24 @@ def weld(vertices: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
     return rank[inv.ravel()]
 
 
+def merge_vertices(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, rel_tol: float = 1e-9):
+    """Coincident vertices merged (STL and OBJ split them), tolerance relative to the mesh's size and
+    about its centre, so that a mesh keeps its vertices at any scale and offset (an absolute tolerance
+    welds a sphere 1e-8 across into a few points); vertices with different texture coordinates stay
+    apart (UV seams). Returns vertices, faces and UVs (None if none), first appearances kept in order."""
+    key = weld(vertices, rel_tol)[:, None].astype(np.float64)
+    if uvs is not None:
+        lo = np.nanmin(uvs, 0) if np.isfinite(uvs).any() else np.zeros(2)
+        span = max(float(np.nanmax(np.abs(uvs - lo))) if np.isfinite(uvs).any() else 0.0, 1e-300)
+        key = np.column_stack([key, np.round((uvs - lo) / (span * rel_tol))])
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    keep = first[order]
+    return vertices[keep], rank[inv.ravel()][faces], None if uvs is None else uvs[keep]
+
+
 def rotation_xyz(degrees) -> np.ndarray:
     """Rotation about X, then Y, then Z (extrinsic), angles in degrees."""
     ax, ay, az = np.radians(degrees)
@@ -114,6 +132,13 @@ def validate(mesh: TriMesh, origin: str) -> TriMesh:
     if mesh.faces.min() < 0 or mesh.faces.max() >= len(mesh.vertices):
         raise InputError(f"{origin}: face indices reach {int(mesh.faces.max())} but the mesh has "
                          f"{len(mesh.vertices)} vertices.")
+    # Nothing to draw: every vertex at one point, or every face without area (collinear corners).
+    v = mesh.vertices - 0.5 * (mesh.vertices.min(0) + mesh.vertices.max(0))
+    r = float(np.abs(v).max())
+    tri = v[mesh.faces] / (r or 1.0)
+    if r == 0 or not (np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) > 1e-12).any():
+        raise InputError(f"{origin}: the mesh has no area (every vertex at one point, or every face a line); "
+                         "nothing of it could be drawn.")
     return mesh
 
 
@@ -158,12 +183,7 @@ def load_mesh_file(path: Path) -> TriMesh:
     # with different texture coordinates stay apart (UV seams), and the UVs are kept.
     uv = getattr(getattr(loaded, "visual", None), "uv", None)
     uv = np.asarray(uv, np.float64) if uv is not None and len(uv) == len(vertices) else None
-    merged = trimesh.Trimesh(vertices, faces, process=False)
-    if uv is not None:
-        merged.visual = trimesh.visual.TextureVisuals(uv=uv)
-    merged.merge_vertices()
-    v, f = np.asarray(merged.vertices, np.float64), np.asarray(merged.faces, np.int64)
-    uvs = np.asarray(merged.visual.uv, np.float64) if uv is not None else None
+    v, f, uvs = merge_vertices(vertices, faces, uv)
     # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
     # of all its faces on both sides, so shading and displacement agree across the seam.
     w = weld(v)

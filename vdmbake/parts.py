@@ -69,6 +69,8 @@ class MeshMeta:
 
 def _unpack_mesh(data, meta, origin):
     m = ply.from_bytes(data, origin)
+    if not len(m.faces):
+        _bad(origin, "the mesh has no face")
     if (len(m.vertices), len(m.faces)) != (meta["vertices"], meta["faces"]):
         _bad(origin, f"{len(m.vertices)} vertices and {len(m.faces)} faces where the manifest says "
                      f"{meta['vertices']} and {meta['faces']}")
