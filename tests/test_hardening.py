@@ -336,3 +336,188 @@ def test_any_scale_and_offset(tmp_path, scale, offset):
     assert result.exit_code == 0, result.output
     assert json.loads((tmp_path / "b.bundle/manifest.json").read_text())["parts"]["objects/thing/mesh.ply"]["vertices"] == 162
     assert rows_by_label(result)["mesh"]["mean_dluv"] < 0.3
+
+
+# ---------------------------------------------------------------------------- signals and output commits
+
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+
+SLOW_SCENE = GOOD_SCENE.replace("techniques = { mesh = {} }", "techniques = { billboards = { resolution = 256 } }")
+BIN = Path(sys.executable).parent
+
+
+def _dead_pid() -> int:
+    p = subprocess.Popen(["true"])
+    p.wait()
+    return p.pid
+
+
+def _siblings(out: Path) -> list[str]:
+    return sorted(p.name for p in out.parent.iterdir() if p.name.startswith(f".{out.name}."))
+
+
+def _signal_when_staging(cmd, out: Path, sig: int) -> subprocess.CompletedProcess:
+    """Start cmd, send `sig` once its staging folder exists (plus a moment), return its result."""
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    tmp = out.parent / f".{out.name}.tmp-{p.pid}"
+    t0 = time.monotonic()
+    while not tmp.exists() and p.poll() is None and time.monotonic() - t0 < 60:
+        time.sleep(0.01)
+    time.sleep(0.2)
+    p.send_signal(sig)
+    stdout, stderr = p.communicate(timeout=60)
+    return subprocess.CompletedProcess(cmd, p.returncode, stdout, stderr)
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGTERM, 143), (signal.SIGHUP, 129), (signal.SIGINT, 130)])
+def test_bake_signal_cleans_up_and_exits_128_plus_n(tmp_path, sig, code):
+    out = tmp_path / "x.bundle"
+    r = _signal_when_staging([str(BIN / "vdmbake"), str(write_scene(tmp_path, SLOW_SCENE)), "-o", str(out)], out, sig)
+    assert r.returncode == code, (r.returncode, r.stderr[-2000:])
+    assert "Traceback" not in r.stderr and "interrupted" in r.stderr
+    assert not out.exists() and _siblings(out) == []
+
+
+def test_render_sigterm_cleans_up_and_keeps_the_previous_output(baked, tmp_path):
+    out = tmp_path / "out"
+    cmd = [str(BIN / "vdmrender"), str(baked), "-o", str(out), "--no-flip"]
+    assert subprocess.run(cmd, capture_output=True).returncode == 0
+    before = (out / "report.json").read_bytes()
+    r = _signal_when_staging(cmd + ["--repeats", "50"], out, signal.SIGTERM)
+    assert r.returncode == 143, r.stderr[-2000:]
+    assert (out / "report.json").read_bytes() == before and _siblings(out) == []
+
+
+def test_swallowed_interrupt_still_stops_the_commit(tmp_path, monkeypatch):
+    """trimesh's optional imports catch BaseException, so a Ctrl-C during them is lost; the signal is
+    recorded and the commit refuses to run: exit 130, nothing written (it was exit 0 with a bundle)."""
+    from vdmbake import bake as bake_module, signals
+
+    real = bake_module.object_mesh
+
+    def swallow(obj, base):
+        try:
+            signals._handler(signal.SIGINT, None)
+        except BaseException:   # what trimesh does
+            pass
+        return real(obj, base)
+
+    monkeypatch.setattr(bake_module, "object_mesh", swallow)
+    out = tmp_path / "x.bundle"
+    r = bake(write_scene(tmp_path, GOOD_SCENE), "-o", out)
+    assert r.exit_code == 130, (r.exit_code, r.output)
+    assert not out.exists() and _siblings(out) == []
+
+
+def test_stale_staging_of_dead_processes_removed(tmp_path):
+    out = tmp_path / "x.bundle"
+    pid = _dead_pid()
+    for kind in ("tmp", "old"):
+        (tmp_path / f".x.bundle.{kind}-{pid}" / "objects").mkdir(parents=True)
+    assert bake(write_scene(tmp_path, GOOD_SCENE), "-o", out).exit_code == 0
+    assert (out / "manifest.json").is_file() and _siblings(out) == [], _siblings(out)
+
+
+def test_bundle_lost_between_the_two_renames_is_restored(tmp_path, baked):
+    """A kill between the fallback swap's two renames left only `.NAME.old-PID`: the next run puts it back."""
+    from vdmbake.staging import StagedDir
+
+    out = tmp_path / "x.bundle"
+    shutil.copytree(baked, tmp_path / f".x.bundle.old-{_dead_pid()}")
+    StagedDir(out, "manifest.json", "bundle").abort()
+    assert Bundle(out).manifest and _siblings(out) == []
+
+
+def test_live_processes_staging_is_left_alone(tmp_path):
+    out = tmp_path / "x.bundle"
+    mine = tmp_path / f".x.bundle.tmp-{os.getppid()}"      # a live process (our parent)
+    mine.mkdir()
+    assert bake(write_scene(tmp_path, GOOD_SCENE), "-o", out).exit_code == 0
+    assert mine.is_dir()
+
+
+def test_swap_keeps_a_bundle_at_every_instant(tmp_path, baked, monkeypatch):
+    """The commit exchanges the folders in one step: the path never lacks a bundle."""
+    from vdmbake import staging
+
+    out = tmp_path / "x.bundle"
+    shutil.copytree(baked, out)
+    seen = []
+    real = staging.exchange
+
+    def watch(a, b):
+        ok = real(a, b)
+        seen.append(ok and (b / "manifest.json").is_file())
+        return ok
+
+    monkeypatch.setattr(staging, "exchange", watch)
+    assert bake(write_scene(tmp_path, GOOD_SCENE.replace("count = 1", "count = 2")), "-o", out).exit_code == 0
+    assert seen == [True] and _siblings(out) == []
+
+
+@pytest.mark.parametrize("target", [".", "dangling", "link", "link-force"])
+def test_odd_output_targets(tmp_path, baked, monkeypatch, target):
+    monkeypatch.chdir(tmp_path)
+    scene = write_scene(tmp_path, GOOD_SCENE)
+    if target == ".":
+        r = bake(scene, "-o", ".")
+        assert_input_error(r, "folder name")
+        return
+    link = tmp_path / "l.bundle"
+    link.symlink_to(tmp_path / "nowhere" if target == "dangling" else baked)
+    r = bake(scene, "-o", link, *(["--force"] if target == "link-force" else []))
+    assert_input_error(r, "symbolic link")
+    assert link.is_symlink() and _siblings(link) == []
+
+
+def test_render_output_dot_refused(baked, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert_input_error(render(baked, "-o", ".", "--no-flip"), "folder name")
+
+
+def test_debug_keeps_exit_code_2(tmp_path):
+    r = bake(tmp_path / "missing.toml", "-o", tmp_path / "x", "--debug")
+    assert r.exit_code == 2 and "Traceback" in r.stderr and "error:" in r.stderr
+
+
+def test_full_disk_is_exit_2(tmp_path, monkeypatch):
+    import errno
+
+    from vdmbake import bundle as bundle_module
+
+    def full(self, rel, kind, value):
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "x"))
+
+    monkeypatch.setattr(bundle_module.BundleWriter, "add", full)
+    out = tmp_path / "x.bundle"
+    assert_input_error(bake(write_scene(tmp_path, GOOD_SCENE), "-o", out), "No space left", out)
+
+
+def test_shader_compile_error_is_exit_2_with_the_log(monkeypatch):
+    from vdmrender import gl
+
+    try:
+        ctx = gl.create_context(None)
+    except InputError as e:
+        pytest.skip(f"no OpenGL here: {e}")
+    real = gl.source
+    monkeypatch.setattr(gl, "source", lambda name: real(name).replace("void main", "void main_broken", 1)
+                        if name.endswith(".frag") else real(name))
+    with pytest.raises(InputError, match="do not compile.*Compiler log"):
+        gl.program(ctx, "mesh.vert", "mesh.frag")
+    ctx.release()
+
+
+def test_concurrent_bakes_to_one_output(tmp_path):
+    """Two vdmbake --force on one -o: each exits 0 (the swap is an exchange) or 2 with a message, never a
+    traceback, and one valid bundle is left with no debris."""
+    out = tmp_path / "x.bundle"
+    scene = write_scene(tmp_path, SLOW_SCENE)
+    ps = [subprocess.Popen([str(BIN / "vdmbake"), str(scene), "-o", str(out), "--force"], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    results = [(p.wait(timeout=120), p.stderr.read()) for p in ps]
+    for rc, err in results:
+        assert rc in (0, 2) and "Traceback" not in err, err[-2000:]
+    assert Bundle(out).manifest and _siblings(out) == []

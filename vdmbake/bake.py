@@ -18,7 +18,8 @@ from typing import Any, Callable
 import numpy as np
 
 from . import __version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadrics, vdm
-from .bundle import FORMAT_VERSION, Bundle, BundleWriter
+from . import staging
+from .bundle import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
 from .scene import Object, Scene, load_scene
@@ -108,6 +109,7 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
     base = scene_path.parent
     code = bake_code()
     digest, inputs = input_hash(scene, base, code)
+    staging.recover(out, MANIFEST)       # what an interrupted run left at `out`
     reason = "--force" if force else stale(out, digest, code)
     if reason is None:
         log(f"{out}: up to date (inputs, settings and bake code unchanged); use --force to bake again")
