@@ -521,3 +521,30 @@ def test_concurrent_bakes_to_one_output(tmp_path):
     for rc, err in results:
         assert rc in (0, 2) and "Traceback" not in err, err[-2000:]
     assert Bundle(out).manifest and _siblings(out) == []
+
+
+# ------------------------------------------------------------------------------------------ memory
+
+def test_memory_guard_counts_geometry(baked):
+    """The guard counts the largest object's faces and quadrics beside the pixels (the issue: a
+    1e6-atom render peaked at 13.7 GB for a 48x48 image while only the resolution was checked)."""
+    from vdmrender.render import BYTES_PER_FACE, BYTES_PER_PIXEL, check_memory, geometry_bytes
+
+    b = Bundle(baked)
+    need, what = geometry_bytes(b)
+    faces = b.manifest["parts"][MESH]["faces"] + b.manifest["parts"]["objects/ball/coarse-0.5.ply"]["faces"]
+    assert need == faces * BYTES_PER_FACE and "'ball'" in what
+    pixels = 48 * 48 * BYTES_PER_PIXEL
+    with pytest.raises(InputError, match="geometry of object 'ball'"):
+        check_memory(48, 48, available=int((pixels + need) / 0.8 * 0.99), geometry=(need, what))
+    assert check_memory(48, 48, available=int((pixels + need) / 0.8 * 1.01) + 1, geometry=(need, what)) is None
+
+
+def test_vdm_bake_memory_guard():
+    from vdmbake.scene import Mesostructure
+    from vdmbake.techniques import vdm
+
+    big = Mesostructure(height="bricks", size=1024)     # defaults: 32 phi, 8 theta, 16 curvatures: 16 GiB table
+    with pytest.raises(InputError, match="mesostructure.size"):
+        vdm.check_memory(big, "object 'x'", available=24 << 30)
+    vdm.check_memory(Mesostructure(height="bricks", size=64), "object 'x'", available=24 << 30)
