@@ -174,6 +174,9 @@ def load_mesh_file(path: Path) -> TriMesh:
 
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
+    except ImportError as e:  # trimesh reads some formats through optional packages
+        raise InputError(f"{path}: format not supported here: install the Python package "
+                         f"{e.name or 'that trimesh needs for it'} ({e}).") from None
     except Exception as e:  # trimesh raises many types for unreadable files
         raise InputError(f"{path}: cannot read the mesh ({type(e).__name__}: {e}).") from None
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
