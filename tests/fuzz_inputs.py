@@ -13,7 +13,6 @@ import copy
 import json
 import math
 import os
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -145,7 +144,3 @@ def check_manifest(bundle: Path, manifest) -> None:
         for cam in cameras_for(b.scene.camera, entry["centre"], entry["radius"], 8, 8):
             eye, d = cam.pixel_rays()
             assert np.isfinite(d).all() and np.isfinite(eye).all() and 0 < cam.near < cam.far
-
-
-def base_scene(path: Path) -> dict:
-    return tomllib.loads(path.read_text())

@@ -3,7 +3,6 @@ scenes vdmrender could not draw end in exit 2 with one line naming the key or fi
 (regular files of the listed size) and parsed from the bytes hashed; signals clean up and exit 128+N."""
 from __future__ import annotations
 
-import copy
 import json
 import os
 import shutil
@@ -604,3 +603,22 @@ def test_missing_optional_reader_reported_as_unsupported_format(tmp_path, monkey
     out = tmp_path / "x.bundle"
     assert_input_error(bake(write_scene(tmp_path, _mesh_scene(name, "mesh = {}")), "-o", out),
                        ["format not supported", "install the Python package charset_normalizer"], out)
+
+
+def test_vdm_entry_k_larger_than_stored(tmp_path):
+    scene = GOOD_SCENE.replace("techniques = { mesh = {} }", 'mesostructure = { height = "bricks", size = 8, phi = 4, '
+                               'theta = 2, curvatures = 2 }\ntechniques = { vdm = { k = [2] } }')
+    out = tmp_path / "v.bundle"
+    assert bake(write_scene(tmp_path, scene), "-o", out).exit_code == 0
+    rewrite(out, lambda m: m["objects"]["ball"]["techniques"]["vdm"].update(k=16))
+    refused(out, ["'objects.ball.techniques.vdm.k'", "records"])
+
+
+def test_unknown_key_with_a_newline_in_one_line():
+    """Found by the fuzzer (tests/fuzz_inputs.py): an unknown key holding a newline broke the message."""
+    from vdmbake.scene import parse_scene_dict
+
+    for data in ({"\n": 1, "objects": []}, {"objects": [{"name": "a", "primitive": "sphere", "techniques": {"x\ny": {}}}]}):
+        with pytest.raises(InputError) as e:
+            parse_scene_dict(data, "s.toml")
+        assert "\n" not in str(e.value) and "\\n" in str(e.value)

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from .errors import InputError
 from .parts import KINDS
-from .schema import REQUIRED, Choice, Custom, Integer, Number, Reader, Text, Vector, read, setting
+from .schema import REQUIRED, printable, Choice, Custom, Integer, Number, Reader, Text, Vector, read, setting
 
 _PATH = Text("a part path listed in 'parts'")
 _DIGEST = Text("64 lowercase hexadecimal digits", r"[0-9a-f]{64}")
@@ -61,7 +61,7 @@ def _table(t: Reader, key: str) -> dict:
 
 def check_meta(kind, meta: dict, rel: str, origin: str) -> None:
     """A part kind's manifest metadata checked by the kind's schema."""
-    _typed(kind.meta, meta, f"parts.{rel}", origin)
+    _typed(kind.meta, meta, f"parts.{printable(rel)}", origin)
 
 
 def validate(manifest, origin: str):
@@ -73,7 +73,7 @@ def validate(manifest, origin: str):
     _typed(Top, manifest, "", origin)
     parts = _table(top, "parts")
     for rel, meta in parts.items():
-        entry = _typed(PartEntry, meta, f"parts.{rel}", origin)
+        entry = _typed(PartEntry, meta, f"parts.{printable(rel)}", origin)
         check_meta(KINDS[entry.kind], meta, rel, origin)
     objects = _table(top, "objects")
     scene = parse_scene_dict(manifest["scene"], f"{origin} (scene)")
@@ -115,4 +115,7 @@ def validate(manifest, origin: str):
                                      "(missing or malformed); re-bake with vdmbake --force.") from None
                 for rel, kind in needed.items():
                     part(key, rel, kind)
+                    for k, v in tech.items():        # what the entry and the part's metadata both record agrees
+                        if k in parts[rel] and k not in PartEntry.__dataclass_fields__ and parts[rel][k] != v:
+                            Reader({}, key, origin).fail(k, v, f"{parts[rel][k]!r}, as part {rel!r} records; re-bake")
     return scene

@@ -17,7 +17,7 @@ from .safeio import read_regular
 from .heightfields import PATTERNS, SKIMAGE_PHOTOS
 from .molecules import STYLES
 from .primitives import PRIMITIVES
-from .schema import (REQUIRED, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
+from .schema import (REQUIRED, printable, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
                      Vector, dump, read, setting)
 from .techniques import REGISTRY
 
@@ -247,7 +247,7 @@ def _techniques(t: Reader, name: str, kind: str, has_meso: bool) -> dict:
     out = {}
     for tech in t.data:
         if tech not in REGISTRY:
-            raise InputError(f"{t.origin}: unknown technique '{tech}' in [{t.where}]; "
+            raise InputError(f"{t.origin}: unknown technique '{printable(tech)}' in [{t.where}]; "
                              f"known techniques: {', '.join(REGISTRY)}.")
         spec = REGISTRY[tech]
         if kind not in spec.kinds:

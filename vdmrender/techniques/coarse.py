@@ -2,11 +2,10 @@
 from __future__ import annotations
 
 from vdmbake import parts
-from vdmbake.techniques import coarse
 
 from .raster import RasterMesh
 
 
 def build(ctx, src, ratio):
-    (rel,) = coarse.reads(src.part, ratio, src.obj)
+    rel = next(m["mesh"] for m in src.part["meshes"] if m["ratio"] == ratio)
     return RasterMesh(ctx, src.bundle.read(rel, parts.MESH), src.scene.light, src.obj.material, src.shadow_map)
