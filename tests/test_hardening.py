@@ -618,7 +618,8 @@ def test_unknown_key_with_a_newline_in_one_line():
     """Found by the fuzzer (tests/fuzz_inputs.py): an unknown key holding a newline broke the message."""
     from vdmbake.scene import parse_scene_dict
 
-    for data in ({"\n": 1, "objects": []}, {"objects": [{"name": "a", "primitive": "sphere", "techniques": {"x\ny": {}}}]}):
+    ball = {"name": "a", "primitive": "sphere", "techniques": {"mesh": {}}}
+    for data in ({"\n": 1, "objects": [ball]}, {"objects": [dict(ball, techniques={"x\ny": {}})]}):
         with pytest.raises(InputError) as e:
             parse_scene_dict(data, "s.toml")
         assert "\n" not in str(e.value) and "\\n" in str(e.value)
