@@ -31,8 +31,9 @@ def test_mesh_with_uvs_and_frame():
 
 
 def test_quadrics():
-    q = quadrics.QuadricSet(RNG.normal(size=(5, 4)), f32(RNG.uniform(size=(5, 3))), RNG.normal(size=(3, 7)),
-                            f32(RNG.uniform(size=(3, 3))))
+    s, c = RNG.normal(size=(5, 4)), RNG.normal(size=(3, 7))
+    s[:, 3], c[:, 6] = np.abs(s[:, 3]) + 0.1, np.abs(c[:, 6]) + 0.1    # radii > 0: what a bake stores (a reader refuses others)
+    q = quadrics.QuadricSet(s, f32(RNG.uniform(size=(5, 3))), c, f32(RNG.uniform(size=(3, 3))))
     back = parts.stored(parts.QUADRICS, q)
     for f in ("spheres", "sphere_rgb", "cylinders", "cylinder_rgb"):
         assert np.array_equal(getattr(back, f), getattr(q, f))

@@ -17,8 +17,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import __version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadric_mesh, quadrics, vdm
-from .bundle import FORMAT_VERSION, Bundle, BundleWriter
+from . import (__version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadric_mesh,
+               quadrics, staging, vdm)
+from .bundle import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
 from .scene import Object, Scene, load_scene
@@ -109,6 +110,7 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
     base = scene_path.parent
     code = bake_code()
     digest, inputs = input_hash(scene, base, code)
+    staging.recover(out, MANIFEST)       # what an interrupted run left at `out`
     reason = "--force" if force else stale(out, digest, code)
     if reason is None:
         log(f"{out}: up to date (inputs, settings and bake code unchanged); use --force to bake again")
@@ -149,6 +151,11 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
                                               quadric_mesh.tessellate(q, obj.viewer_mesh))
     else:
         mesh = object_mesh(obj, base)
+        if mesh.uvs is not None and not np.isfinite(mesh.uvs).all():
+            if obj.mesostructure:
+                raise InputError(f"object {obj.name!r}: {int((~np.isfinite(mesh.uvs)).any(1).sum())} vertices have NaN "
+                                 "or Inf texture coordinates, which the mesostructure is mapped by; fix the mesh's UVs.")
+            mesh.uvs = None                        # nothing else reads them
         if obj.mesostructure:
             if mesh.uvs is None:
                 raise InputError(f"object {obj.name!r}: a mesostructure needs a base mesh with texture coordinates "

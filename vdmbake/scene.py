@@ -13,13 +13,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import InputError
+from .safeio import read_regular
 from .heightfields import PATTERNS, SKIMAGE_PHOTOS
 from .molecules import STYLES
 from .primitives import PRIMITIVES
-from .schema import (REQUIRED, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
+from .schema import (REQUIRED, printable, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
                      Vector, dump, read, setting)
 from .techniques import REGISTRY
 
+MAX_SCENE_BYTES = 64 << 20
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
 
 
@@ -172,7 +174,7 @@ def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_regular(path, "scene file", limit=MAX_SCENE_BYTES).decode("utf-8")
     except FileNotFoundError:
         raise InputError(f"{path}: scene file not found.") from None
     except (OSError, UnicodeDecodeError) as e:
@@ -251,7 +253,7 @@ def _techniques(t: Reader, name: str, kind: str, has_meso: bool) -> dict:
     out = {}
     for tech in t.data:
         if tech not in REGISTRY:
-            raise InputError(f"{t.origin}: unknown technique '{tech}' in [{t.where}]; "
+            raise InputError(f"{t.origin}: unknown technique '{printable(tech)}' in [{t.where}]; "
                              f"known techniques: {', '.join(REGISTRY)}.")
         spec = REGISTRY[tech]
         if kind not in spec.kinds:
