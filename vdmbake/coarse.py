@@ -13,17 +13,29 @@ from __future__ import annotations
 
 import numpy as np
 
-from .meshes import TriMesh, vertex_normals, weld
+from .meshes import TriMesh, crease_normals, weld
+
+CREASE_DEG = 60.0   # faces meeting at a larger angle do not share a vertex normal
 
 
 def simplify(mesh: TriMesh, ratio: float) -> TriMesh:
-    """Keep about `ratio` of the faces (at least one) of the surface welded by position; vertex normals are
-    recomputed over the simplified surface, UVs dropped (no technique textures a coarse mesh), per-vertex
-    colours carried (`collapsed_colors`)."""
-    import fast_simplification
-
+    """Keep about `ratio` of the faces (at least one) of the surface welded by position (`surface`); vertex
+    normals are recomputed over the simplified surface with sharp edges kept sharp, UVs dropped (no technique
+    textures a coarse mesh), per-vertex colours carried (`collapsed_colors`)."""
     if ratio >= 1.0:
         return TriMesh(mesh.vertices, mesh.faces, mesh.normals, colors=mesh.colors)
+    v, f, colors = surface(mesh, ratio)
+    # Welding joined the faces across sharp edges too (a cone's rim): normals are smoothed only within
+    # CREASE_DEG, so an edge sharp in the input stays sharp in the shading.
+    v, f, n, source = crease_normals(v, f, CREASE_DEG)
+    return TriMesh(v, f, n, colors=None if colors is None else colors[source])
+
+
+def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The simplified surface: vertices, faces (manifold edges only, no fins) and per-vertex colours (or
+    None): one vertex per point, but where a pinched edge was split."""
+    import fast_simplification
+
     ids = weld(mesh.vertices)
     points = mesh.vertices[np.unique(ids, return_index=True)[1]]
     faces = ids[mesh.faces]
@@ -44,7 +56,7 @@ def simplify(mesh: TriMesh, ratio: float) -> TriMesh:
     sphere_centre, radius = mesh.bounding_sphere()
     reach = np.linalg.norm(v - sphere_centre, axis=1, keepdims=True)
     v = sphere_centre + (v - sphere_centre) * np.minimum(1.0, radius / np.maximum(reach, 1e-300))
-    return TriMesh(v, f, vertex_normals(v, f), colors=colors)
+    return v, f, colors
 
 
 def collapsed_colors(points, faces, ids, colors, collapses, count: int) -> np.ndarray:

@@ -67,6 +67,38 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
 
 
+def crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float = 60.0):
+    """Vertex normals that keep sharp edges sharp: at each corner of a face, the area-weighted sum of the
+    normals of the faces around its vertex that turn less than `crease_deg` from that face (a smoothing
+    group, as DCC tools' auto-smooth); a vertex whose corners get different normals is split. Returns
+    vertices, faces, normals and, per output vertex, the input vertex it copies."""
+    tri = vertices[faces]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = np.linalg.norm(fn, axis=1, keepdims=True)
+    unit = fn / np.maximum(area, 1e-300)
+    corner_v = faces.ravel()
+    corner_f = np.repeat(np.arange(len(faces)), 3)
+    order = np.argsort(corner_v, kind="stable")
+    sv, sf = corner_v[order], corner_f[order]
+    start = np.searchsorted(sv, sv, side="left")
+    count = np.searchsorted(sv, sv, side="right") - start
+    # every pair (corner, corner of the same vertex): a corner's group is the faces within the crease angle
+    a = np.repeat(np.arange(len(sv)), count)
+    b = start[a] + (np.arange(len(a)) - np.repeat(np.cumsum(count) - count, count))
+    # a face without area has no direction: it joins every group around its vertices
+    flat = area[:, 0] <= 0
+    near = (np.einsum("ij,ij->i", unit[sf[a]], unit[sf[b]]) >= np.cos(np.radians(crease_deg))) | flat[sf[a]] | flat[sf[b]]
+    n = np.zeros((len(sv), 3))
+    np.add.at(n, a[near], fn[sf[b[near]]])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
+    corner_n = np.empty_like(n)
+    corner_n[order] = n
+    key = np.column_stack([corner_v, np.round(corner_n * 1e6)])
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    return vertices[corner_v[first]], inv.reshape(-1, 3), corner_n[first], corner_v[first]
+
+
 def weld(vertices: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
     """(V,) int64 position ids: vertices within rel_tol of the bounding radius share an id (they are one
     point of the surface, split only for their texture coordinates, e.g. at a UV seam). Ids are
