@@ -168,7 +168,55 @@ def _pack_pyramid(p: pyramid.Pyramid):
 PYRAMID = PartKind("pyramid", ".exr", _pack_pyramid,
                    lambda data, meta, origin: pyramid.from_parts(_channels(data, origin), meta["mode"]))
 
-KINDS = {k.name: k for k in (MESH, QUADRICS, MESOSTRUCTURE, VDM, BILLBOARDS, PYRAMID)}
+
+# --- octahedral impostors (Brucks 2018; vdmbake/octahedral.py) ----------------------------------------
+
+@dataclass
+class OctahedralAtlas:
+    """N x N orthographic views of an object on the lattice of an octahedral map of directions (the full
+    sphere, or the hemisphere above the map's z: hemi), R x R texels each, in one atlas of N R x N R
+    texels: view (i, j) is the tile at rows j R.., columns i R.. (row 0 at v = 0). View k looks along
+    -e_k over the square [-capture, capture]^2 of its frame (u_k, v_k) around `centre`; the frames and
+    the map follow vdmbake/octahedral.py (`basis` turns world directions into the map's)."""
+    views: int             # N
+    hemi: bool
+    basis: np.ndarray      # (3, 3) rows x, y, z of the map's frame (z: up)
+    centre: np.ndarray     # (3,) world centre of the bounding sphere: every view's centre
+    radius: float          # the bounding sphere's radius
+    capture: float         # half side of every view's square, world units
+    normal: np.ndarray     # (N R, N R, 2) float32 in [-1, 1]: the normal in its view's frame (u, v, e), octahedral code
+    depth: np.ndarray      # (N R, N R) float32 in [0, 1] along -e_k over 2 capture, 1 where not covered
+    coverage: np.ndarray   # (N R, N R) float32, 1 where a surface was hit, else 0
+    rays: int              # rays the bake traced
+
+    @property
+    def resolution(self) -> int:
+        """R: texels per side of every view."""
+        return self.depth.shape[0] // self.views
+
+
+def _pack_octahedral(a: OctahedralAtlas):
+    data = exr.to_bytes({"atlas": {"normal.U": a.normal[..., 0], "normal.V": a.normal[..., 1],
+                                   "depth.Z": a.depth, "A": a.coverage}})
+    return data, {"views": a.views, "resolution": a.resolution, "hemi": a.hemi, "basis": np.asarray(a.basis).tolist(),
+                  "centre": np.asarray(a.centre).tolist(), "radius": float(a.radius), "capture": float(a.capture),
+                  "rays": int(a.rays)}
+
+
+def _unpack_octahedral(data, meta, origin) -> OctahedralAtlas:
+    nu, nv, d, a = _need(_channels(data, origin), "atlas", ["normal.U", "normal.V", "depth.Z", "A"], origin)
+    side = int(meta["views"]) * int(meta["resolution"])
+    if d.shape != (side, side):
+        raise InputError(f"{origin}: atlas of {d.shape[1]}x{d.shape[0]} texels; the manifest says "
+                         f"{meta['views']} views of {meta['resolution']}^2 ({side}^2).")
+    return OctahedralAtlas(int(meta["views"]), bool(meta["hemi"]), np.asarray(meta["basis"], np.float64),
+                           np.asarray(meta["centre"], np.float64), float(meta["radius"]), float(meta["capture"]),
+                           np.stack([nu, nv], -1), d, a, int(meta["rays"]))
+
+
+OCTAHEDRAL = PartKind("octahedral", ".exr", _pack_octahedral, _unpack_octahedral)
+
+KINDS = {k.name: k for k in (MESH, QUADRICS, MESOSTRUCTURE, VDM, BILLBOARDS, PYRAMID, OCTAHEDRAL)}
 
 
 def stored(kind: PartKind, value):
