@@ -73,24 +73,44 @@ def _poses(centre, radius, poses) -> str:
     return "\n".join(out)
 
 
-def gpu_bytes(renderer) -> int:
-    """Bytes of the textures and buffers a renderer holds for its asset (not the shadow map or targets)."""
-    total = 0
-    objs = list(vars(renderer).values())
-    objs += [o for v in vars(renderer).values() if isinstance(v, list) for o in v]
-    seen = set()
+def _gl_objects(renderer) -> list:
+    """The moderngl objects a renderer holds: its attributes, and the items of its list, tuple and dict
+    attributes (one level), each once."""
+    found, seen = [], set()
+    for v in vars(renderer).values():
+        items = v.values() if isinstance(v, dict) else v if isinstance(v, (list, tuple)) else [v]
+        for o in items:
+            for x in (o if isinstance(o, tuple) else (o,)):
+                if id(x) not in seen and type(x).__module__.split(".")[0] == "moderngl":
+                    seen.add(id(x))
+                    found.append(x)
+    return found
+
+
+def _texture_bytes(t) -> int:
+    layers = t.layers if type(t).__name__ == "TextureArray" else 1
+    return t.width * t.height * layers * t.components * int(re.sub(r"\D", "", t.dtype))
+
+
+def gpu_bytes(renderer) -> tuple[int, int]:
+    """(asset, targets): bytes of the textures and buffers a renderer uploads for its asset (maps, pyramid
+    atlases, coverage, the coarse mesh's and the occupancy boxes' buffers, the atlas), and of the textures
+    it renders into every frame (the occupancy and depth pre-pass targets, at the frame's size; its shadow
+    map is neither)."""
+    objs = _gl_objects(renderer)
+    drawn = {id(a) for f in objs if type(f).__name__ == "Framebuffer"
+             for a in (*f.color_attachments, f.depth_attachment) if a is not None}
+    asset = targets = 0
     for o in objs:
-        if id(o) in seen or type(o).__module__.split(".")[0] != "moderngl":
-            continue
-        seen.add(id(o))
         name = type(o).__name__
         if name in ("Texture", "TextureArray"):
-            item = int(re.sub(r"\D", "", o.dtype))
-            layers = o.layers if name == "TextureArray" else 1
-            total += o.width * o.height * layers * o.components * item
+            if id(o) in drawn:
+                targets += _texture_bytes(o)
+            else:
+                asset += _texture_bytes(o)
         elif name == "Buffer":
-            total += o.size
-    return total
+            asset += o.size
+    return asset, targets
 
 
 def _equal_bytes_resolution(target: int, views: int) -> int:
@@ -141,7 +161,7 @@ def _model(out: Path, name: str, source: str, quick: bool) -> list[dict]:
         bb_bytes = 0
         for v in BILLBOARDS:    # the largest billboard variant's bytes fix the atlases' sizes
             r = bb_variants[f"billboards@{v}"].build(ctx)
-            bb_bytes = max(bb_bytes, gpu_bytes(r))
+            bb_bytes = max(bb_bytes, gpu_bytes(r)[0])
             r.release()
         sizes = {n: _equal_bytes_resolution(bb_bytes, n) for n in (5, 9, 13)}
         small = max(16, sizes[9] // 2)
@@ -214,7 +234,7 @@ def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[d
                    "p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else 0.0,
                    "iou": round(float(np.mean([p["iou"] for p in per_cam[label]])), 6),
                    "nonfinite": sum(p["nonfinite"] for p in per_cam[label]),
-                   "gpu_bytes": gpu_bytes(r), "bake_s": builds[label][1], **builds[label][2],
+                   **dict(zip(("gpu_bytes", "target_bytes"), gpu_bytes(r))), "bake_s": builds[label][1], **builds[label][2],
                    "cameras": {lab: {**p, "ms": round(t, 2)} for lab, p, t in zip(labels, per_cam[label], ms[label])}}
             if label in shadow_ms:
                 row["shadow_ms"] = round(statistics.median(shadow_ms[label]), 2)
@@ -248,26 +268,42 @@ CATEGORIES = [("orbit", lambda lab: lab.startswith("orbit")), ("top", lambda lab
               ("close", lambda lab: lab in ("close", "close-wide")), ("inside", lambda lab: lab == "inside")]
 
 
+def _category(r: dict, pick) -> tuple[float, float, float] | None:
+    """Mean of the per-frame mean ΔLuv, mean IoU and median ms over the row's cameras that `pick` takes."""
+    cams = [v for lab, v in r["cameras"].items() if pick(lab)]
+    if not cams:
+        return None
+    return (float(np.mean([v["mean_dluv"] for v in cams])), float(np.mean([v["iou"] for v in cams])),
+            float(statistics.median([v["ms"] for v in cams])))
+
+
 def _markdown(rows: list[dict], device: str) -> str:
+    cats = [("outside", lambda lab: lab != "inside")] + CATEGORIES
     lines = [f"# Octahedral impostors against enhanced billboards ({device})", "",
-             "Mean ΔLuv over all 16 cameras (union of coverage masks), median ms per frame (shadow pass included), "
-             "GPU bytes of the asset's textures and buffers (shadow map excluded), bake seconds.", "",
-             "| model | resolution | variant | GPU MB | bake s | median ms | shadow ms | lookups/px | mean ΔLuv | p95 | IoU | "
-             "outside | " + " | ".join(c for c, _ in CATEGORIES) + " |",
-             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|" + "---:|" * len(CATEGORIES)]
+             "Mean ΔLuv over all cameras (union of coverage masks), median ms per frame (shadow pass included), "
+             "asset MB: the textures and buffers a variant uploads (maps, pyramid atlases, coverage, coarse mesh, "
+             "occupancy boxes, the octahedral atlas); target MB: what it renders into every frame besides the "
+             "frame and its shadow map (the billboards' depth pre-pass and occupancy targets); bake seconds.", "",
+             "| model | resolution | variant | asset MB | target MB | bake s | median ms | shadow ms | lookups/px | "
+             "mean ΔLuv | p95 | IoU |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
-        cats = [f"{np.mean([v['mean_dluv'] for lab, v in r['cameras'].items() if lab != 'inside']):.3f}"]
-        for _, pick in CATEGORIES:
-            vals = [v["mean_dluv"] for lab, v in r["cameras"].items() if pick(lab)]
-            cats.append(f"{np.mean(vals):.2f}" if vals else "")
-        lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | {r['gpu_bytes'] / 2**20:.1f} | "
-                     f"{r['bake_s']:.1f} | {r['median_ms']:.0f} | {r.get('shadow_ms', '')} | "
-                     f"{r.get('lookups_per_pixel', '')} | {r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} | "
-                     + " | ".join(cats) + " |")
-    lines += ["", "outside: mean of the per-frame mean ΔLuv over the 15 cameras outside the bounding sphere. "
-              "Per-camera category columns: mean of the per-frame mean ΔLuv over the cameras of that kind "
-              "(orbit: 8 at 25 degrees; top: top-down and 80 degrees; grazing: 0 and 5 degrees; below: -30 degrees; "
-              "close: 1.4 and 1.2 radii (fov 50 and 90); inside: 0.95 radii, inside the bounding sphere)."]
+        lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | {r['gpu_bytes'] / 2**20:.2f} | "
+                     f"{r['target_bytes'] / 2**20:.2f} | {r['bake_s']:.1f} | {r['median_ms']:.0f} | "
+                     f"{r.get('shadow_ms', '')} | {r.get('lookups_per_pixel', '')} | {r['mean_dluv']:.3f} | "
+                     f"{r['p95_dluv']:.2f} | {r['iou']:.4f} |")
+    lines += ["", "Per camera category: mean ΔLuv / mean IoU / median ms over the cameras of that kind.", "",
+              "| model | resolution | variant | " + " | ".join(c for c, _ in cats) + " |",
+              "|---|---|---|" + "---|" * len(cats)]
+    for r in rows:
+        cells = []
+        for _, pick in cats:
+            c = _category(r, pick)
+            cells.append(f"{c[0]:.2f} / {c[1]:.3f} / {c[2]:.0f}" if c else "")
+        lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | " + " | ".join(cells) + " |")
+    lines += ["", "outside: the cameras outside the bounding sphere (all but inside). orbit: 8 at 25 degrees; "
+              "top: top-down and 80 degrees; grazing: 0 and 5 degrees; below: -30 degrees; close: 1.4 and 1.2 radii "
+              "(fov 50 and 90); inside: 0.95 radii, inside the bounding sphere."]
     return "\n".join(lines) + "\n"
 
 
