@@ -7,7 +7,9 @@
 // A camera inside the box needs nothing special: the ray starts on the near plane (as the reference's).
 #include "billboard.glsl"
 #include "camera.glsl"
-#if !defined(SHADOW)
+#if defined(COUNT)
+out vec4 frag;         // (march steps, texture fetches, 1, hit), summed over the pixel's box fragments
+#elif !defined(SHADOW)
 #include "shading.glsl"
 #include "shadow.glsl"
 uniform vec3 u_eye;       // anchor-relative
@@ -40,12 +42,28 @@ void main() {
     float t1 = min(min(hi.x, hi.y), min(hi.z, 1.0));
     if (t0 >= t1) discard;
     float t = march(o, d, t0, t1, v_layer);
+#if defined(COUNT)
+    frag = vec4(float(g_steps), float(g_fetches), 1.0, t < 0.0 ? 0.0 : 1.0);
+    return;
+#endif
     if (t < 0.0) discard;
     vec3 p = p0 + seg * t;
     gl_FragDepth = window_depth(u_view_proj, p);
-#if !defined(SHADOW)
+#if !defined(SHADOW) && !defined(COUNT)
     vec3 st = o + d * t;
     vec3 N = safe_normalize(map(st.xy, v_layer).xyz);
+#if defined(THESIS)
+    // The thesis's hit test (|ray depth - map depth| < e) takes either side of the surface. A ray that
+    // enters the box behind the surface and meets it from below (f = ray depth - map depth falling there,
+    // the map's slope from central differences half a texel apart) sees its back: shade that side, as the
+    // mesh and the reference do (an open surface seen from behind). A ray that entered in front and meets
+    // it from below went through one of the march's holes (sec. 3.4): left as the thesis shades it.
+    vec3 s0 = o + d * t0;
+    float h = 0.5 / float(textureSize(u_alpha, 0).x);
+    vec2 grad = vec2(map_depth(st.xy + vec2(h, 0.0), v_layer) - map_depth(st.xy - vec2(h, 0.0), v_layer),
+                     map_depth(st.xy + vec2(0.0, h), v_layer) - map_depth(st.xy - vec2(0.0, h), v_layer)) / (2.0 * h);
+    if (s0.z >= map_depth(s0.xy, v_layer) && d.z - dot(grad, d.xy) < 0.0) N = -N;
+#endif
     // The shadow lookup moves along the normal by the billboard's own uncertainty, on top of the shadow
     // map's normal offset: u_board_texels of its map texels (the surface is known to about a texel, and
     // where two billboards overlap the light may see the other one), plus for THESIS the hit range

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from vdmbake import billboard_maps, coarse, primitives
 from vdmbake import billboards as bb
-from vdmbake import coarse, primitives
 from vdmbake.errors import InputError
 from vdmbake.meshes import TriMesh
 from vdmbake.scene import Light, Material
@@ -50,8 +50,13 @@ def orbit_camera(mesh, azimuth, elevation, size=96, distance=2.8, fov=40.0) -> C
     return Camera(eye, c, np.array([0.0, 0.0, 1.0]), fov, size, size, *clip_planes(eye, c, c, r))
 
 
+def bordered(boards) -> list:
+    """The bordered maps the bake stores beside the billboards (no pyramids)."""
+    return [billboard_maps.bordered(b, False) for b in boards]
+
+
 def render(ctx, boards, camera, method="improved", hit_range=0.01, coarse_mesh=None, **kw) -> np.ndarray:
-    r = Billboards(ctx, boards, LIGHT, MATERIAL, SHADOW, method, hit_range, coarse_mesh, **kw)
+    r = Billboards(ctx, boards, bordered(boards), LIGHT, MATERIAL, SHADOW, method, hit_range, coarse_mesh, **kw)
     target = gl.Target(ctx, camera.width, camera.height)
     try:
         r.render(camera, target)
@@ -71,13 +76,15 @@ def score(frame, mesh, camera) -> tuple[float, float]:
 
 # (mean dLuv bound, IoU bound) per (mesh, method, hit range, coarse): R 128, 96x96, azimuth 30, elevation 25.
 BOUNDS = {
-    ("sphere", "thesis", 0.01, False): (10.5, 0.86),    # measured 9.56, 0.872 (holes: sec. 3.4)
+    # measured 11.11, 0.872 (holes: sec. 3.4); 9.56 before issue 9, where a hit met from below after the ray
+    # entered behind the surface (a false hit beyond a hole, or an open surface's back) was shaded lit
+    ("sphere", "thesis", 0.01, False): (12.0, 0.86),
     ("sphere", "thesis", 0.01, True): (1.0, 0.99),      # 0.880, 0.9931
     ("sphere", "thesis", 0.02, False): (4.0, 0.97),     # 3.58, 0.9736
     ("sphere", "thesis", 0.02, True): (1.1, 0.984),     # 0.954, 0.9863
     ("sphere", "improved", 0.01, False): (0.08, 0.999),   # 0.053, 0.9994
     ("sphere", "improved", 0.01, True): (0.17, 0.997),    # 0.136, 0.9977
-    ("torus", "thesis", 0.01, False): (11.5, 0.90),     # 10.47, 0.9092
+    ("torus", "thesis", 0.01, False): (11.5, 0.90),     # 10.21, 0.9092 (10.47 before issue 9)
     ("torus", "thesis", 0.01, True): (2.3, 0.975),      # 2.07, 0.978
     ("torus", "thesis", 0.02, False): (6.0, 0.94),      # 5.44, 0.9439
     ("torus", "thesis", 0.02, True): (2.9, 0.95),       # 2.64, 0.9549
@@ -175,16 +182,16 @@ def test_bundle_round_trip_and_bounds(ctx):
     c = render(ctx, boards, cam, bounds=mesh.bounding_sphere())
     err, iou = score(c, mesh, cam)
     assert err < 0.11 and iou > 0.999, (err, iou)   # measured 0.086, 0.9997
-    r = Billboards(ctx, boards, LIGHT, MATERIAL, SHADOW, coarse=co)
+    r = Billboards(ctx, boards, bordered(boards), LIGHT, MATERIAL, SHADOW, coarse=co)
     assert r.faces == len(co.faces) > 0
     r.release()
     with pytest.raises(InputError):
-        Billboards(ctx, boards, LIGHT, MATERIAL, SHADOW, method="linear")
+        Billboards(ctx, boards, bordered(boards), LIGHT, MATERIAL, SHADOW, method="linear")
     with pytest.raises(InputError):
         b1 = boards[1]
-        Billboards(ctx, boards[:1] + [Billboard(b1.origin, b1.axes, b1.size, np.zeros((8, 8)), np.ones((8, 8)),
-                                                np.zeros((8, 8, 3)))],
-                   LIGHT, MATERIAL, SHADOW)
+        mixed = boards[:1] + [Billboard(b1.origin, b1.axes, b1.size, np.zeros((8, 8)), np.ones((8, 8)),
+                                        np.zeros((8, 8, 3)))]
+        Billboards(ctx, mixed, bordered(mixed), LIGHT, MATERIAL, SHADOW)
 
 
 def test_billboards_through_the_command_line(tmp_path):
@@ -221,14 +228,17 @@ def test_bench_quick_smoke(tmp_path):
 
     from click.testing import CliRunner
 
-    from vdmrender.bench_billboards import main as bench_main
+    from vdmrender.bench_billboards import PROFILE, main as bench_main
 
     r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
     assert r.exit_code == 0, r.output
     report = json.loads((tmp_path / "billboards.json").read_text())
     labels = {row["label"] for row in report["rows"]}
-    assert {"mesh", "coarse@0.1", "billboards@greedy-hit0.01", "billboards@greedy-improved+coarse"} <= labels
+    assert {"mesh", "coarse@0.1", "billboards@greedy-hit0.01", "billboards@greedy-improved+coarse",
+            "billboards@greedy-hier+coarse"} <= labels
     assert all(row["nonfinite"] == 0 for row in report["rows"])
+    assert {p["label"] for p in report["profile"]} == set(PROFILE) and set(report["march_cost"]) == {"improved", "hier"}
+    assert report["bakes"]["sphere"]["pyramid_mb"] > 0
     assert report["bakes"]["sphere"]["greedy"] >= 1 and report["bakes"]["sphere"]["axis"] >= 1
     assert "| sphere |" in (tmp_path / "billboards.md").read_text()
 

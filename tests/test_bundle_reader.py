@@ -113,7 +113,7 @@ name = "ball"
 primitive = "sphere"
 params = {{ radius = {BALL['radius']}, segments = {BALL['segments']}, rings = {BALL['rings']} }}
 transform = {{ translate = [{BALL['centre'][0]}, {BALL['centre'][1]}, {BALL['centre'][2]}] }}
-techniques = {{ mesh = {{}}, billboards = {{ variants = ["greedy-improved+coarse", "axis-hit0.01"], resolution = {BALL['resolution']}, coarse_ratio = 0.25 }}, octahedral = {{ variants = ["full-{BALL['views']}x{BALL['view_resolution']}-march", "full-{BALL['views']}x{BALL['view_resolution']}-virtual"] }} }}
+techniques = {{ mesh = {{}}, billboards = {{ variants = ["greedy-improved+coarse", "greedy-hier", "axis-hit0.01"], resolution = {BALL['resolution']}, coarse_ratio = 0.25 }}, octahedral = {{ variants = ["full-{BALL['views']}x{BALL['view_resolution']}-march", "full-{BALL['views']}x{BALL['view_resolution']}-virtual"] }} }}
 
 [[objects]]
 name = "atoms"
@@ -457,7 +457,7 @@ def test_manifest_lists_every_part_with_checksum(meso, shapes):
         assert set(m["parts"]) <= on_disk
         for rel, entry in m["parts"].items():
             assert not rel.startswith("/") and ".." not in rel.split("/") and "\\" not in rel
-            assert entry["kind"] in {"mesh", "quadrics", "mesostructure", "vdm", "billboards", "octahedral"}
+            assert entry["kind"] in {"mesh", "quadrics", "mesostructure", "vdm", "billboards", "bordered-billboards", "octahedral"}
             r.part_bytes(rel, entry["kind"])  # checksum and size
         assert m["stats"]["objects"] == len(m["objects"])
         assert m["stats"]["parts"] == len(m["parts"])
@@ -804,10 +804,18 @@ def test_exr_files_layout(meso, shapes):
                 assert sorted(x["W"].channels) == [f"W.{i:03d}" for i in range(entry["k"])]
                 assert sorted(x["E_vdm"].channels) == [f"E.{i:03d}" for i in range(entry["k"])]
                 assert sorted(x["E_mvm"].channels) == [f"E.{i:03d}" for i in range(entry["k"])]
-            else:
+            elif entry["kind"] == "billboards":
                 assert sorted(x) == [f"bb{i:03d}" for i in range(len(entry["boards"]))]
                 for p in x.values():
                     assert sorted(p.channels) == ["A", "depth.Z", "normal.X", "normal.Y", "normal.Z"]
+            else:
+                names = [f"bb{i:03d}" for i in range(entry["boards"])]
+                assert sorted(k for k in x if "." not in k) == names
+                for k, p in x.items():
+                    want = (["depth.Z", "normal.X", "normal.Y", "normal.Z"] if "." not in k else
+                            ["depth.Z"] if k.endswith(".samples") else ["max.Z", "min.Z"])
+                    assert sorted(p.channels) == want, k
+                assert any("." in k for k in x) == entry["pyramids"]
             sizes = []
             for p in x.values():
                 assert "ZIP_COMPRESSION" in str(p.header["compression"])
@@ -825,7 +833,7 @@ def test_exr_files_layout(meso, shapes):
             for p in x.values():
                 lo, size = _window_size(p.header["displayWindow"])
                 assert (lo == 0).all() and (size == union).all(), rel
-    assert seen == {"mesostructure", "vdm", "billboards", "octahedral"}
+    assert seen == {"mesostructure", "vdm", "billboards", "bordered-billboards", "octahedral"}
 
 
 def test_mesostructure_maps(meso):
@@ -992,6 +1000,8 @@ def test_billboards_reproject_onto_the_sphere(shapes):
     full_faces = shapes.manifest["parts"][obj["mesh"]]["faces"]
     bb = obj["techniques"]["billboards"]
     assert set(bb) == {"greedy", "axis", "coarse"}
+    assert shapes.manifest["parts"][bb["greedy"]["bordered"]]["pyramids"]          # greedy-hier
+    assert not shapes.manifest["parts"][bb["axis"]["bordered"]]["pyramids"]
     worst_transposed = 0.0
     for variant in ("greedy", "axis"):
         entry = bb[variant]
@@ -1050,7 +1060,8 @@ def oct_decode(g, hemi):
 
 def test_octahedral_atlas_reprojects_onto_the_sphere(shapes):
     """One atlas for the two methods; with the spec's lattice, frames and texel formula every covered
-    texel lies on the ball and its decoded normal is the ball's; uncovered texels have depth 1; the
+    texel lies on the ball and its decoded normal is the ball's; uncovered texels far from covered ones
+    have depth 1 and code 0, those near them are extrapolated; the
     views' directions, each at the map point of its tile, cover the sphere (full layout)."""
     obj = shapes.manifest["objects"]["ball"]
     entry = obj["techniques"]["octahedral"]
@@ -1059,7 +1070,12 @@ def test_octahedral_atlas_reprojects_onto_the_sphere(shapes):
     a = shapes.octahedral(entry[f"full-{n}x{res}"])
     assert (a["views"], a["resolution"], a["hemi"]) == (n, res, False)
     assert a["A"].shape == (n * res, n * res) and set(np.unique(a["A"])) == {0.0, 1.0}
-    assert (a["depth"][a["A"] == 0] == 1).all() and a["rays"] >= n * n * res * res
+    near = np.zeros(a["A"].shape, bool)    # within 2 texels of a covered one: extrapolated
+    for di in range(-2, 3):
+        for dj in range(-2, 3):
+            near |= np.roll(np.roll(a["A"] == 1, di, 0), dj, 1)
+    assert (a["depth"][~near] == 1).all() and (a["code"][~near] == 0).all() and (a["depth"][near] < 1).all()
+    assert a["depth"].min() >= 0 and np.abs(a["code"]).max() <= 1 and a["rays"] >= n * n * res * res
     centre, cap, basis = a["centre"], a["capture"], a["basis"]
     np.testing.assert_allclose(centre, BALL["centre"], atol=1e-9)
     assert np.allclose(basis @ basis.T, np.eye(3))
@@ -1152,3 +1168,42 @@ def test_reader_agrees_with_project_unpacking(meso, shapes):
     np.testing.assert_array_equal(ours["code"], theirs.normal)
     np.testing.assert_array_equal(ours["basis"], theirs.basis)
     assert (ours["views"], ours["capture"]) == (theirs.views, theirs.capture)
+
+def test_bordered_billboards_as_documented(shapes):
+    """bordered-billboards, read from the spec alone: bordered texel [i, j] is map texel [i - 1, j - 1]
+    wherever that is covered; the pyramid (greedy, for hier) has (R + 1)^2 level-0 cells, empty ones
+    [1e30, -1e30]; a cell with a covered corner is not empty unless steeper than 6 texels of depth per
+    texel; a cell with no covered corner is empty; each level's interval holds its children's."""
+    bb = shapes.manifest["objects"]["ball"]["techniques"]["billboards"]["greedy"]
+    boards = shapes.billboards(bb["maps"])
+    x = shapes.exr(bb["bordered"], "bordered-billboards")
+    for k, b in enumerate(boards):
+        name, res = f"bb{k:03d}", b["A"].shape[0]
+        ch = x[name].channels
+        assert ch["depth.Z"].shape == (res + 2, res + 2)
+        cov = b["A"] == 1
+        np.testing.assert_array_equal(ch["depth.Z"][1:-1, 1:-1][cov], b["depth"][cov])
+        for a, c in enumerate("XYZ"):
+            np.testing.assert_array_equal(ch[f"normal.{c}"][1:-1, 1:-1][cov], b["normal"][..., a][cov])
+        samples = x[f"{name}.samples"].channels["depth.Z"]
+        levels = sorted(k2 for k2 in x if k2.startswith(name + ".L"))
+        lo, hi = (x[levels[0]].channels[c] for c in ("min.Z", "max.Z"))
+        assert lo.shape == (res + 1, res + 1)
+        empty = lo >= 1e30
+        assert (hi[empty] <= -1e30).all()
+        c = np.pad(cov, 1, mode="edge")
+        any_corner = c[:-1, :-1] | c[:-1, 1:] | c[1:, :-1] | c[1:, 1:]
+        assert empty[~any_corner].all()
+        corners = np.stack([samples[:-1, :-1], samples[:-1, 1:], samples[1:, :-1], samples[1:, 1:]], -1)
+        limit = 6.0 * max(b["size"][0], b["size"][1]) / res / b["size"][2]
+        full = ~empty
+        np.testing.assert_allclose(lo[full], corners.min(-1)[full], rtol=0, atol=1e-7)
+        np.testing.assert_allclose(hi[full], corners.max(-1)[full], rtol=0, atol=1e-7)
+        assert (empty[any_corner] == (np.ptp(corners, -1) > limit)[any_corner]).all()
+        for a_name, b_name in zip(levels, levels[1:]):
+            clo, chi = (x[a_name].channels[c] for c in ("min.Z", "max.Z"))
+            plo, phi = (x[b_name].channels[c] for c in ("min.Z", "max.Z"))
+            for i in range(clo.shape[0]):
+                for j in range(clo.shape[1]):
+                    if clo[i, j] < 1e30:
+                        assert plo[i // 2, j // 2] <= clo[i, j] and phi[i // 2, j // 2] >= chi[i, j]

@@ -188,3 +188,29 @@ def test_open_surface_seen_from_behind_faces_the_viewer():
 def test_bad_settings_refused(settings, words):
     with pytest.raises(InputError, match=words):
         oc.bake(primitives.sphere(1.0, 8, 4), settings)
+
+
+def test_stored_atlas_extrapolates_around_silhouettes():
+    """to_part, what the bundle stores: covered texels as baked; the empty texels within two rings of
+    covered ones extrapolated from them (on a sphere's rim the depth keeps falling towards the centre
+    plane: below 1), farther ones as baked (depth 1, code 0); all within range; nothing enters the
+    EMPTY rings' outer ring of any tile, so no view reaches into another."""
+    from vdmbake.billboard_maps import PAD
+
+    n, res = 5, 32
+    a = oc.bake(primitives.sphere(1.0, 48, 24), oc.Settings(n, res))
+    p = oc.to_part(a)
+    cov = a.coverage > 0.5
+    assert np.array_equal(p.coverage, a.coverage) and (p.views, p.resolution, p.hemi) == (n, res, False)
+    assert np.array_equal(p.depth[cov], a.depth[cov]) and np.array_equal(p.normal[cov], a.normal[cov])
+    near = np.zeros_like(cov)
+    for di in range(-PAD, PAD + 1):
+        for dj in range(-PAD, PAD + 1):
+            near |= np.roll(np.roll(cov, di, 0), dj, 1)
+    ring = near & ~cov
+    assert ring.any() and (p.depth[ring] < 1.0).all()
+    assert (p.depth[~near] == 1.0).all() and (p.normal[~near] == 0.0).all()
+    assert p.depth.min() >= 0 and p.depth.max() <= 1 and np.abs(p.normal).max() <= 1
+    edge = np.zeros((res, res), bool)
+    edge[[0, -1], :] = edge[:, [0, -1]] = True
+    assert not near[np.tile(edge, (n, n))].any()

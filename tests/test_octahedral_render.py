@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from vdmbake import octahedral as oc
-from vdmbake import parts, primitives
+from vdmbake import primitives
 from vdmbake.errors import InputError
 from vdmbake.meshes import TriMesh
 from vdmbake.scene import Light, Material
@@ -42,8 +42,7 @@ def model(name: str, views=9, res=64, hemi=False, offset=(0.0, 0.0, 0.0)):
         m = MESHES[name]()
         m = TriMesh(m.vertices + np.asarray(offset), m.faces, m.normals)
         a = oc.bake(m, oc.Settings(views, res, hemi))
-        _cache[key] = (m, parts.OctahedralAtlas(views, hemi, a.basis, a.centre, a.radius, a.capture, a.normal,
-                                                a.depth, a.coverage, a.rays))
+        _cache[key] = (m, oc.to_part(a))     # as the bundle stores it
     return _cache[key]
 
 
@@ -254,13 +253,14 @@ def test_hemi_above_and_below_the_horizon(ctx):
 
 
 def test_texels_and_shadow_size():
-    """The uploaded texels: code / 2 + 1/2, depth, coverage, empty texels next to covered ones
-    extrapolated, all within [0, 1]; the shadow map's side follows the views' texels, capped."""
+    """The uploaded texels: code / 2 + 1/2, depth, coverage, all within [0, 1]; the shadow map's side
+    follows the views' texels, capped."""
     mesh, atlas = model("sphere")
     t = atlas_texels(atlas)
     assert t.shape == atlas.coverage.shape + (4,) and t.min() >= 0 and t.max() <= 1
     covered = atlas.coverage > 0.5
-    assert np.allclose(t[..., 2][covered], atlas.depth[covered], atol=1e-6)
+    assert np.allclose(t[..., 2], atlas.depth, atol=1e-6)
+    assert np.allclose(t[..., :2], atlas.normal * 0.5 + 0.5, atol=1e-6)
     assert np.array_equal(t[..., 3] > 0.5, covered)
     assert shadow_size(64, 2.0, 1024) == 128 and shadow_size(128, 16.0, 1024) == 1024
 

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import billboard_maps, parts
 from .embree import RayScene
 from .errors import InputError
 from .meshes import TriMesh, validate
@@ -243,3 +244,16 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), up=(0.0, 0.0, 1.0), log
                  np.concatenate([r[0] for r in rows]).astype(np.float32),
                  np.concatenate([r[1] for r in rows]).astype(np.float32),
                  np.concatenate([r[2] for r in rows]).astype(np.float32), rays)
+
+
+def to_part(a: Atlas) -> parts.OctahedralAtlas:
+    """The atlas as the bundle stores it and the renderer samples it (linear filtering): the empty
+    texels within billboard_maps.PAD rings of covered ones hold normal code and depth linearly
+    extrapolated from them (billboard_maps.pad), clamped to their ranges, so that filtering at a
+    silhouette follows the surface instead of bending it to depth 1. The EMPTY rings around every tile
+    keep the extrapolation inside its view."""
+    covered = a.coverage > 0.5
+    values = billboard_maps.pad(np.concatenate([a.normal, a.depth[..., None]], -1), covered)
+    return parts.OctahedralAtlas(a.settings.views, a.settings.hemi, a.basis, a.centre, a.radius, a.capture,
+                                 np.clip(values[..., :2], -1.0, 1.0), np.clip(values[..., 2], 0.0, 1.0),
+                                 a.coverage, a.rays)

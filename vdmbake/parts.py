@@ -159,6 +159,44 @@ def _unpack_billboards(data, meta, origin) -> list[Billboard]:
 
 BILLBOARDS = PartKind("billboards", ".exr", _pack_billboards, _unpack_billboards)
 
+
+@dataclass
+class BorderedMaps:
+    """One billboard's maps as its renderers sample them (vdmbake/billboard_maps.py): normal (xyz) and
+    depth (w) with a one-texel border, the border and the empty texels near covered ones extrapolated;
+    and, for the hierarchical march only, the min/max pyramid of its depth surface (empty cells marked)."""
+    maps: np.ndarray                       # (R+2, R+2, 4) float32
+    pyramid: pyramid.Pyramid | None = None
+
+
+def _pack_bordered(boards: list[BorderedMaps]):
+    tables = {}
+    for i, b in enumerate(boards):
+        tables[f"bb{i:03d}"] = {**{f"normal.{a}": b.maps[..., k] for k, a in enumerate("XYZ")}, "depth.Z": b.maps[..., 3]}
+        if b.pyramid is not None:
+            tables.update({f"bb{i:03d}.{k}": v for k, v in pyramid.to_parts(b.pyramid).items()})
+    traced = [b.pyramid is not None for b in boards]
+    return exr.to_bytes(tables), {"boards": len(boards), "pyramids": bool(traced) and all(traced),
+                                  "mode": pyramid.CLAMP}
+
+
+def _unpack_bordered(data, meta, origin) -> list[BorderedMaps]:
+    tables = _channels(data, origin) if meta["boards"] else {}
+    out = []
+    for i in range(meta["boards"]):
+        name = f"bb{i:03d}"
+        maps = np.stack(_need(tables, name, ["normal.X", "normal.Y", "normal.Z", "depth.Z"], origin), -1)
+        pyr = None
+        if meta["pyramids"]:
+            sub = {k[len(name) + 1:]: v for k, v in tables.items() if k.startswith(name + ".")}
+            _need(sub, "samples", ["depth.Z"], f"{origin} ({name})")
+            pyr = pyramid.from_parts(sub, meta["mode"])
+        out.append(BorderedMaps(maps.astype(np.float32), pyr))
+    return out
+
+
+BORDERED = PartKind("bordered-billboards", ".exr", _pack_bordered, _unpack_bordered)
+
 # --- min/max mip pyramid of a depth field (the hierarchical tracer's, vdmbake/pyramid.py) ------------
 
 def _pack_pyramid(p: pyramid.Pyramid):
@@ -216,7 +254,7 @@ def _unpack_octahedral(data, meta, origin) -> OctahedralAtlas:
 
 OCTAHEDRAL = PartKind("octahedral", ".exr", _pack_octahedral, _unpack_octahedral)
 
-KINDS = {k.name: k for k in (MESH, QUADRICS, MESOSTRUCTURE, VDM, BILLBOARDS, PYRAMID, OCTAHEDRAL)}
+KINDS = {k.name: k for k in (MESH, QUADRICS, MESOSTRUCTURE, VDM, BILLBOARDS, BORDERED, PYRAMID, OCTAHEDRAL)}
 
 
 def stored(kind: PartKind, value):

@@ -28,9 +28,19 @@ powers of two (GL mip sizes halve with floor). Level 0: the four corners (c00, c
 level L >= 1: (min, max, min, max). The min and max of the four components are then the interval at every
 level, so one texelFetch per cell visit serves both the interval test and, at level 0, the exact patch.
 Padding texels are never fetched (the traversal keeps indices inside each level's ceil(n / 2^L)).
+texture_atlas packs the same texels into one image without the padding (level origins passed to the
+include's HF_FETCH), for cell counts far from a power of two.
+
+Empty cells (build's `empty` mask, e.g. a billboard's uncovered texels) have no surface: an empty
+interval, HUGE corners (a surface no ray reaches), so rays pass them at every level; intervals above
+them come from the non-empty cells, and `holes` marks the cells that hold empty ones (see level_texels
+for how the texture says so). Leaving such a cell, the ray's side is unknown (no surface joins an empty
+cell to the next): it must come from above the next surface to hit it, so there is no wall at a
+surface's border.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -60,6 +70,16 @@ class Pyramid:
     def nbytes(self) -> int:
         return sum(a.nbytes for a in self.levels)
 
+    @functools.cached_property
+    def holes(self) -> tuple[np.ndarray, ...]:
+        """Per level, (rows, columns) bool: the cell holds an empty level-0 cell (build's `empty`)."""
+        out = [self.levels[0][..., 0] >= HUGE]
+        for a in self.levels[1:]:
+            h = out[-1]
+            h = np.pad(h, ((0, h.shape[0] % 2), (0, h.shape[1] % 2)), mode="edge")
+            out.append(h.reshape(h.shape[0] // 2, 2, h.shape[1] // 2, 2).any(axis=(1, 3)))
+        return tuple(out)
+
 
 def corners(samples: np.ndarray, mode: str) -> np.ndarray:
     """(ny, nx, 4) the corner samples (c00, c01, c10, c11) of every level-0 cell."""
@@ -78,8 +98,11 @@ def _reduce(a: np.ndarray) -> np.ndarray:
     return np.stack([b[..., 0].min(axis=(1, 3)), b[..., 1].max(axis=(1, 3))], -1)
 
 
-def build(samples: np.ndarray, mode: str) -> Pyramid:
-    """The min/max pyramid of a depth field (see the module's docstring for the layout)."""
+def build(samples: np.ndarray, mode: str, empty: np.ndarray | None = None) -> Pyramid:
+    """The min/max pyramid of a depth field (see the module's docstring for the layout). empty: optional
+    (ny, nx) bool over the level-0 cells, True where the field has no surface (a billboard's uncovered
+    texels): such a cell's interval is [HUGE, -HUGE] (empty), and above it min and max come from the
+    non-empty cells only; `holes` says which cells hold an empty one."""
     s = np.asarray(samples, np.float32)
     if mode not in MODES:
         raise ValueError(f"pyramid mode {mode!r}: use one of {MODES}")
@@ -89,6 +112,10 @@ def build(samples: np.ndarray, mode: str) -> Pyramid:
         raise ValueError("depth field has non-finite values")
     c = corners(s, mode)
     levels = [np.stack([c.min(-1), c.max(-1)], -1)]
+    if empty is not None:
+        if np.shape(empty) != levels[0].shape[:2]:
+            raise ValueError(f"empty mask of shape {np.shape(empty)}: the field has {levels[0].shape[:2]} cells")
+        levels[0][np.asarray(empty, bool)] = (HUGE, -HUGE)
     while max(levels[-1].shape[:2]) > 1:
         levels.append(_reduce(levels[-1]))
     return Pyramid(s, mode, tuple(np.ascontiguousarray(a) for a in levels))
@@ -102,9 +129,60 @@ def texture_levels(p: Pyramid) -> list[np.ndarray]:
     out = []
     for L, a in enumerate(p.levels):
         t = np.zeros((max(1, py >> L), max(1, px >> L), 4), np.float32)
-        t[:a.shape[0], :a.shape[1]] = corners(p.samples, p.mode) if L == 0 else np.concatenate([a, a], -1)
+        t[:a.shape[0], :a.shape[1]] = level_texels(p, L)
         out.append(t)
     return out
+
+
+def level_texels(p: Pyramid, L: int) -> np.ndarray:
+    """(ceil(ny / 2^L), ceil(nx / 2^L), 4) what the tracer fetches at level L: the corners at level 0 (HUGE
+    for empty cells), (min, max, min, max) above; a cell above level 0 holding empty cells has (min, HUGE,
+    min, max): its components' max (HUGE) says it has holes, w keeps the max of its non-empty cells; HUGE
+    throughout if it is all empty."""
+    if L == 0:
+        return np.where(p.holes[0][..., None], np.float32(HUGE), corners(p.samples, p.mode))
+    mn, mx = p.levels[L][..., 0], p.levels[L][..., 1]
+    t = np.stack([mn, np.where(p.holes[L], np.float32(HUGE), mx), mn, mx], -1)
+    return np.where((mn >= HUGE)[..., None], np.float32(HUGE), t)
+
+
+def texture_atlas(p: Pyramid) -> tuple[np.ndarray, np.ndarray]:
+    """The same texels as texture_levels without power-of-two padding, for fields whose cell count is not a
+    power of two (a billboard's R + 1 cells: padding would quadruple it): one RGBA32F image, level 0 at
+    (0, 0), levels 1.. stacked top to bottom in a column to its right. Returns the image (rows, columns, 4)
+    and origins (levels, 2): the (x, y) texel where each level starts (the include's HF_FETCH adds it)."""
+    ny, nx = p.cells
+    col = p.levels[1].shape[1] if p.top > 0 else 0
+    height = max(ny, sum(a.shape[0] for a in p.levels[1:]))
+    out = np.zeros((height, nx + col, 4), np.float32)
+    origins = np.zeros((len(p.levels), 2), np.int32)
+    y = 0
+    for L in range(len(p.levels)):
+        t = level_texels(p, L)
+        if L > 0:
+            origins[L] = (nx, y)
+            y += t.shape[0]
+        out[origins[L, 1]:origins[L, 1] + t.shape[0], origins[L, 0]:origins[L, 0] + t.shape[1]] = t
+    return out, origins
+
+
+def occupied_boxes(p: Pyramid, level: int) -> np.ndarray:
+    """(n, 2, 3) the boxes [lo, hi] in the bordered map's sample coordinates (x, y, depth) of the non-empty
+    cells at `level` of a pyramid: each the cell's square times the depth interval of its non-empty level-0
+    cells. Every point of the bilinear surface lies in one of them, so a ray that enters none reaches no
+    surface, and one that does reaches none before its first entry (the billboards' occupancy pre-pass)."""
+    level = min(level, p.top)
+    ny, nx = p.cells
+    lo0, hi0 = p.levels[0][..., 0], p.levels[0][..., 1]
+    hi0 = np.where(lo0 >= HUGE, -np.inf, hi0)          # max over non-empty cells only
+    k = 1 << level
+    pad_y, pad_x = -ny % k, -nx % k
+    hi = np.pad(hi0, ((0, pad_y), (0, pad_x)), constant_values=-np.inf)
+    hi = hi.reshape(hi.shape[0] // k, k, hi.shape[1] // k, k).max(axis=(1, 3))
+    lo = p.levels[level][..., 0]
+    i, j = np.nonzero(lo < HUGE)
+    return np.stack([np.stack([j * k, i * k, lo[i, j]], 1),
+                     np.stack([np.minimum((j + 1) * k, nx), np.minimum((i + 1) * k, ny), hi[i, j]], 1)], 1)
 
 
 def to_parts(p: Pyramid) -> dict[str, dict[str, np.ndarray]]:
@@ -133,20 +211,35 @@ def patch_hit(c: np.ndarray, u0: float, v0: float, z0: float, du: float, dv: flo
     before s = 0.
     Returns (s or -1, inside at s = length). A hit is where f passes from < 0 to >= 0, or s = 0 when
     f(0) >= 0 and the ray was not inside (it reaches the surface exactly at the cell's entry)."""
+    s, end_inside, _ = patch_hit_sides(c, u0, v0, z0, du, dv, dz, length, inside, bend)
+    return s, end_inside
+
+
+def patch_hit_sides(c: np.ndarray, u0: float, v0: float, z0: float, du: float, dv: float, dz: float,
+                    length: float, inside: bool, bend: float = 0.0, outside: bool | None = None
+                    ) -> tuple[float, bool, bool]:
+    """patch_hit, and with `outside` given, hits from below too (two-sided traces): `outside` False when the
+    ray was known to be below just before s = 0 (True: above or unknown). A hit from below is where f passes
+    from >= 0 to < 0, or s = 0 when f(0) < 0 and the ray was known below. Returns (s or -1, inside at
+    s = length, True if the hit is from below)."""
     c00, c01, c10, c11 = (float(x) for x in c)
     e = c00 - c01 - c10 + c11
     C = z0 - (c00 + (c01 - c00) * u0 + (c10 - c00) * v0 + e * u0 * v0)
     B = dz - (c01 - c00 + e * v0) * du - (c10 - c00 + e * u0) * dv
     A = bend - e * du * dv
     end_inside = A * length * length + B * length + C >= 0.0
-    if C >= 0.0 and not inside:
-        return 0.0, True
     lo, hi = _roots(A, B, C)
+    first = lo if lo >= 0.0 else hi
     if C < 0.0:
-        s = lo if lo >= 0.0 else hi              # the first root at or after 0 is an entry (f rises to 0)
+        s = first                                # the first root at or after 0 is an entry (f rises to 0)
+        back = 0.0 if outside is False else (hi if (A < 0.0 and lo < hi and hi > 0.0) else HUGE)
     else:                                        # inside: the ray must leave (f < 0 between the roots) and return
-        s = hi if (A > 0.0 and lo < hi and hi > 0.0) else HUGE
-    return (s, True) if 0.0 <= s <= length else (-1.0, end_inside)
+        s = 0.0 if not inside else (hi if (A > 0.0 and lo < hi and hi > 0.0) else HUGE)
+        back = first                             # where it leaves, from below
+    from_below = outside is not None and back < s
+    if from_below:
+        s = back
+    return (s, True, from_below) if 0.0 <= s <= length else (-1.0, end_inside, False)
 
 
 def _roots(A: float, B: float, C: float) -> tuple[float, float]:
@@ -166,19 +259,23 @@ def _roots(A: float, B: float, C: float) -> tuple[float, float]:
 @dataclass
 class TraceStats:
     visits: int = 0          # cell visits (loop iterations, one texture fetch each)
+    from_below: bool = False # two-sided traces: the hit is from below the surface
     exhausted: bool = False  # the iteration cap stopped it
     t_reached: float = 0.0   # the t the traversal had reached when it returned
 
 
 def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: float = 0.0,
-          max_iter: int = 1 << 16, start_level: int = 64, stats: TraceStats | None = None) -> float:
+          max_iter: int = 1 << 16, start_level: int = 64, stats: TraceStats | None = None,
+          two_sided: bool = False) -> float:
     """The first hit t in [t0, t1] of the ray o + d t (sample coordinates, depth) with the bilinear
     surface, or -1: the numpy twin of heightfield_trace.glsl's hf_trace_general (same steps, float64).
     bend: the ray's depth is o.z + d.z t + bend t^2 (a ray over a curved base surface; the path in x, y
     stays straight).
     reentry=False: the first t at which the ray is on or below the surface (t0 itself if it starts there).
     reentry=True: the first t at which it passes from above the surface onto or below it; a ray that starts
-    on or below must first come out (a shadow ray from a hit, or a call resumed after a rejected hit)."""
+    on or below must first come out (a shadow ray from a hit, or a call resumed after a rejected hit).
+    two_sided=True: the first t at which it passes through the surface either way (the ray's side unknown
+    at t0, as with reentry); stats.from_below says which way (hf_trace_two_sided, hf_from_below)."""
     st = stats if stats is not None else TraceStats()
     o, d = np.asarray(o, np.float64), np.asarray(d, np.float64)
     ny, nx = p.cells
@@ -211,7 +308,8 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: f
         if x == k * (1 << level) and step[a] < 0:
             k -= 1
         idx[a] = min(max(k, 0), p.levels[level].shape[1 - a] - 1)
-    inside = reentry
+    inside = reentry or two_sided          # below the surface, or on an unknown side
+    outside = True                         # above, or unknown: False only when known below (two-sided)
     for _ in range(max_iter):
         st.visits += 1
         size = 1 << level
@@ -223,17 +321,18 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: f
             exits.append((tile[a] * n[a] + bound - o[a]) * inv[a] if d[a] != 0.0 else HUGE)
         te = min(exits[0], exits[1], t1)
         zmin, zmax = (float(x) for x in p.levels[level][idx[1], idx[0]])
+        holey = bool(p.holes[level][idx[1], idx[0]])
         z = lambda x: o[2] + x * (d[2] + bend * x)
         tv = min(max(-d[2] / (2.0 * bend), t), te) if bend != 0.0 else t    # the parabola's vertex, clamped
         za, zb, zv = z(t), z(te), z(tv)
-        above = max(za, zb, zv) < zmin
+        above = outside and max(za, zb, zv) < zmin
         below = inside and min(za, zb, zv) > zmax
         if not (above or below):
             if level > 0:                             # descend (Tevs et al. 2008)
-                if za < zmin:                         # nothing to hit before the ray reaches the cell's min depth
+                if za < zmin and outside:             # nothing to hit before the ray reaches the cell's min depth
                     lo, hi = _roots(bend, d[2] + 2.0 * bend * t, za - zmin)
                     t = min(t + (lo if lo >= 0.0 else hi), te)
-                    inside = False
+                    inside, outside = False, True
                 pos = o + d * t
                 level -= 1
                 half = 1 << level
@@ -245,12 +344,18 @@ def trace(p: Pyramid, o, d, t0: float, t1: float, reentry: bool = False, bend: f
             ci = corners_at(p, idx[1], idx[0])
             u0 = o[0] + d[0] * t - (tile[0] * n[0] + idx[0])
             v0 = o[1] + d[1] * t - (tile[1] * n[1] + idx[1])
-            s, inside = patch_hit(ci, u0, v0, za, d[0], d[1], d[2] + 2.0 * bend * t, te - t, inside, bend)
+            s, inside, st.from_below = patch_hit_sides(ci, u0, v0, za, d[0], d[1], d[2] + 2.0 * bend * t, te - t,
+                                                       inside, bend, outside if two_sided else None)
             if s >= 0.0:
                 st.t_reached = t + s
                 return t + s
+            outside = not (two_sided and inside)
         else:
-            inside = below
+            # a skipped cell holding an empty cell leaves the ray's side unknown where it leaves (there is no
+            # surface across an empty cell): it must then come from the other side of the next surface to
+            # hit it, so a ray passing beneath (or above) a surface's border finds no wall there
+            inside = below or holey
+            outside = not two_sided or above or holey
         # leave the cell by the side(s) the ray exits through; ascend if a parent boundary was crossed
         if te >= t1:
             st.t_reached = t1

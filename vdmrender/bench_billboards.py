@@ -3,8 +3,16 @@ markdown, never asserted.
 
 Models comparable to tables A-1/A-2 (sphere, torus, cone, cylinder) and a real scanned bunny, each
 at 800x600, 400x300 and 200x150: the full mesh, the coarse mesh alone, the thesis's billboards
-(100-step march, hit range 0.01 and 0.02) and the improved ones, each with and without the coarse
-mesh, greedy projection; plus the axis projection's billboard count and storage for comparison.
+(100-step march, hit range 0.01 and 0.02), the improved ones and the hierarchical ones (`hier`), each
+with and without the coarse mesh, greedy projection; plus the axis projection's billboard count and
+storage for comparison.
+
+Then, on the bunny, in one process (issue 9's closing measurements):
+  * interleaved timing: full mesh, coarse mesh, hit0.01+coarse, improved+coarse, hier, hier+coarse,
+    ROUNDS rounds of one frame each per resolution, every pass timed (ctx.finish() after each): the
+    median frame and its shadow pass share; the ratio to the full mesh of the same round;
+  * march cost, instrumented (COUNT passes): march steps / cell visits and texture fetches per pixel,
+    improved against hier, at 800x600.
 
     python -m vdmrender.bench_billboards -o out/bench [--quick]
 """
@@ -12,9 +20,12 @@ from __future__ import annotations
 
 import itertools
 import json
+import statistics
+import time
 from pathlib import Path
 
 import click
+import numpy as np
 
 from . import progress
 from .bench import measure_scene
@@ -24,8 +35,12 @@ MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), 
 RESOLUTIONS = [(800, 600), (400, 300), (200, 150)]
 # Thesis appendix A-2 (hit range 0.01; with coarse mesh), for the models we have.
 THESIS = {"sphere": (25.81, 6.56), "torus": (58.09, 51.80), "cone": (5.56, 3.33), "cylinder": (39.45, 31.85)}
-VARIANTS = ["greedy-hit0.01", "greedy-hit0.02", "greedy-improved", "greedy-hit0.01+coarse",
-            "greedy-hit0.02+coarse", "greedy-improved+coarse", "axis-improved+coarse"]
+VARIANTS = ["greedy-hit0.01", "greedy-hit0.02", "greedy-improved", "greedy-hier", "greedy-hit0.01+coarse",
+            "greedy-hit0.02+coarse", "greedy-improved+coarse", "greedy-hier+coarse", "axis-improved+coarse"]
+# The bunny's interleaved profile: these labels, ROUNDS frames each per resolution.
+PROFILE = ["mesh", "coarse@0.1", "billboards@greedy-hit0.01+coarse", "billboards@greedy-improved+coarse",
+           "billboards@greedy-hier", "billboards@greedy-hier+coarse"]
+ROUNDS = 5
 
 SCENE = """
 [render]
@@ -42,13 +57,122 @@ techniques = {{ mesh = {{}}, coarse = {{ ratios = [0.1] }}, billboards = {{ vari
 """
 
 
-def _markdown(rows: list[dict], bakes: dict, device: str) -> str:
+def _builders(bundle_path: Path, width: int, height: int):
+    """(camera, {label: build}, (bundle, scene, object, entry)) for the bench scene's object, as vdmrender
+    builds them, at width x height."""
+    from .camera import cameras_for
+    from .interleave import scene_of
+    from .techniques import variants
+
+    bundle, scene, obj, entry, _ = scene_of(bundle_path)
+    cam = cameras_for(scene.camera, entry["centre"], entry["radius"], width, height)[0]
+    return cam, {v.label: v.build for v in variants(obj, entry, bundle, scene)}, (bundle, scene, obj, entry)
+
+
+def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> list[dict]:
+    """Interleaved timing in one GL context: per resolution, `rounds` rounds of one frame of each label
+    (after one untimed frame each), every pass timed with ctx.finish() after it: wall time and the
+    process's CPU time (llvmpipe's threads are the process's own: the work done, much less disturbed
+    by other processes on a shared machine than wall time)."""
+    from . import gl
+
+    ctx = gl.create_context()
+    rows = []
+    try:
+        for w, h in resolutions:
+            cam, builds, _ = _builders(bundle_path, w, h)
+            target = gl.Target(ctx, w, h)
+            renderers = {k: builds[k](ctx) for k in labels}
+            wall, cpu = {k: [] for k in labels}, {k: [] for k in labels}
+            for r in renderers.values():
+                r.render(cam, target)
+                ctx.finish()
+            for _ in range(rounds):
+                for k, r in renderers.items():
+                    passes, c0 = {}, time.process_time()
+                    for name, run in r.passes(cam, target):
+                        t0 = time.perf_counter()
+                        run()
+                        ctx.finish()
+                        passes[name] = (time.perf_counter() - t0) * 1e3
+                    wall[k].append(passes)
+                    cpu[k].append((time.process_time() - c0) * 1e3)
+            for k, r in renderers.items():
+                r.release()
+            target.release()
+            for k in labels:
+                total = [sum(p.values()) for p in wall[k]]
+                ratio = [t / sum(m.values()) for t, m in zip(total, wall["mesh"])]
+                cpu_ratio = [t / m for t, m in zip(cpu[k], cpu["mesh"])]
+                rows.append({"label": k, "resolution": f"{w}x{h}", "median_ms": round(statistics.median(total), 2),
+                             "ratio_to_mesh": round(statistics.median(ratio), 3),
+                             "median_cpu_ms": round(statistics.median(cpu[k]), 2),
+                             "cpu_ratio_to_mesh": round(statistics.median(cpu_ratio), 3),
+                             "shadow_share": round(statistics.median(p["shadow"] / t for p, t in zip(wall[k], total)), 3),
+                             "passes_ms": {n: round(statistics.median(p[n] for p in wall[k]), 2) for n in wall[k][0]}})
+    finally:
+        ctx.release()
+    return rows
+
+
+def march_cost(bundle_path: Path, width: int, height: int) -> dict:
+    """Instrumented (COUNT) frame passes of improved+coarse and hier+coarse on the bench camera: per pixel
+    the improved march's steps and texture fetches over all its box fragments, and the hierarchical
+    march's cell visits (one pyramid fetch each); means over the pixels each runs on, and over the pixels
+    where a billboard is hit. Fetches are the march's (the shading's normal and shadow fetches, the same
+    for both, are left out)."""
+    from vdmbake import parts
+
+    from . import gl
+    from .techniques.billboards import Billboards
+    from .techniques.billboards_hier import HierBillboards
+
+    cam, _, (bundle, scene, obj, entry) = _builders(bundle_path, width, height)
+    part = entry["techniques"]["billboards"]
+    coarse = bundle.read(part["coarse"], parts.MESH)
+    boards = bundle.read(part["greedy"]["maps"], parts.BILLBOARDS)
+    bordered = bundle.read(part["greedy"]["bordered"], parts.BORDERED)
+    bounds = (np.asarray(entry["centre"]), entry["radius"])
+    common = (scene.light, obj.material, scene.render.shadow_map)
+    ctx = gl.create_context()
+    out = {}
+    try:
+        for name, build in (
+                ("improved", lambda: Billboards(ctx, boards, bordered, *common, "improved", 0.01, coarse, bounds,
+                                                count=True)),
+                ("hier", lambda: HierBillboards(ctx, boards, bordered, *common, coarse, bounds, shadow_mesh=coarse,
+                                                count=True))):
+            r = build()
+            target = gl.Target(ctx, width, height)
+            r.render(cam, target)
+            a = target.read()
+            target.release()
+            r.release()
+            ran, hit = a[..., 2] > 0, a[..., 3] > 0
+            if name == "improved":   # (steps, fetches, box fragments, hits) summed over box fragments
+                steps, fetches = a[..., 0], a[..., 1]
+                out[name] = {"box_fragments_per_pixel": float(a[..., 2][ran].mean())}
+            else:                    # (cell visits, billboards traced, 1, hit); a visit is one pyramid fetch,
+                steps = a[..., 0]    # plus per pixel the occupancy of every billboard and the coarse depth
+                fetches = steps + len(boards) + 1
+                out[name] = {"billboards_traced_per_pixel": float(a[..., 1][ran].mean())}
+            out[name].update(pixels=int(ran.sum()), hit_pixels=int(hit.sum()),
+                             steps_per_pixel=float(steps[ran].mean()), fetches_per_pixel=float(fetches[ran].mean()),
+                             steps_per_hit_pixel=float(steps[hit].mean()), fetches_per_hit_pixel=float(fetches[hit].mean()))
+    finally:
+        ctx.release()
+    return out
+
+
+def _markdown(rows: list[dict], bakes: dict, prof: list[dict], cost: dict, device: str, model: str, rounds: int,
+              cost_resolution: str) -> str:
     lines = [f"# Enhanced billboards benchmark ({device})", "",
-             "| model | billboards greedy / axis | faces left out (greedy) | maps MB greedy / axis | bake s |",
-             "|---|---:|---|---:|---:|"]
+             "| model | billboards greedy / axis | faces left out (greedy) | maps MB greedy / axis | bake s | "
+             "hier: pyramids MB (float32) / bake s |",
+             "|---|---:|---|---:|---:|---:|"]
     for name, b in bakes.items():
         lines.append(f"| {name} | {b['greedy']} / {b['axis']} | {b['leftover']} | {b['greedy_mb']:.2f} / "
-                     f"{b['axis_mb']:.2f} | {b['bake_s']:.1f} |")
+                     f"{b['axis_mb']:.2f} | {b['bake_s']:.1f} | {b['pyramid_mb']:.2f} / {b['hier_bake_s']:.2f} |")
     lines += ["", "| model | resolution | variant | median ms | mean ΔLuv | thesis (A-2) | p95 | IoU |",
               "|---|---|---|---:|---:|---:|---:|---:|"]
     for r in rows:
@@ -60,6 +184,28 @@ def _markdown(rows: list[dict], bakes: dict, device: str) -> str:
             ref = f"{thesis[1]:.2f}"
         lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | {r['median_ms']:.1f} | "
                      f"{r['mean_dluv']:.3f} | {ref} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
+    if prof:
+        lines += ["", f"## {model}, interleaved ({rounds} rounds, every pass timed)", "",
+                  "| variant | resolution | median ms (wall) | x full mesh | median CPU ms | x full mesh (CPU) | "
+                  "shadow pass share | passes (median wall ms) |",
+                  "|---|---|---:|---:|---:|---:|---:|---|"]
+        for p in prof:
+            passes = ", ".join(f"{k} {v:.1f}" for k, v in p["passes_ms"].items())
+            lines.append(f"| {p['label']} | {p['resolution']} | {p['median_ms']:.1f} | {p['ratio_to_mesh']:.2f} | "
+                         f"{p['median_cpu_ms']:.1f} | {p['cpu_ratio_to_mesh']:.2f} | {p['shadow_share']:.0%} | {passes} |")
+        lines += ["", "Time per halving of the resolution (median CPU ms of one over the next):", "",
+                  "| variant | 800x600 / 400x300 | 400x300 / 200x150 |", "|---|---:|---:|"]
+        for label in PROFILE:
+            t = {p["resolution"]: p["median_cpu_ms"] for p in prof if p["label"] == label}
+            if len(t) == 3:
+                lines.append(f"| {label} | {t['800x600'] / t['400x300']:.2f} | {t['400x300'] / t['200x150']:.2f} |")
+    if cost:
+        lines += ["", f"## March cost, {model} {cost_resolution} (instrumented COUNT passes)", "",
+                  "| march | pixels run | steps or cell visits / pixel | fetches / pixel | per hit pixel: steps, fetches |",
+                  "|---|---:|---:|---:|---|"]
+        for name, c in cost.items():
+            lines.append(f"| {name} | {c['pixels']} | {c['steps_per_pixel']:.1f} | {c['fetches_per_pixel']:.1f} | "
+                         f"{c['steps_per_hit_pixel']:.1f}, {c['fetches_per_hit_pixel']:.1f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -89,12 +235,24 @@ def main(out: Path, quick: bool):
                            "leftover": bb["greedy"]["leftover"],
                            "greedy_mb": m["parts"][bb["greedy"]["maps"]]["bytes"] / 2**20,
                            "axis_mb": m["parts"][bb["axis"]["maps"]]["bytes"] / 2**20,
-                           "bake_s": timing.get("billboards_greedy_s", 0.0)}
+                           "bake_s": timing.get("billboards_greedy_s", 0.0),
+                           "pyramid_mb": bb["greedy"]["pyramid_bytes"] / 2**20,
+                           "hier_bake_s": timing.get("billboards_greedy_bordered_s", 0.0)}
+    # the closing measurements on the last model (the bunny), from its first resolution's bundle
+    first = out / "bundles" / f"billboards-{models[-1][0]}-{resolutions[0][0]}x{resolutions[0][1]}.bundle"
+    rounds = 1 if quick else ROUNDS
+    prof = profile(first, PROFILE, rounds, resolutions)
+    for p in prof:
+        click.echo(f"profile {p['resolution']} {p['label']:36} {p['median_ms']:9.1f} ms  x{p['ratio_to_mesh']:.2f} "
+                   f"shadow {p['shadow_share']:.0%}", err=True)
+    cost = march_cost(first, *resolutions[0])
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
     (out / "billboards.json").write_text(json.dumps({"device": device, "map_resolution": res, "shadow_map": shadow_map,
-                                                     "bakes": bakes, "rows": rows}, indent=1) + "\n")
-    (out / "billboards.md").write_text(_markdown(rows, bakes, device))
+                                                     "bakes": bakes, "rows": rows, "profile": prof,
+                                                     "march_cost": cost}, indent=1) + "\n")
+    (out / "billboards.md").write_text(_markdown(rows, bakes, prof, cost, device, models[-1][0], rounds,
+                                                 "x".join(map(str, resolutions[0]))))
     click.echo(f"wrote {out / 'billboards.json'}, {out / 'billboards.md'}")
 
 

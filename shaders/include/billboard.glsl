@@ -20,10 +20,17 @@ uniform float u_hit_range;   // THESIS: e (0.01 in sec. 4.1, 0.02 to fill holes,
 uniform float u_steps_per_texel;   // IMPROVED: steps per texel crossed (1 by default)
 
 const int MIN_STEPS = 4;
+#if defined(COUNT)
+int g_steps = 0;      // instrumented (COUNT): march steps and texture fetches of this fragment
+int g_fetches = 0;
+#endif
 const int REFINE = 5;        // bisection steps before the secant step
 
 // u_maps has a one-texel border around the R x R map (extrapolated on upload).
 vec4 map(vec2 st, int layer) {
+#if defined(COUNT)
+    g_fetches++;
+#endif
     float R = float(textureSize(u_alpha, 0).x);
     return texture(u_maps, vec3((st * R + 1.0) / (R + 2.0), float(layer)));
 }
@@ -34,12 +41,18 @@ float map_depth(vec2 st, int layer) {
 
 #if defined(THESIS)
 bool covered(vec2 st, int layer) {   // the texel's own coverage
+#if defined(COUNT)
+    g_fetches++;
+#endif
     ivec2 size = textureSize(u_alpha, 0).xy;
     ivec2 texel = clamp(ivec2(floor(st * vec2(size))), ivec2(0), size - 1);
     return texelFetch(u_alpha, ivec3(texel, layer), 0).r > 0.5;
 }
 #else
 bool covered(vec2 st, int layer) {   // any texel of the bilinear footprint covered
+#if defined(COUNT)
+    g_fetches++;
+#endif
     return any(greaterThan(textureGather(u_alpha, vec3(st, float(layer)), 0), vec4(0.5)));
 }
 #endif
@@ -54,6 +67,9 @@ float march(vec3 o, vec3 d, float t0, float t1, int layer) {
     vec3 s0 = o + d * t0;
     for (int k = 0; k < 100; k++) {
         float x = float(k) * STEP;
+#if defined(COUNT)
+        g_steps++;
+#endif
         if (x > reach) break;                // past the box: transparent (sec. 3.3 step 2.2)
         vec3 s = s0 + dir * x;
         if (abs(s.z - map_depth(s.xy, layer)) < u_hit_range && covered(s.xy, layer)) return t0 + x / len;
@@ -71,6 +87,9 @@ float march(vec3 o, vec3 d, float t0, float t1, int layer) {
     float fp = s.z - map_depth(s.xy, layer);  // < 0: the ray is in front of the map
     for (int k = 1; k <= n; k++) {
         float tc = t0 + dt * float(k);
+#if defined(COUNT)
+        g_steps++;
+#endif
         s = o + d * tc;
         float fc = s.z - map_depth(s.xy, layer);
         if (fp < 0.0 && fc >= 0.0) {

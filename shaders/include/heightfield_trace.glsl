@@ -14,6 +14,10 @@
 //       Either of the above (reentry selects) for a bent ray: its depth is o.z + d.z t + k t^2 while its
 //       path in (x, y) stays straight, e.g. a ray over a curved base surface of normal curvature c along
 //       the ray, k = -c |d.xy|^2 / 2 in the field's units (curved relief mapping, Oliveira & Policarpo 2005).
+//   float hf_trace_two_sided(vec3 o, vec3 d, float t0, float t1)
+//       The first t in [t0, t1] at which the ray passes through the surface either way (its side unknown at
+//       t0, as with reentry); hf_from_below is then true if it came from below (e.g. a billboard's open
+//       surface seen from behind, or from inside a closed model).
 //   After any call: hf_exhausted is true if HF_MAX_ITER cell visits ran out (the result is then -1.0);
 //   hf_t_reached is the t the traversal had reached (the hit, t1, or where the cap stopped it; the ray is
 //   above the surface there). With COUNT defined, hf_visits counts cell visits over all calls; each visit
@@ -37,6 +41,8 @@
 //               [j 2^L, (j+1) 2^L). Read with texelFetch only (no filtering). One fetch serves a visit at
 //               any level, which on llvmpipe beats an RG32F min/max chain plus a gather of the corner
 //               samples (every branch's fetches are paid there; docs/relief-notes.md).
+//               Empty cells (pyramid.build's `empty`, e.g. a billboard's uncovered texels) hold HF_HUGE
+//               corners: rays pass them. Above level 0 a cell holding empty ones is (min, HF_HUGE, min, max).
 //   u_hf_cells  ivec2 (cells along x, cells along y) at level 0;  u_hf_top  the top level (one texel).
 //   Define HF_FETCH(ivec2 cell, int level) before the include to read another texture (e.g. a layer of a
 //   texture array; then u_hf is not declared).
@@ -77,6 +83,7 @@ uniform ivec2 u_hf_cells;
 uniform int u_hf_top;
 
 bool hf_exhausted = false;
+bool hf_from_below = false;
 float hf_t_reached = 0.0;
 #if defined(COUNT)
 int hf_visits = 0;
@@ -105,8 +112,10 @@ float hf_first_root(float A, float B, float C) {
     return r.x >= 0.0 ? r.x : r.y;
 }
 
-float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry) {
-    bool inside = reentry;
+float hf_run(vec3 o, vec3 d, float k, float t0, float t1, bool reentry, bool two_sided) {
+    bool inside = reentry || two_sided;    // below the surface, or on an unknown side
+    bool outside = true;                   // above, or unknown: false only when known below (two-sided)
+    hf_from_below = false;
     ivec2 n = u_hf_cells;
     hf_exhausted = false;
     hf_t_reached = t0;
@@ -149,11 +158,14 @@ float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry
         float te = min(min(ex.x, ex.y), t1);
         vec4 c = HF_FETCH(idx, level);
         float zmin = min(min(c.x, c.y), min(c.z, c.w));
-        float zmax = max(max(c.x, c.y), max(c.z, c.w));
+        // a cell holding empty cells (pyramid.py level_texels: (min, HUGE, min, max) above level 0, HUGE
+        // corners at level 0) has holes; w keeps the max of its non-empty cells above level 0
+        bool holey = max(c.y, c.w) >= HF_HUGE;
+        float zmax = level > 0 ? c.w : max(max(c.x, c.y), max(c.z, c.w));
         float tv = clamp(tv0, t, te);
         float za = o.z + t * (d.z + k * t), zb = o.z + te * (d.z + k * te), zv = o.z + tv * (d.z + k * tv);
         float dz = d.z + 2.0 * k * t;                                // the ray's depth per unit t at t
-        bool above = max(max(za, zb), zv) < zmin;
+        bool above = outside && max(max(za, zb), zv) < zmin;
         bool below = inside && min(min(za, zb), zv) > zmax;
         // One quadratic per visit. Level 0: f(s) = ray depth - patch depth at t + s, the ray at cell-local
         // uv0 (corners c = c00, c01, c10, c11). Above it: where the ray's depth reaches zmin.
@@ -172,9 +184,10 @@ float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry
         if (!(above || below)) {
             if (level > 0) {
                 // descend (Tevs et al. 2008), first to where the ray reaches the cell's min depth
-                if (za < zmin) {
+                if (za < zmin && outside) {
                     t = clamp(t + first, t, te);
                     inside = false;
+                    outside = true;
                 }
                 pos = o.xy + d.xy * t;
                 level -= 1;
@@ -187,14 +200,25 @@ float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry
             // the ray is on or below the surface there and was not inside; if it was inside, f must dip
             // below 0 between the roots (A > 0) and the ray comes back at the second.
             float s = C < 0.0 ? first : (!inside ? 0.0 : ((A > 0.0 && r.x < r.y && r.y > 0.0) ? r.y : HF_HUGE));
+            // Two-sided: from below, where f falls from >= 0 below 0, or at the entry if f < 0 there and the
+            // ray was known below (pyramid.py patch_hit_sides).
+            float sb = C < 0.0 ? (!outside ? 0.0 : ((A < 0.0 && r.x < r.y && r.y > 0.0) ? r.y : HF_HUGE)) : first;
+            bool from_below = two_sided && sb < s;
+            s = from_below ? sb : s;
             float len = te - t;
             if (s >= 0.0 && s <= len) {
                 hf_t_reached = t + s;
+                hf_from_below = from_below;
                 return t + s;
             }
             inside = (A * len + B) * len + C >= 0.0;
+            outside = !(two_sided && inside);
         } else {
-            inside = below;
+            // a skipped cell holding an empty cell (holes) leaves the ray's side unknown where it leaves
+            // (no surface joins an empty cell to the next): it must come from the other side of the next
+            // surface to hit it, so there is no wall at the border of a surface
+            inside = below || holey;
+            outside = !two_sided || above || holey;
         }
         // leave the cell by the side(s) the ray exits through; ascend if a parent boundary was crossed
         if (te >= t1) {
@@ -225,6 +249,14 @@ float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry
     hf_exhausted = true;
     hf_t_reached = t;
     return -1.0;
+}
+
+float hf_trace_general(vec3 o, vec3 d, float k, float t0, float t1, bool reentry) {
+    return hf_run(o, d, k, t0, t1, reentry, false);
+}
+
+float hf_trace_two_sided(vec3 o, vec3 d, float t0, float t1) {
+    return hf_run(o, d, 0.0, t0, t1, true, true);
 }
 
 float hf_trace(vec3 o, vec3 d, float t0, float t1) {

@@ -1,14 +1,15 @@
 """Technique `billboards`: enhanced billboards (Vichitvejpaisal 2005). Each variant names a projection
 (greedy set cover, sec. 3.2, or the axis baseline, sec. 4.2), a per-pixel march (the thesis's 100 steps
-with hit range 0.01 or 0.02, sec. 3.3 and 4.1, or the improved one) and optionally the coarse mesh that
-fills holes (sec. 3.4). The bake makes only the projections and the coarse mesh the variants name;
-vdmbake/billboards.py holds the kernels."""
+with hit range 0.01 or 0.02, sec. 3.3 and 4.1; the improved one; or hier, the exact hierarchical trace
+through a min/max pyramid of each depth map, beyond the thesis) and optionally the coarse mesh that
+fills holes (sec. 3.4). The bake makes only the projections, pyramids and coarse mesh the variants
+need; vdmbake/billboards.py and vdmbake/billboard_maps.py hold the kernels."""
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
 
-from .. import billboards, coarse, parts
+from .. import billboard_maps, billboards, coarse, parts
 from ..errors import InputError
 from ..schema import Integer, ListOf, Number, Parsed, Technique, setting
 
@@ -16,7 +17,7 @@ from ..schema import Integer, ListOf, Number, Parsed, Technique, setting
 @dataclass(frozen=True)
 class Variant:
     projection: str   # "greedy" (sec. 3.2) or "axis" (sec. 4.2)
-    method: str       # "hit0.01" / "hit0.02": the thesis's march with that hit range; "improved"
+    method: str       # "hit0.01" / "hit0.02": the thesis's march with that hit range; "improved"; "hier"
     coarse: bool      # the coarse mesh fills holes (sec. 3.4)
 
     def __str__(self) -> str:
@@ -28,10 +29,10 @@ class Variant:
         return float(self.method[3:]) if self.method.startswith("hit") else None
 
 
-VARIANT = Parsed(r"(greedy|axis)-(hit0\.01|hit0\.02|improved)(\+coarse)?",
+VARIANT = Parsed(r"(greedy|axis)-(hit0\.01|hit0\.02|improved|hier)(\+coarse)?",
                  lambda m: Variant(m[1], m[2], m[3] is not None),
-                 "PROJECTION-METHOD[+coarse]: 'greedy-' or 'axis-', then 'hit0.01', 'hit0.02' or 'improved', "
-                 "optionally '+coarse'")
+                 "PROJECTION-METHOD[+coarse]: 'greedy-' or 'axis-', then 'hit0.01', 'hit0.02', 'improved' or "
+                 "'hier', optionally '+coarse'")
 
 
 @dataclass(frozen=True)
@@ -45,8 +46,9 @@ class Options:
 
 
 def bake(job) -> dict:
-    """Per projection the variants name: the billboards' maps (alpha, depth, world normal) and the greedy
-    choice's statistics; the coarse mesh if a variant fills holes with it."""
+    """Per projection the variants name: the billboards' maps (alpha, depth, world normal), the greedy
+    choice's statistics, the bordered maps the renderers sample and, for hier, the pyramids; the coarse
+    mesh if a variant fills holes with it or hier casts its shadows with it."""
     opts, out = job.options, {}
     for mode in dict.fromkeys(v.projection for v in opts.variants):
         t0 = time.perf_counter()
@@ -61,12 +63,22 @@ def bake(job) -> dict:
                      "candidates": res.candidates, "rays": res.rays}
         job.log(f"{mode} billboards: {len(res.billboards)} from {res.candidates} candidate directions, "
                 f"{job.writer.parts[rel]['bytes'] / 2**20:.2f} MB; faces left out {res.leftover}")
-    if any(v.coarse for v in opts.variants):
+        traced = any(v.projection == mode and v.method == "hier" for v in opts.variants)
+        t0 = time.perf_counter()
+        maps = [billboard_maps.bordered(b, traced) for b in res.billboards]   # float32 maps: as stored
+        job.steps[f"billboards_{mode}_bordered_s"] = round(time.perf_counter() - t0, 3)
+        out[mode]["bordered"] = rel = job.write(f"billboards-{mode}-bordered", parts.BORDERED, maps)
+        if traced:
+            out[mode]["pyramid_bytes"] = sum(m.pyramid.nbytes for m in maps)
+        job.log(f"{mode} billboards: bordered maps" + (" and pyramids" if traced else "")
+                + f" {job.writer.parts[rel]['bytes'] / 2**20:.2f} MB in {job.steps[f'billboards_{mode}_bordered_s']:.2f} s")
+    if any(v.coarse or v.method == "hier" for v in opts.variants):
         c = coarse.simplify(job.mesh, opts.coarse_ratio)
         out["coarse"] = job.write("billboards-coarse", parts.MESH, c)
         job.log(f"billboards' coarse mesh {len(c.faces)} faces")
     return out
 
 
-TECHNIQUE = Technique("billboards", "enhanced billboards: per billboard its box, per pixel a march through its "
-                      "depth map, exact depth, optional coarse-mesh hole filling", ("surface",), Options, bake=bake)
+TECHNIQUE = Technique("billboards", "enhanced billboards: per pixel a march (or, hier, an exact hierarchical "
+                      "trace) through each billboard's depth map, exact depth, optional coarse-mesh hole filling",
+                      ("surface",), Options, bake=bake)

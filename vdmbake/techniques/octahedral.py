@@ -54,7 +54,7 @@ class Options:
 
 def bake(job) -> dict:
     """One atlas per LAYOUT-NxR the variants name: per view the normal's octahedral code in its frame,
-    depth along the view and coverage (vdmbake.parts.OCTAHEDRAL)."""
+    depth along the view and coverage, extrapolated around the silhouettes (vdmbake.parts.OCTAHEDRAL)."""
     out = {}
     for v in job.options.variants:
         if v.atlas in out:
@@ -63,9 +63,7 @@ def bake(job) -> dict:
         a = octahedral.bake(job.mesh, octahedral.Settings(v.views, v.resolution, v.layout == "hemi"), UP,
                             log=lambda m, key=v.atlas: job.log(f"octahedral {key}: {m}"))
         job.steps[f"octahedral_{v.atlas}_s"] = round(time.perf_counter() - t0, 3)
-        out[v.atlas] = job.write(f"octahedral-{v.atlas}", parts.OCTAHEDRAL, parts.OctahedralAtlas(
-            v.views, v.layout == "hemi", a.basis, a.centre, a.radius, a.capture, a.normal, a.depth, a.coverage,
-            a.rays))
+        out[v.atlas] = job.write(f"octahedral-{v.atlas}", parts.OCTAHEDRAL, octahedral.to_part(a))
         job.log(f"octahedral {v.atlas}: atlas {v.views * v.resolution}^2, "
                 f"{job.writer.parts[out[v.atlas]]['bytes'] / 2**20:.2f} MB")
     return out

@@ -17,9 +17,9 @@ A camera inside a box needs no special case: the ray starts on the near plane, l
 The hit is shaded with the shared model (normal map, shadow map) and writes its exact gl_FragDepth.
 
 Texture layout: two texture arrays, one layer per billboard. RGBA32F normal (world, xyz) + depth (w),
-(R+2)^2 with a one-texel border, linear filtering; the border and the empty texels within PAD of covered
-ones are linearly extrapolated from them, so filtering at a map's edge or silhouette follows the
-surface's slope. R8 alpha, R^2, read per texel (texelFetch, textureGather).
+(R+2)^2 with a one-texel border, linear filtering; the border and the empty texels near covered ones are
+linearly extrapolated from them in the bake (vdmbake/billboard_maps.py), so filtering at a map's edge or
+silhouette follows the surface's slope. R8 alpha, R^2, read per texel (texelFetch, textureGather).
 
 Passes per frame: the shadow map, then the frame. The shadow map holds what the frame draws: the
 billboards ray-marched with the same method from the light's orthographic camera (gl_FragDepth), plus
@@ -34,6 +34,7 @@ the light) than it is: it fills the pixels where no billboard is hit (the thesis
 the pixels that are not rendered by the enhanced billboards") instead of poking through them.
 
 Coordinates are anchor-relative (float64 on the CPU, float32 on the GPU), as in the other techniques.
+The method `hier` (exact hierarchical traces, one screen pass) is techniques/billboards_hier.py.
 """
 from __future__ import annotations
 
@@ -52,7 +53,6 @@ NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in
 BOARD_TEXELS = 1.0           # ... plus this many of the billboard's map texels. Mean dLuv of the improved method,
                              # torus, R 128, 96x96, 512 map: 0 -> 0.77 (acne where billboards overlap), 0.5 -> 0.30,
                              # 1 -> 0.19, 1.5 -> 0.17; with a 1024 map 0.37, 0.24, 0.18 (sphere: 0.053 for all)
-PAD = 2                      # rings of empty texels extrapolated around the covered ones (bilinear reaches 1)
 COARSE_BEHIND = 0.05         # the coarse mesh is depth-tested as if this far (x radius) behind where it is, so that
                              # it fills holes rather than poking through the billboards (its vertices lie off the
                              # surface). Improved, with coarse, mean dLuv at 96x96 (sphere, torus): 0 -> 0.38, 1.22;
@@ -72,50 +72,6 @@ def surface_points(b) -> np.ndarray:
     return np.asarray(b.origin, np.float64) + (s * np.asarray(b.size, np.float64)) @ np.asarray(b.axes, np.float64)
 
 
-def pad(values: np.ndarray, valid: np.ndarray, rings: int = PAD) -> np.ndarray:
-    """Empty texels within `rings` of covered ones, filled by linear extrapolation from them: each
-    covered 8-neighbour n1 with a covered n2 beyond it (same direction) proposes 2 n1 - n2 (n1 alone
-    otherwise); the proposals are averaged. Bilinear filtering between a covered texel and an empty one
-    then continues the surface's slope (a steep rim stays steep), instead of bending it to depth 1."""
-    h, w = valid.shape
-    big = 2 * rings + 2
-    v = values.astype(np.float32).copy()
-    ok = valid.copy()
-    for _ in range(rings):
-        vp = np.pad(v, ((big, big), (big, big), (0, 0)))
-        op = np.pad(ok, big)
-        acc, cnt = np.zeros_like(v), np.zeros((h, w), np.float32)
-        for di in (-1, 0, 1):
-            for dj in (-1, 0, 1):
-                if di == dj == 0:
-                    continue
-                n1 = vp[big + di:big + di + h, big + dj:big + dj + w]
-                n2 = vp[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
-                ok1 = op[big + di:big + di + h, big + dj:big + dj + w]
-                ok2 = op[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
-                acc += np.where(ok1[..., None], np.where(ok2[..., None], 2 * n1 - n2, n1), 0.0)
-                cnt += ok1
-        fill = ~ok & (cnt > 0)
-        v[fill] = acc[fill] / cnt[fill, None]
-        ok |= fill
-    return v
-
-
-def map_texels(b) -> tuple[np.ndarray, np.ndarray]:
-    """(R+2, R+2, 4) normal + depth with a one-texel border, and (R, R) coverage. The border and the
-    empty texels near covered ones are extrapolated (pad): bilinear filtering in the outer half texel
-    of the map then follows the surface's slope rather than the clamped edge texel."""
-    covered = np.asarray(b.alpha) > 0.5
-    res = covered.shape[0]
-    values = np.zeros((res + 2, res + 2, 4), np.float32)
-    values[..., 3] = 1.0
-    values[1:-1, 1:-1, :3] = np.asarray(b.normal, np.float32)
-    values[1:-1, 1:-1, 3] = np.asarray(b.depth, np.float32)
-    valid = np.zeros((res + 2, res + 2), bool)
-    valid[1:-1, 1:-1] = covered
-    return pad(values, valid), covered
-
-
 def infinite_far(projection: np.ndarray) -> np.ndarray:
     """A perspective projection with its far plane at infinity: same x, y, w and near plane."""
     p = projection.copy()
@@ -125,12 +81,15 @@ def infinite_far(projection: np.ndarray) -> np.ndarray:
 
 
 class Billboards:
-    def __init__(self, ctx, boards, light, material, shadow_size: int, method: str = "improved",
-                 hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0):
-        """boards: vdmbake.parts.Billboard (origin, axes, size, alpha, depth, normal maps);
-        coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of the model, which fits
-        the shadow map (default: the box of the covered texels' points, and of the coarse mesh);
-        steps_per_texel: the improved march's step density (its cost and quality knob; 1: a step per texel)."""
+    def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, method: str = "improved",
+                 hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0,
+                 count: bool = False):
+        """boards: vdmbake.parts.Billboard (origin, axes, size, alpha, depth, normal maps); bordered: their
+        vdmbake.parts.BorderedMaps; coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of
+        the model, which fits the shadow map (default: the box of the covered texels' points, and of the
+        coarse mesh); steps_per_texel: the improved march's step density (its cost and quality knob; 1: a
+        step per texel); count: the instrumented frame pass (COUNT: per pixel the march steps and texture
+        fetches of all its box fragments, summed, instead of a colour; the profile's)."""
         if method not in METHODS:
             raise InputError(f"billboards: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
         if not hit_range > 0:
@@ -160,6 +119,7 @@ class Billboards:
         self.objects, self.draws = [], []   # GL objects to release; (pass, program, vao, kind)
 
         defines = ("THESIS",) if method == "thesis" else ("IMPROVED",)
+        self.count_pass = count
         self.count = len(boards)
         self.shadow_raster = self.shadow.view_proj
         if boards:
@@ -171,8 +131,9 @@ class Billboards:
             far = max(np.linalg.norm(o[:, None] + _CORNERS[None] @ edges, axis=2).max(), radius)
             self.shadow_raster = np.diag([1.0, 1.0, min(1.0, radius / far), 1.0]) @ self.shadow.view_proj
             res = np.asarray(boards[0].alpha).shape[0]
-            maps, covered = zip(*(map_texels(b) for b in boards))
-            self.maps = ctx.texture_array((res + 2, res + 2, len(boards)), 4, np.stack(maps).tobytes(), dtype="f4")
+            maps = np.stack([np.asarray(m.maps, np.float32) for m in bordered])
+            covered = [np.asarray(b.alpha) > 0.5 for b in boards]
+            self.maps = ctx.texture_array((res + 2, res + 2, len(boards)), 4, maps.tobytes(), dtype="f4")
             self.maps.filter = (moderngl.LINEAR, moderngl.LINEAR)
             self.alpha = ctx.texture_array((res, res, len(boards)), 1,
                                            (np.stack(covered) * 255).astype(np.uint8).tobytes(), dtype="f1")
@@ -182,7 +143,7 @@ class Billboards:
             cube = ctx.buffer(_CUBE.tobytes())
             ibuf = ctx.buffer(np.ascontiguousarray(inst, np.float32).tobytes())
             self.objects += [self.maps, self.alpha, cube, ibuf]
-            for stage, extra in (("shadow", ("SHADOW",)), ("frame", ())):
+            for stage, extra in (("shadow", ("SHADOW",)), ("frame", ("COUNT",) if count else ())):
                 prog = gl.program(ctx, "billboard.vert", "billboard.frag", defines + extra)
                 vao = gl.vertex_array(ctx, prog, [(cube, "3f", "in_corner"),
                                                   (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
@@ -201,7 +162,7 @@ class Billboards:
         mesh's depth push (a scaling about the eye, or a shift away from the light: same pixels, farther)."""
         ctx = self.ctx
         for name, prog, vao, kind in self.draws:
-            if name != stage:
+            if name != stage or (self.count_pass and stage == "frame" and kind == "mesh"):
                 continue
             if stage == "frame":
                 gl.set_shading(prog, self.light, self.material)
@@ -230,31 +191,54 @@ class Billboards:
                 vao.render()
                 ctx.polygon_offset = (0.0, 0.0)
 
-    def render(self, camera, target) -> None:
-        ctx = self.ctx
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        self.shadow.begin()
-        self._draw("shadow", self.shadow.view_proj, self.shadow_raster, self.shadow.texture.size,
-                   translation(-np.asarray(self.light.direction, np.float64) * self.behind))
-        target.begin()
+    def passes(self, camera, target) -> list:
+        """The frame's passes in order, as (name, callable): render runs them, a profile times each."""
         eye = camera.eye - self.anchor
         k = 1.0 + self.behind / max(float(np.linalg.norm(eye)), self.radius)
         push = translation(eye) @ np.diag([k, k, k, 1.0]) @ translation(-eye)
         to_anchor = camera.view() @ translation(self.anchor)
-        self._draw("frame", camera.projection() @ to_anchor, infinite_far(camera.projection()) @ to_anchor,
-                   target.size, push, u_eye=tuple(eye))
+
+        def shadow():
+            self.ctx.enable(moderngl.DEPTH_TEST)
+            self.ctx.disable(moderngl.CULL_FACE)
+            self.shadow.begin()
+            self._draw("shadow", self.shadow.view_proj, self.shadow_raster, self.shadow.texture.size,
+                       translation(-np.asarray(self.light.direction, np.float64) * self.behind))
+
+        def frame():
+            target.begin()
+            if self.count_pass:          # COUNT: every box fragment's counts summed, none hidden by depth
+                self.ctx.disable(moderngl.DEPTH_TEST)
+                self.ctx.enable(moderngl.BLEND)
+                self.ctx.blend_func = moderngl.ONE, moderngl.ONE
+            self._draw("frame", camera.projection() @ to_anchor, infinite_far(camera.projection()) @ to_anchor,
+                       target.size, push, u_eye=tuple(eye))
+            if self.count_pass:
+                self.ctx.disable(moderngl.BLEND)
+                self.ctx.blend_func = moderngl.DEFAULT_BLENDING
+                self.ctx.enable(moderngl.DEPTH_TEST)
+        return [("shadow", shadow), ("frame", frame)]
+
+    def render(self, camera, target) -> None:
+        for _, run in self.passes(camera, target):
+            run()
 
     def release(self) -> None:
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.objects, self.shadow)
 
 
-
 def build(ctx, src, variant):
     """One PROJECTION-METHOD[+coarse] variant (vdmbake.techniques.billboards.Variant)."""
     part = src.part
-    coarse = src.bundle.read(part["coarse"], parts.MESH) if variant.coarse else None
-    boards = src.bundle.read(part[variant.projection]["maps"], parts.BILLBOARDS)
+    projection = part[variant.projection]
+    boards = src.bundle.read(projection["maps"], parts.BILLBOARDS)
+    bordered = src.bundle.read(projection["bordered"], parts.BORDERED)
+    coarse = src.bundle.read(part["coarse"], parts.MESH) if variant.coarse or variant.method == "hier" else None
+    bounds = (np.asarray(src.entry["centre"]), src.entry["radius"])
+    if variant.method == "hier":
+        from .billboards_hier import HierBillboards
+        return HierBillboards(ctx, boards, bordered, src.scene.light, src.obj.material, src.shadow_map,
+                              coarse if variant.coarse else None, bounds, shadow_mesh=coarse)
     method = "thesis" if variant.hit_range is not None else "improved"
-    return Billboards(ctx, boards, src.scene.light, src.obj.material, src.shadow_map, method,
-                      variant.hit_range or 0.01, coarse, (np.asarray(src.entry["centre"]), src.entry["radius"]))
+    return Billboards(ctx, boards, bordered, src.scene.light, src.obj.material, src.shadow_map, method,
+                      variant.hit_range or 0.01, coarse, bounds)

@@ -25,8 +25,8 @@ the full mesh. Lookups move along the normal by the shadow map's normal offset p
 texels (the surface is known to about a texel, and the light's views are not the eye's).
 
 Texture: one 2-D texture, RGBA16 unorm by default (rg: the normal's octahedral code in its view's
-frame, b: depth, a: coverage), linear filtering, no mipmaps; empty texels within PAD of covered ones are
-linearly extrapolated from them (billboards.pad), so filtering at a silhouette follows the surface. The
+frame, b: depth, a: coverage), linear filtering, no mipmaps; the bake extrapolated the empty texels near
+covered ones from them (vdmbake.octahedral.to_part), so filtering at a silhouette follows the surface. The
 bake leaves EMPTY empty rings around every tile, so nothing crosses from one view into another.
 """
 from __future__ import annotations
@@ -38,7 +38,6 @@ from vdmbake import parts
 from vdmbake.errors import InputError
 
 from .. import gl
-from .billboards import pad
 from .shadowmap import ShadowMap, translation
 
 METHODS = ("march", "virtual")
@@ -50,13 +49,10 @@ CLIP_TEXELS = 2.0            # rays are clipped to the bounding sphere grown by 
 
 
 def atlas_texels(a) -> np.ndarray:
-    """(N R, N R, 4) float32 in [0, 1]: normal code / 2 + 1/2, depth, coverage; the empty texels next
-    to covered ones extrapolated from them (pad), clamped to the texture's range."""
-    covered = np.asarray(a.coverage) > 0.5
-    values = np.concatenate([np.asarray(a.normal, np.float32) * 0.5 + 0.5,
-                             np.asarray(a.depth, np.float32)[..., None]], -1)
-    values = pad(values, covered)
-    return np.clip(np.concatenate([values, covered[..., None].astype(np.float32)], -1), 0.0, 1.0)
+    """(N R, N R, 4) float32 in [0, 1]: normal code / 2 + 1/2, depth, coverage (the bake extrapolated
+    code and depth around the silhouettes: vdmbake.octahedral.to_part)."""
+    return np.clip(np.concatenate([np.asarray(a.normal, np.float32) * 0.5 + 0.5, np.asarray(a.depth, np.float32)[..., None],
+                                   np.asarray(a.coverage, np.float32)[..., None]], -1), 0.0, 1.0)
 
 
 class Octahedral:

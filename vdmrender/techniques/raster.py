@@ -39,30 +39,40 @@ class RasterPasses:
     def bind_frame(self, prog, camera) -> None:
         """Extra uniforms and textures of the frame pass (none for plain meshes)."""
 
-    def render(self, camera, target) -> None:
+    def passes(self, camera, target) -> list:
+        """The frame's passes in order, as (name, callable): render runs them, a profile times each."""
         ctx = self.ctx
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        self.shadow.begin()
-        ctx.polygon_offset = self.POLYGON_OFFSET
-        for stage, prog, vao, n in self.draws:
-            if stage == "shadow":
-                gl.set_uniforms(prog, u_mvp=self.shadow.view_proj)
-                vao.render(instances=n)
-        ctx.polygon_offset = (0.0, 0.0)
-        target.begin()
-        if self.cull_face:
-            ctx.enable(moderngl.CULL_FACE)
-            ctx.cull_face = self.cull_face
-        mvp = camera.projection() @ camera.view() @ translation(self.anchor)
-        for stage, prog, vao, n in self.draws:
-            if stage == "frame":
-                gl.set_shading(prog, self.light, self.material, self.UNIFORM_ALBEDO)
-                gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(camera.eye - self.anchor))
-                self.shadow.bind(prog, normal_offset=self.NORMAL_OFFSET_TEXELS * self.shadow.texel)
-                self.bind_frame(prog, camera)
-                vao.render(instances=n)
-        ctx.disable(moderngl.CULL_FACE)
+
+        def shadow():
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.disable(moderngl.CULL_FACE)
+            self.shadow.begin()
+            ctx.polygon_offset = self.POLYGON_OFFSET
+            for stage, prog, vao, n in self.draws:
+                if stage == "shadow":
+                    gl.set_uniforms(prog, u_mvp=self.shadow.view_proj)
+                    vao.render(instances=n)
+            ctx.polygon_offset = (0.0, 0.0)
+
+        def frame():
+            target.begin()
+            if self.cull_face:
+                ctx.enable(moderngl.CULL_FACE)
+                ctx.cull_face = self.cull_face
+            mvp = camera.projection() @ camera.view() @ translation(self.anchor)
+            for stage, prog, vao, n in self.draws:
+                if stage == "frame":
+                    gl.set_shading(prog, self.light, self.material, self.UNIFORM_ALBEDO)
+                    gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(camera.eye - self.anchor))
+                    self.shadow.bind(prog, normal_offset=self.NORMAL_OFFSET_TEXELS * self.shadow.texel)
+                    self.bind_frame(prog, camera)
+                    vao.render(instances=n)
+            ctx.disable(moderngl.CULL_FACE)
+        return [("shadow", shadow), ("frame", frame)]
+
+    def render(self, camera, target) -> None:
+        for _, run in self.passes(camera, target):
+            run()
 
     def release(self) -> None:
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.buffers, self.shadow)
