@@ -4,12 +4,14 @@ GPU texture bytes, written to JSON and markdown, never asserted.
 Models as in bench_billboards (sphere, torus, cone, cylinder primitives and the scanned bunny), 16
 cameras each (8 on an orbit at 25 degrees, then top-down, near-top, two grazing, from below, two
 close-ups and one inside the bounding sphere), at 800x600 and 400x300. Per model the billboards
-(greedy projection, 512^2 maps; improved march with and without the coarse mesh) are baked first; their
-GPU bytes (maps, coverage, coarse mesh buffers) fix the octahedral atlases: N x N views of R^2 texels at
-8 bytes a texel (RGBA16) with 8 N^2 R^2 as close as possible to the billboards' bytes, for N = 5, 9, 13,
-and N = 9 at a quarter of them. All variants of a model are timed interleaved (per camera: one render
+(greedy projection, 512^2 maps; the hierarchical trace, hier, with and without the coarse mesh filling
+holes; it casts hier's shadows either way) are baked first; the larger variant's GPU asset bytes (bordered
+maps, pyramid atlases, coarse mesh and occupancy-box buffers; not the per-frame depth and occupancy
+targets, reported apart) fix the octahedral atlases: N x N views of R^2 texels at 8 bytes a texel (RGBA16)
+with 8 N^2 R^2 as close as possible to the billboards' bytes, for N = 5, 9, 13, and N = 9 at a quarter
+of them. All variants of a model are timed interleaved (per camera: one render
 each, in turn) after one warm-up render, with ctx.finish() inside the timed region; the shadow map pass
-is part of every frame (billboards: the scene's 1024^2 map; octahedral: its own, shadow_scale 2, and one
+is part of every frame (billboards: the scene's 1024^2 map of the coarse mesh; octahedral: its own, shadow_scale 2, and one
 row with the scene's 1024^2 map for a like-for-like comparison). Octahedral rows also give the atlas
 lookups per covered pixel (the COUNT variant of the shader, one camera) and the shadow pass's time.
 
@@ -40,7 +42,7 @@ from .techniques import octahedral
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
           ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]
 RESOLUTIONS = [(800, 600), (400, 300)]
-BILLBOARDS = ["greedy-improved", "greedy-improved+coarse"]
+BILLBOARDS = ["greedy-hier", "greedy-hier+coarse"]   # the best billboard variants (issue 9)
 SHADOW_MAP = 1024
 TEXEL_BYTES = 8   # the atlas texture: RGBA16 unorm
 
