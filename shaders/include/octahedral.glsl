@@ -5,7 +5,7 @@
 //   u_atlas  RGBA16 unorm, linear: the normal in its view's frame (octahedral code, rg = code / 2 + 0.5),
 //            depth along the view (b: 0 at the front of the view's box, 1 at its back), coverage (a).
 //            Tile (i, j) holds view (i, j); empty texels next to covered ones carry extrapolated normal
-//            and depth (techniques/octahedral.py), so filtering at a silhouette follows the surface.
+//            and depth (the bake: vdmbake/octahedral.py to_part), so filtering at a silhouette follows the surface.
 // HEMI: the views cover the upper hemisphere of u_basis (hemi-octahedral map), else the full sphere.
 // COUNT (fetch_count.glsl): atlas lookups are counted as kind 2 (depth field).
 #include "fetch_count.glsl"
