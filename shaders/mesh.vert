@@ -1,10 +1,16 @@
 #version 430
 // Rasterised triangle meshes (techniques `mesh` and `coarse`). Positions are relative to
 // the object's anchor (its bounding-box centre) so far-off objects keep float32 precision.
+// VERTEX_COLOR: the asset's albedo per vertex (linear RGB), interpolated over each triangle as the
+// reference interpolates it at the hit; otherwise the material's.
 in vec3 in_pos;
 in vec3 in_normal;
-uniform mat4 u_mvp;   // clip space from anchor-relative coordinates
+#ifdef VERTEX_COLOR
+in vec3 in_color;
+#else
 uniform vec3 u_albedo;
+#endif
+uniform mat4 u_mvp;   // clip space from anchor-relative coordinates
 out vec3 v_pos;
 out vec3 v_normal;
 out vec3 v_albedo;
@@ -12,6 +18,10 @@ out vec3 v_albedo;
 void main() {
     v_pos = in_pos;
     v_normal = in_normal;
+#ifdef VERTEX_COLOR
+    v_albedo = in_color;
+#else
     v_albedo = u_albedo;
+#endif
     gl_Position = u_mvp * vec4(in_pos, 1.0);
 }

@@ -258,7 +258,8 @@ def test_deterministic_and_logged():
 
 def test_a_mesh_no_billboard_can_capture_is_refused_at_bake(tmp_path):
     """Collinear triangles have no area, so no projection captures them: the bake says so (exit 2)
-    instead of writing a bundle the renderer cannot draw."""
+    instead of writing a bundle the renderer cannot draw. Since issue 14 a mesh without area is refused
+    for every technique when it is loaded (vdmbake.meshes.validate), before the billboards' own check."""
     from click.testing import CliRunner
 
     from vdmbake.cli import main as bake_main
@@ -267,5 +268,5 @@ def test_a_mesh_no_billboard_can_capture_is_refused_at_bake(tmp_path):
     (tmp_path / "s.toml").write_text('[[objects]]\nname = "line"\nmesh = "line.obj"\n'
                                      'techniques = { billboards = { variants = ["axis-improved"], resolution = 8 } }\n')
     r = CliRunner().invoke(bake_main, [str(tmp_path / "s.toml"), "-o", str(tmp_path / "b.bundle")])
-    assert r.exit_code == 2 and "captures no face" in r.stderr and "too_small" in r.stderr, r.output
+    assert r.exit_code == 2 and "no area" in r.stderr, r.output
     assert not (tmp_path / "b.bundle").exists()

@@ -304,3 +304,37 @@ def test_real_protein_from_pdbfixer(name):
     starts = {tuple(np.round(p, 3)) for p in q.cylinders[:, :3]}
     lonely = [l for l, p in zip(records, xyz) if tuple(np.round(p, 3)) not in starts]
     assert all(l[17:20] == "HOH" for l in lonely), lonely[:3]
+
+
+def _old_format(path: Path, out: Path) -> Path:
+    """The file as a PDB writer before the 1996 format wrote it: columns 73-80 of each atom record hold
+    the ID code and a line counter (as PyMOL's tutorial 1hpv does), where the current format has the
+    element (77-78) and the charge (79-80)."""
+    lines = []
+    for k, line in enumerate(path.read_text().splitlines()):
+        if line.startswith(("ATOM  ", "HETATM")):
+            line = f"{line[:66]:<72}1VII{k + 1:4d}"
+        lines.append(line)
+    return write(out, "\n".join(lines) + "\n")
+
+
+def test_old_format_pdb_is_read_with_a_warning(tmp_path):
+    """Columns 73-80 that are not element and charge: gemmi refuses the file ("Wrong format for charge"),
+    the loader reads it without them, guesses the elements from the atom names (all 596 of 1VII with
+    hydrogens come out as the element column says) and warns, naming the columns it ignored."""
+    original = _pdbfixer_data() / "test.pdb"
+    old = _old_format(original, tmp_path / "old.pdb")
+    with pytest.raises(Exception, match="Wrong format for charge"):
+        gemmi.read_structure(str(old))
+    heard = []
+    q = load_molecule(old, "ball-and-stick", heard.append)
+    assert len(heard) == 1 and "columns 73-80" in heard[0] and "Wrong format for charge" in heard[0]
+    assert str(old) in heard[0]
+    ref_heard = []
+    ref = load_molecule(original, "ball-and-stick", ref_heard.append)
+    assert ref_heard == []
+    _same(q, ref)
+    gz = tmp_path / "old.pdb.gz"
+    gz.write_bytes(gzip.compress(old.read_bytes()))
+    _same(load_molecule(gz, "ball-and-stick", heard.append), ref)
+    assert len(heard) == 2

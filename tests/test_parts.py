@@ -31,8 +31,9 @@ def test_mesh_with_uvs_and_frame():
 
 
 def test_quadrics():
-    q = quadrics.QuadricSet(RNG.normal(size=(5, 4)), f32(RNG.uniform(size=(5, 3))), RNG.normal(size=(3, 7)),
-                            f32(RNG.uniform(size=(3, 3))))
+    s, c = RNG.normal(size=(5, 4)), RNG.normal(size=(3, 7))
+    s[:, 3], c[:, 6] = np.abs(s[:, 3]) + 0.1, np.abs(c[:, 6]) + 0.1    # radii > 0: what a bake stores (a reader refuses others)
+    q = quadrics.QuadricSet(s, f32(RNG.uniform(size=(5, 3))), c, f32(RNG.uniform(size=(3, 3))))
     back = parts.stored(parts.QUADRICS, q)
     for f in ("spheres", "sphere_rgb", "cylinders", "cylinder_rgb"):
         assert np.array_equal(getattr(back, f), getattr(q, f))
@@ -73,6 +74,7 @@ def test_billboards():
 def test_octahedral_atlas():
     n, res = 3, 16
     basis = np.linalg.qr(RNG.normal(size=(3, 3)))[0]
+    basis *= np.sign(np.linalg.det(basis))          # right-handed
     a = parts.OctahedralAtlas(n, True, basis, RNG.normal(size=3), 1.5, 1.9, f32(RNG.uniform(-1, 1, (n * res, n * res, 2))),
                               f32(RNG.uniform(size=(n * res, n * res))), f32(RNG.uniform(size=(n * res, n * res)) > 0.5), 777)
     back = parts.stored(parts.OCTAHEDRAL, a)
@@ -82,6 +84,11 @@ def test_octahedral_atlas():
     data, meta = parts.OCTAHEDRAL.pack(a)
     with pytest.raises(InputError, match="the manifest says 3 views of 8"):
         parts.OCTAHEDRAL.unpack(data, {**meta, "resolution": 8}, "x.exr")
+    with pytest.raises(InputError, match="basis not a right-handed"):
+        parts.OCTAHEDRAL.unpack(data, {**meta, "basis": (-basis).tolist()}, "x.exr")
+    a.depth[0, 0] = np.nan
+    with pytest.raises(InputError, match="NaN or Inf"):
+        parts.OCTAHEDRAL.unpack(*parts.OCTAHEDRAL.pack(a), "x.exr")
 
 
 def test_missing_channels_and_wrong_kind_are_input_errors(tmp_path):

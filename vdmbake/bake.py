@@ -17,8 +17,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import __version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadrics, vdm
-from .bundle import FORMAT_VERSION, Bundle, BundleWriter
+from . import (__version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadric_mesh,
+               quadrics, staging, vdm)
+from .bundle import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
 from .scene import Object, Scene, load_scene
@@ -35,11 +36,12 @@ def object_mesh(obj: Object, base: Path) -> TriMesh:
     return validate(world, f"object {obj.name!r}")
 
 
-def object_quadrics(obj: Object, base: Path) -> tuple[quadrics.QuadricSet, dict]:
-    """The object's spheres and cylinders in world space, and counts of what was dropped."""
+def object_quadrics(obj: Object, base: Path, warn=lambda m: None) -> tuple[quadrics.QuadricSet, dict]:
+    """The object's spheres and cylinders in world space, and counts of what was dropped; `warn` hears
+    what of the input file was ignored to read it."""
     if obj.molecule:
         from .molecules import load_molecule  # gemmi is imported only for molecule scenes
-        q = load_molecule(resolve_path(obj.molecule, base), obj.style)
+        q = load_molecule(resolve_path(obj.molecule, base), obj.style, warn)
     else:
         q = quadrics.inline(obj.spheres, obj.cylinders, obj.material.albedo)
     origin = f"object {obj.name!r}"
@@ -108,6 +110,7 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
     base = scene_path.parent
     code = bake_code()
     digest, inputs = input_hash(scene, base, code)
+    staging.recover(out, MANIFEST)       # what an interrupted run left at `out`
     reason = "--force" if force else stale(out, digest, code)
     if reason is None:
         log(f"{out}: up to date (inputs, settings and bake code unchanged); use --force to bake again")
@@ -137,14 +140,22 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
     say = lambda m: log(f"{obj.name}: {m}")  # noqa: E731
     mesh = maps = None
     if obj.kind == "quadrics":
-        q, dropped = object_quadrics(obj, base)
+        q, dropped = object_quadrics(obj, base, lambda m: say(f"warning: {m}"))
         centre, radius = q.bounding_sphere()
         entry = {"kind": obj.kind, "centre": centre.tolist(), "radius": radius,
                  "quadrics": writer.add(f"objects/{obj.name}/quadrics", parts.QUADRICS, q), **dropped}
         say(f"{len(q.spheres)} spheres, {len(q.cylinders)} cylinders"
             + (f" (dropped without volume: {dropped})" if any(dropped.values()) else ""))
+        if obj.viewer_mesh is not None:
+            entry["viewer_mesh"] = writer.add(f"objects/{obj.name}/viewer-mesh", parts.VIEWER_MESH,
+                                              quadric_mesh.tessellate(q, obj.viewer_mesh))
     else:
         mesh = object_mesh(obj, base)
+        if mesh.uvs is not None and not np.isfinite(mesh.uvs).all():
+            if obj.mesostructure:
+                raise InputError(f"object {obj.name!r}: {int((~np.isfinite(mesh.uvs)).any(1).sum())} vertices have NaN "
+                                 "or Inf texture coordinates, which the mesostructure is mapped by; fix the mesh's UVs.")
+            mesh.uvs = None                        # nothing else reads them
         if obj.mesostructure:
             if mesh.uvs is None:
                 raise InputError(f"object {obj.name!r}: a mesostructure needs a base mesh with texture coordinates "

@@ -3,8 +3,10 @@ each of a kind in vdmbake.parts; docs/bundle.md is its specification.
 
 Writing goes to a hidden temporary sibling directory; the manifest is written last and
 the directory is renamed into place, so an interrupted bake never leaves a bundle that
-looks valid. Reading checks the format version, that every part path stays inside the
-bundle, every part's sha256 and kind, and parses the very bytes it checked.
+looks valid. Each part is read back through its kind's checks before it is listed, so a bake
+never commits a bundle the renderer would refuse. Reading checks the format version, then the
+whole manifest (vdmbake.manifest) before any part; each part is read once, a regular file of the
+size listed, and its sha256, kind and contents are checked on the very bytes that are parsed.
 """
 from __future__ import annotations
 
@@ -15,12 +17,14 @@ from pathlib import Path, PurePosixPath
 from . import __version__
 from .errors import InputError
 from .parts import PartKind
+from .safeio import read_regular
 from .staging import StagedDir
 
 FORMAT = "vdm-bundle"
 FORMAT_VERSION = 2
 MANIFEST = "manifest.json"
 TIMING = "timing.json"  # wall times: kept out of the manifest so the manifest's bytes are deterministic
+MAX_MANIFEST_BYTES = 256 << 20
 
 
 def _sha256(data: bytes) -> str:
@@ -43,6 +47,10 @@ class BundleWriter:
         """Write `value` as a part of `kind` at `rel` (its suffix appended); returns the part's path."""
         rel += kind.suffix
         data, meta = kind.pack(value)
+        origin = f"{self.stage.path / rel} (as baked)"
+        from .manifest import check_meta
+        check_meta(kind, meta, rel, origin)                 # what the renderer will check: the manifest entry
+        kind.unpack(data, meta, origin)                     # and the part
         self.stage.file(rel).write_bytes(data)
         self.parts[rel] = {"kind": kind.name, "sha256": _sha256(data), "bytes": len(data), **meta}
         return rel
@@ -67,14 +75,22 @@ class Bundle:
         if not mf.is_file():
             raise InputError(f"{self.path}: not a bundle ({MANIFEST} missing); make one with vdmbake.")
         try:
-            self.manifest = json.loads(mf.read_text())
-        except (OSError, ValueError) as e:
-            raise InputError(f"{mf}: unreadable manifest ({e}); re-bake with vdmbake --force.") from None
-        if self.manifest.get("format") != FORMAT or self.manifest.get("format_version") != FORMAT_VERSION:
-            raise InputError(f"{mf}: format {self.manifest.get('format')!r} version "
-                             f"{self.manifest.get('format_version')!r}; this tool reads {FORMAT!r} version "
-                             f"{FORMAT_VERSION}. Re-bake the scene with this vdmbake.")
-        for rel in self.manifest.get("parts", {}):
+            self.manifest = json.loads(read_regular(mf, "manifest", limit=MAX_MANIFEST_BYTES))
+        except (OSError, ValueError, RecursionError) as e:
+            raise InputError(f"{mf}: unreadable manifest ({type(e).__name__}: {str(e)[:200]}); re-bake with "
+                             "vdmbake --force.") from None
+        if not isinstance(self.manifest, dict):
+            json_type = {list: "array", str: "string", type(None): "null"}.get(type(self.manifest), "number")
+            raise InputError(f"{mf}: the manifest is a JSON {json_type}, not an object; "
+                             "re-bake with vdmbake --force.")
+        m = self.manifest
+        version = m.get("format_version")
+        if m.get("format") != FORMAT or type(version) is not int or version != FORMAT_VERSION:
+            raise InputError(f"{mf}: format {str(m.get('format'))[:40]!r} version {str(version)[:40]}; this tool "
+                             f"reads {FORMAT!r} version {FORMAT_VERSION}. Re-bake the scene with this vdmbake.")
+        from .manifest import validate
+        self.scene = validate(self.manifest, str(mf))
+        for rel in self.manifest["parts"]:
             self.part_path(rel)
 
     def part_path(self, rel: str) -> Path:
@@ -92,7 +108,7 @@ class Bundle:
         if meta is None:
             raise InputError(f"{self.path}: the manifest lists no part {rel!r}.")
         try:
-            data = self.part_path(rel).read_bytes()
+            data = read_regular(self.part_path(rel), "bundle part", size=meta["bytes"])
         except OSError as e:
             raise InputError(f"{self.path / rel}: bundle part missing or unreadable ({e.strerror or e}).") from None
         if _sha256(data) != meta["sha256"]:

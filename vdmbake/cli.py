@@ -8,7 +8,7 @@ import click
 
 from . import __version__
 from .bake import bake
-from .errors import InputError, fail
+from .errors import guarded
 from .scene import REGISTRY
 
 
@@ -41,7 +41,8 @@ def main(scene: Path, out: Path, force: bool, as_json: bool, debug: bool):
 
     The bundle is written atomically (a temporary sibling, renamed into place, the
     manifest last). Re-baking with unchanged inputs and settings does nothing unless
-    --force. Exit codes: 0 done, 2 bad usage or bad input.
+    --force. Exit codes: 0 done, 2 bad usage or bad input (also under --debug, which adds
+    the traceback), 128 + N stopped by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP).
 
     \b
     Example:
@@ -49,10 +50,7 @@ def main(scene: Path, out: Path, force: bool, as_json: bool, debug: bool):
       vdmrender out/default.bundle -o out/default
     """
     log = (lambda m: None) if as_json else (lambda m: click.echo(m, err=True))
-    try:
-        stats = bake(scene, out, force=force, log=log)
-    except InputError as e:
-        fail(e, debug)
+    stats = guarded(lambda: bake(scene, out, force=force, log=log), debug)
     if as_json:
         click.echo(json.dumps(stats, indent=1))
     elif not stats["up_to_date"]:

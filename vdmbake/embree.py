@@ -2,7 +2,10 @@
 
 Embree works in float32. Geometry is therefore stored relative to an anchor point
 (the mesh's bounding-box centre) and ray origins are shifted by the same anchor
-in float64 first, so objects far from the origin keep their precision.
+in float64 first, so objects far from the origin keep their precision; callers that
+have points relative to the anchor already pass them so (relative=True). Coordinates are
+also divided by a power of two near the mesh's size (exact in floating point), so that
+Embree sees a mesh about one unit across whatever its scale (1e-9 or 1e9).
 """
 from __future__ import annotations
 
@@ -28,19 +31,22 @@ class RayScene:
         from embreex.mesh_construction import TriangleMesh
 
         self.anchor = 0.5 * (vertices.min(0) + vertices.max(0))
+        extent = float(np.abs(vertices - self.anchor).max()) if len(vertices) else 0.0
+        self.scale = 2.0 ** round(np.log2(extent)) if extent > 0 and np.isfinite(extent) else 1.0
         self._scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(self._scene, np.ascontiguousarray((vertices - self.anchor)[faces], dtype=np.float32))
+        TriangleMesh(self._scene, np.ascontiguousarray(((vertices - self.anchor) / self.scale)[faces], dtype=np.float32))
         self.rays_cast = 0
 
-    def _batches(self, origins, dirs, tfar):
+    def _batches(self, origins, dirs, tfar, relative=False):
         n = len(origins)
         tfar = np.full(n, np.inf) if tfar is None else np.broadcast_to(tfar, (n,))
+        shift = 0.0 if relative else self.anchor
         for s in range(0, n, CHUNK):
             e = min(n, s + CHUNK)
             self.rays_cast += e - s
-            yield s, e, (np.ascontiguousarray(origins[s:e] - self.anchor, dtype=np.float32),
+            yield s, e, (np.ascontiguousarray((origins[s:e] - shift) / self.scale, dtype=np.float32),
                          np.ascontiguousarray(dirs[s:e], dtype=np.float32),
-                         np.ascontiguousarray(np.minimum(tfar[s:e], 3.0e38), dtype=np.float32))
+                         np.ascontiguousarray(np.minimum(tfar[s:e] / self.scale, 3.0e38), dtype=np.float32))
 
     def intersect(self, origins: np.ndarray, dirs: np.ndarray, tfar=None) -> Hits:
         n = len(origins)
@@ -49,7 +55,7 @@ class RayScene:
             r = self._scene.run(o, d, dists=tf, output=1)
             hit = r["primID"] >= 0
             h.prim[s:e] = r["primID"]
-            h.t[s:e] = np.where(hit, r["tfar"], np.inf)
+            h.t[s:e] = np.where(hit, r["tfar"].astype(np.float64) * self.scale, np.inf)
             h.u[s:e], h.v[s:e] = r["u"], r["v"]
             ng = r["Ng"].astype(np.float64)
             length = np.linalg.norm(ng, axis=1, keepdims=True)
@@ -61,11 +67,12 @@ class RayScene:
         out = np.empty(len(origins), np.float32)
         for s, e, (o, d, tf) in self._batches(origins, dirs, None):
             r = self._scene.run(o, d, dists=tf, output=1)
-            out[s:e] = np.where(r["primID"] >= 0, r["tfar"], -1.0)
+            out[s:e] = np.where(r["primID"] >= 0, r["tfar"] * np.float32(self.scale), -1.0)
         return out
 
-    def occluded(self, origins: np.ndarray, dirs: np.ndarray, tfar=None) -> np.ndarray:
+    def occluded(self, origins: np.ndarray, dirs: np.ndarray, tfar=None, relative: bool = False) -> np.ndarray:
+        """relative: the origins are given relative to `anchor`."""
         out = np.zeros(len(origins), bool)
-        for s, e, (o, d, tf) in self._batches(origins, dirs, tfar):
+        for s, e, (o, d, tf) in self._batches(origins, dirs, tfar, relative):
             out[s:e] = self._scene.run(o, d, dists=tf, query="OCCLUDED") >= 0
         return out

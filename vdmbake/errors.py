@@ -1,4 +1,5 @@
-"""The one error type the command-line tools turn into exit code 2."""
+"""The one error type the command-line tools turn into exit code 2, and the wrapper that gives every
+way a command ends its exit code (README "Command-line conventions")."""
 
 
 class InputError(Exception):
@@ -6,10 +7,35 @@ class InputError(Exception):
 
 
 def fail(e: InputError, debug: bool):
-    """Print the one-paragraph message and exit 2 (or re-raise with a traceback under --debug)."""
+    """Print the one-paragraph message (under --debug the traceback first) and exit 2."""
     import click
 
     if debug:
-        raise e
+        import traceback
+
+        traceback.print_exception(e)
     click.echo(f"error: {e}", err=True)
     raise SystemExit(2)
+
+
+def guarded(work, debug: bool):
+    """work()'s result, with the tools' exit codes: 2 for bad input (InputError) and for what the system
+    refuses (OSError: a full disk, a read-only folder), 128 + N for SIGINT, SIGTERM and SIGHUP (after
+    the staging folder is removed by the code that made it; vdmbake.signals)."""
+    import click
+
+    from . import signals
+
+    signals.install()
+    try:
+        result = work()
+        signals.check()
+        return result
+    except InputError as e:
+        fail(e, debug)
+    except (KeyboardInterrupt, signals.Interrupted) as e:
+        click.echo(f"interrupted{f' ({e})' if str(e) else ''}; nothing was written", err=True)
+        raise SystemExit(signals.exit_code(e)) from None
+    except OSError as e:
+        fail(InputError(f"{e.filename + ': ' if e.filename else ''}{e.strerror or e} "
+                        f"({type(e).__name__}); nothing was written."), debug)

@@ -57,6 +57,28 @@ def to_bytes(parts: dict[str, dict[str, np.ndarray]], compression: str = "zip") 
     return buf.getvalue()
 
 
+# Zip (deflate) and every other EXR compression expand data at most about 1032-fold; a channel holds at
+# least 2 bytes a pixel (half). A header claiming more pixels than that is not a file this package wrote.
+MAX_EXPANSION = 2100
+
+
+def check_size(data: bytes) -> None:
+    """Refuse, from the headers alone, an EXR whose parts claim more pixels than its bytes can hold
+    (e.g. a damaged header saying 2^30 x 2^30), before any pixel is decoded."""
+    import OpenEXR
+
+    with OpenEXR.File(io.BytesIO(data), header_only=True) as f:
+        pixels = 0
+        for p in f.parts:
+            lo, hi = p.header["dataWindow"]
+            w, h = int(hi[0]) - int(lo[0]) + 1, int(hi[1]) - int(lo[1]) + 1
+            if w <= 0 or h <= 0:
+                raise ValueError(f"part {p.name()!r}: empty data window {w} x {h}")
+            pixels += w * h
+    if 2 * pixels > MAX_EXPANSION * len(data) + (1 << 20):
+        raise ValueError(f"its headers claim {pixels} pixels, more than {len(data)} bytes can hold")
+
+
 def read(source: Path | bytes) -> dict[str, dict[str, np.ndarray]]:
     """{part name: {channel name: 2-D array}} for every part of an EXR file, or of its bytes."""
     import OpenEXR

@@ -218,13 +218,23 @@ def resample(h: np.ndarray, size: int) -> np.ndarray:
 
 # --------------------------------------------------------------------------- files
 
+MAX_PIXELS = 16384 * 16384   # the largest height map file, PNG or EXR alike (checked from its header)
+
+
+def _check_pixels(path: Path, width: int, height: int) -> None:
+    if width * height > MAX_PIXELS:
+        raise InputError(f"{path}: a height map of {width} x {height} pixels, more than the {MAX_PIXELS} "
+                         "(16384 x 16384) accepted; scale it down (the bake resamples it to mesostructure.size).")
+
 
 def _png_stored(path: Path) -> np.ndarray:
     """Luminance of a PNG in its stored units (grey value over its bit depth's full scale), rows top to bottom."""
     from PIL import Image
 
     try:
+        Image.MAX_IMAGE_PIXELS = None   # PIL's own "decompression bomb" limit: ours applies to PNG and EXR alike
         with Image.open(path) as im:
+            _check_pixels(path, *im.size)
             im.load()
             mode = im.mode
             if mode in ("I;16", "I;16B", "I;16L", "I;16N", "I"):
@@ -246,7 +256,15 @@ def _exr_height(path: Path) -> np.ndarray:
     from vdmbake import exr
 
     try:
+        import OpenEXR
+
+        with OpenEXR.File(str(path), header_only=True) as f:
+            for part in f.parts:
+                lo, hi = part.header["dataWindow"]
+                _check_pixels(path, int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1)
         parts = exr.read(path)
+    except InputError:
+        raise
     except Exception as e:
         raise InputError(f"{path}: unreadable EXR ({e}); allowed: a float EXR with a Y, R or single channel") from e
     found = None

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .colour import srgb8_to_linear
 from .errors import InputError
 
 
@@ -34,16 +35,18 @@ class TriMesh:
     normals: np.ndarray             # (V, 3) float64, unit
     uvs: np.ndarray | None = None   # (V, 2) float64
     frame: SurfaceFrame | None = None
+    colors: np.ndarray | None = None   # (V, 3) linear RGB albedo per vertex (the asset's own), or None
 
     @staticmethod
     def concatenate(parts: list["TriMesh"]) -> "TriMesh":
         offsets = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
-        uvs, frames = [p.uvs for p in parts], [p.frame for p in parts]
+        uvs, frames, colors = [p.uvs for p in parts], [p.frame for p in parts], [p.colors for p in parts]
         return TriMesh(np.concatenate([p.vertices for p in parts]),
                        np.concatenate([p.faces + o for p, o in zip(parts, offsets)]),
                        np.concatenate([p.normals for p in parts]),
                        None if any(u is None for u in uvs) else np.concatenate(uvs),
-                       None if any(f is None for f in frames) else SurfaceFrame.concatenate(frames))
+                       None if any(f is None for f in frames) else SurfaceFrame.concatenate(frames),
+                       None if any(c is None for c in colors) else np.concatenate(colors))
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre of the bounding box and the radius that encloses every vertex."""
@@ -77,6 +80,29 @@ def weld(vertices: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
     return rank[inv.ravel()]
 
 
+def merge_vertices(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, rgb8: np.ndarray | None = None,
+                   rel_tol: float = 1e-9):
+    """Coincident vertices merged (STL and OBJ split them), tolerance relative to the mesh's size and
+    about its centre, so that a mesh keeps its vertices at any scale and offset (an absolute tolerance
+    welds a sphere 1e-8 across into a few points); vertices with different texture coordinates (UV
+    seams) or colours stay apart. Returns vertices, faces, UVs and colours (None where none), first
+    appearances kept in order."""
+    key = weld(vertices, rel_tol)[:, None].astype(np.float64)
+    if uvs is not None:
+        lo = np.nanmin(uvs, 0) if np.isfinite(uvs).any() else np.zeros(2)
+        span = max(float(np.nanmax(np.abs(uvs - lo))) if np.isfinite(uvs).any() else 0.0, 1e-300)
+        key = np.column_stack([key, np.round((uvs - lo) / (span * rel_tol))])
+    if rgb8 is not None:
+        key = np.column_stack([key, rgb8.astype(np.float64)])
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    keep = first[order]
+    return (vertices[keep], rank[inv.ravel()][faces], None if uvs is None else uvs[keep],
+            None if rgb8 is None else rgb8[keep])
+
+
 def rotation_xyz(degrees) -> np.ndarray:
     """Rotation about X, then Y, then Z (extrinsic), angles in degrees."""
     ax, ay, az = np.radians(degrees)
@@ -98,7 +124,7 @@ def transformed(mesh: TriMesh, transform) -> TriMesh:
     if mesh.frame is not None and sx == sy == sz:   # a non-uniform scale changes curvatures otherwise: dropped
         f = mesh.frame
         frame = SurfaceFrame(f.dpdu @ m.T, f.dpdv @ m.T, f.k1 / sx, f.k2 / sx, f.d1 @ rotation_xyz(transform.rotate_deg).T)
-    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs, frame)
+    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs, frame, mesh.colors)
 
 
 def validate(mesh: TriMesh, origin: str) -> TriMesh:
@@ -114,6 +140,13 @@ def validate(mesh: TriMesh, origin: str) -> TriMesh:
     if mesh.faces.min() < 0 or mesh.faces.max() >= len(mesh.vertices):
         raise InputError(f"{origin}: face indices reach {int(mesh.faces.max())} but the mesh has "
                          f"{len(mesh.vertices)} vertices.")
+    # Nothing to draw: every vertex at one point, or every face without area (collinear corners).
+    v = mesh.vertices - 0.5 * (mesh.vertices.min(0) + mesh.vertices.max(0))
+    r = float(np.abs(v).max())
+    tri = v[mesh.faces] / (r or 1.0)
+    if r == 0 or not (np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) > 1e-12).any():
+        raise InputError(f"{origin}: the mesh has no area (every vertex at one point, or every face a line); "
+                         "nothing of it could be drawn.")
     return mesh
 
 
@@ -149,6 +182,9 @@ def load_mesh_file(path: Path) -> TriMesh:
 
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
+    except ImportError as e:  # trimesh reads some formats through optional packages
+        raise InputError(f"{path}: format not supported here: install the Python package "
+                         f"{e.name or 'that trimesh needs for it'} ({e}).") from None
     except Exception as e:  # trimesh raises many types for unreadable files
         raise InputError(f"{path}: cannot read the mesh ({type(e).__name__}: {e}).") from None
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
@@ -156,15 +192,23 @@ def load_mesh_file(path: Path) -> TriMesh:
     validate(TriMesh(vertices, faces, np.zeros_like(vertices)), str(path))
     # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces; vertices
     # with different texture coordinates stay apart (UV seams), and the UVs are kept.
-    uv = getattr(getattr(loaded, "visual", None), "uv", None)
+    visual = getattr(loaded, "visual", None)
+    uv = getattr(visual, "uv", None)
     uv = np.asarray(uv, np.float64) if uv is not None and len(uv) == len(vertices) else None
-    merged = trimesh.Trimesh(vertices, faces, process=False)
-    if uv is not None:
-        merged.visual = trimesh.visual.TextureVisuals(uv=uv)
-    merged.merge_vertices()
-    v, f = np.asarray(merged.vertices, np.float64), np.asarray(merged.faces, np.int64)
-    uvs = np.asarray(merged.visual.uv, np.float64) if uv is not None else None
+    rgb8 = vertex_colors(visual, len(vertices))
+    # vertices that differ in colour stay apart too: the colour is an attribute like the UV
+    v, f, uvs, rgb8 = merge_vertices(vertices, faces, uv, rgb8)
+    colors = None if rgb8 is None else srgb8_to_linear(rgb8)
     # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
     # of all its faces on both sides, so shading and displacement agree across the seam.
     w = weld(v)
-    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs)
+    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs, colors=colors)
+
+
+def vertex_colors(visual, count: int) -> np.ndarray | None:
+    """(V, 3) uint8 sRGB per-vertex colours when the file has them (trimesh's vertex-kind visual, e.g. a
+    PLY's red/green/blue properties or OBJ's `v x y z r g b`), else None."""
+    if visual is None or getattr(visual, "kind", None) != "vertex":
+        return None
+    rgb = np.asarray(visual.vertex_colors)[:, :3]
+    return rgb.astype(np.uint8) if len(rgb) == count else None

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import functools
 import pathlib
+from collections.abc import Callable
 
 import numpy as np
 
@@ -121,7 +122,30 @@ def element_tables():
     return _tables()
 
 
-def _read_atoms(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
+def _read_structure(path: pathlib.Path, fmt, warn: Callable[[str], None]):
+    """gemmi's structure of the file. A PDB file that gemmi refuses is read a second time with columns
+    73-80 of every line ignored, and `warn` says so: files written before the 1996 format (PyMOL's
+    tutorial 1hpv, many simulation tools) keep a segment id or line counter there, where the current
+    format puts the element (77-78) and the charge (79-80), hence gemmi's "Wrong format for charge".
+    Elements are then gemmi's guess from the atom names."""
+    import gemmi
+
+    try:
+        return gemmi.read_structure(str(path), format=fmt)
+    except Exception as e:  # gemmi raises RuntimeError, ValueError, OSError, ... with a reason
+        first = e
+    try:
+        st = gemmi.read_pdb(str(path), max_line_length=72)
+    except Exception:
+        st = None
+    if st is None or len(st) == 0 or st[0].count_atom_sites() == 0:
+        raise InputError(f"molecule file {path}: cannot be read as PDB or mmCIF ({first}).") from None
+    warn(f"molecule file {path}: not in the current PDB format ({first}); read with columns 73-80 of every "
+         f"line ignored (segment id, element, charge), elements guessed from the atom names")
+    return st
+
+
+def _read_atoms(path: pathlib.Path, warn: Callable[[str], None] = lambda m: None) -> tuple[np.ndarray, np.ndarray]:
     """(N, 3) float64 positions and (N,) int atomic numbers of the first model's atoms."""
     import gemmi
 
@@ -132,10 +156,7 @@ def _read_atoms(path: pathlib.Path) -> tuple[np.ndarray, np.ndarray]:
     name = path.name.lower()
     stem = name[:-3] if name.endswith(".gz") else name
     fmt = gemmi.CoorFormat.Unknown if stem.endswith(_KNOWN_SUFFIXES) else gemmi.CoorFormat.Detect
-    try:
-        st = gemmi.read_structure(str(path), format=fmt)
-    except Exception as e:  # gemmi raises RuntimeError, ValueError, OSError, ... with a reason
-        raise InputError(f"molecule file {path}: cannot be read as PDB or mmCIF ({e}).") from None
+    st = _read_structure(path, fmt, warn)
     if len(st) == 0:
         raise InputError(f"molecule file {path}: no atoms (no model found; is it a PDB or mmCIF "
                          f"coordinate file?).")
@@ -261,15 +282,15 @@ def quadrics_from_atoms(xyz: np.ndarray, z: np.ndarray, style: str, origin: str 
     return QuadricSet(spheres, colours, cylinders, colours[ends])
 
 
-def load_molecule(path: pathlib.Path, style: str) -> QuadricSet:
+def load_molecule(path: pathlib.Path, style: str, warn: Callable[[str], None] = lambda m: None) -> QuadricSet:
     """Atoms (spheres) and bonds (pairs of half-cylinders) of a PDB / mmCIF file's first model.
 
     Raises InputError, naming the file, when the style is unknown, the file is missing or cannot
-    be parsed, has no atoms, or has non-finite coordinates.
+    be parsed, has no atoms, or has non-finite coordinates; `warn` hears what was ignored to read it.
     """
     path = pathlib.Path(path)
     if style not in STYLES:
         raise InputError(f"molecule file {path}: unknown molecule style {style!r}; allowed styles: "
                          f"{', '.join(STYLES)}.")
-    xyz, z = _read_atoms(path)
+    xyz, z = _read_atoms(path, warn)
     return quadrics_from_atoms(xyz, z, style, origin=f"molecule file {path}")

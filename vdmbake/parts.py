@@ -12,8 +12,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import exr, ply, pyramid, quadrics
+from . import exr, ply, pyramid, quadric_mesh, quadrics
 from .errors import InputError
+from .schema import REQUIRED, Boolean, Choice, Integer, Invalid, Number, Tables, Type, Vector, setting
+
+COUNT = Integer(0, 2**31 - 1)   # element counts: PLY and EXR index with 32-bit integers
 
 
 @dataclass(frozen=True)
@@ -21,14 +24,33 @@ class PartKind:
     name: str
     suffix: str
     pack: Callable[[Any], tuple[bytes, dict]]        # value -> (file bytes, manifest metadata)
-    unpack: Callable[[bytes, dict, str], Any]        # (file bytes, manifest metadata, origin) -> value
+    unpack: Callable[[bytes, dict, str], Any]        # (file bytes, manifest metadata, origin) -> value;
+                                                     # checks the value against the metadata, finite numbers
+                                                     # and index ranges, raising InputError
+    meta: type | None = None                         # the metadata's schema (vdmbake.schema dataclass)
 
 
 def _channels(data: bytes, origin: str) -> dict[str, dict[str, np.ndarray]]:
     try:
+        exr.check_size(data)
         return exr.read(data)
     except Exception as e:  # the binding raises RuntimeError and others for malformed files
         raise InputError(f"{origin}: unreadable EXR ({e}).") from None
+
+
+def _bad(origin: str, what: str):
+    raise InputError(f"{origin}: {what}; the part does not match its manifest entry. Re-bake with vdmbake --force.")
+
+
+def _finite(origin: str, **arrays) -> None:
+    for name, a in arrays.items():
+        if a is not None and not np.isfinite(a).all():
+            _bad(origin, f"{name} holds NaN or Inf")
+
+
+def _shape(origin: str, name: str, a: np.ndarray, shape: tuple) -> None:
+    if a.shape != shape:
+        _bad(origin, f"{name} has shape {a.shape}, expected {shape}")
 
 
 def _need(parts: dict, part: str, channels, origin: str) -> list[np.ndarray]:
@@ -39,15 +61,69 @@ def _need(parts: dict, part: str, channels, origin: str) -> list[np.ndarray]:
 
 # --- meshes: full, coarse, displaced ----------------------------------------------------------------
 
+@dataclass(frozen=True)
+class MeshMeta:
+    vertices: int = setting(REQUIRED, Integer(3, 2**31 - 1), "vertices")
+    faces: int = setting(REQUIRED, Integer(1, 2**31 - 1), "triangles")
+
+
+def _unpack_mesh(data, meta, origin):
+    m = ply.from_bytes(data, origin)
+    if not len(m.faces):
+        _bad(origin, "the mesh has no face")
+    if (len(m.vertices), len(m.faces)) != (meta["vertices"], meta["faces"]):
+        _bad(origin, f"{len(m.vertices)} vertices and {len(m.faces)} faces where the manifest says "
+                     f"{meta['vertices']} and {meta['faces']}")
+    if m.faces.size and (m.faces.min() < 0 or m.faces.max() >= len(m.vertices)):
+        _bad(origin, f"face indices span [{m.faces.min()}, {m.faces.max()}] over {len(m.vertices)} vertices")
+    f = m.frame
+    _finite(origin, vertices=m.vertices, normals=m.normals, uvs=m.uvs,
+            frame=None if f is None else np.concatenate([f.dpdu, f.dpdv, f.k1[:, None], f.k2[:, None], f.d1], 1))
+    return m
+
+
 MESH = PartKind("mesh", ".ply",
                 lambda m: (ply.to_bytes(m), {"vertices": len(m.vertices), "faces": len(m.faces)}),
-                lambda data, meta, origin: ply.from_bytes(data, origin))
+                _unpack_mesh, MeshMeta)
 
 # --- spheres and capped cylinders ------------------------------------------------------------------
 
+@dataclass(frozen=True)
+class QuadricsMeta:
+    spheres: int = setting(REQUIRED, COUNT, "spheres")
+    cylinders: int = setting(REQUIRED, COUNT, "capped cylinders")
+
+
+def _unpack_quadrics(data, meta, origin):
+    q = quadrics.from_bytes(data, origin)
+    if (len(q.spheres), len(q.cylinders)) != (meta["spheres"], meta["cylinders"]) or not len(q.spheres) + len(q.cylinders):
+        _bad(origin, f"{len(q.spheres)} spheres and {len(q.cylinders)} cylinders where the manifest says "
+                     f"{meta['spheres']} and {meta['cylinders']} (and at least one is needed)")
+    _finite(origin, spheres=q.spheres, cylinders=q.cylinders)
+    if (q.spheres[:, 3] <= 0).any() or (q.cylinders[:, 6] <= 0).any() or (
+            np.linalg.norm(q.cylinders[:, 3:6] - q.cylinders[:, :3], axis=1) <= 0).any():
+        _bad(origin, "a sphere or cylinder has no volume (radius or length 0)")
+    return q
+
+
 QUADRICS = PartKind("quadrics", ".ply",
                     lambda q: (quadrics.to_bytes(q), {"spheres": len(q.spheres), "cylinders": len(q.cylinders)}),
-                    lambda data, meta, origin: quadrics.from_bytes(data, origin))
+                    _unpack_quadrics, QuadricsMeta)
+
+def _unpack_viewer_mesh(data, meta, origin):
+    m, rgb = quadric_mesh.from_bytes(data, origin)
+    if (len(m.vertices), len(m.faces)) != (meta["vertices"], meta["faces"]):
+        _bad(origin, f"{len(m.vertices)} vertices and {len(m.faces)} faces where the manifest says "
+                     f"{meta['vertices']} and {meta['faces']}")
+    if m.faces.size and (m.faces.min() < 0 or m.faces.max() >= len(m.vertices)):
+        _bad(origin, f"face indices span [{m.faces.min()}, {m.faces.max()}] over {len(m.vertices)} vertices")
+    _finite(origin, vertices=m.vertices, normals=m.normals)
+    return m, rgb
+
+
+VIEWER_MESH = PartKind("viewer-mesh", ".ply",
+                       lambda mc: (quadric_mesh.to_bytes(*mc), {"vertices": len(mc[0].vertices), "faces": len(mc[0].faces)}),
+                       _unpack_viewer_mesh, MeshMeta)
 
 
 # --- mesostructure: the height field and its normal map --------------------------------------------
@@ -71,11 +147,20 @@ def _pack_mesostructure(m: MesostructureMaps):
 def _unpack_mesostructure(data, meta, origin) -> MesostructureMaps:
     parts = _channels(data, origin)
     (h,) = _need(parts, "height", ["h"], origin)
-    n = _need(parts, "normal", ["normal.X", "normal.Y", "normal.Z"], origin)
-    return MesostructureMaps(h, np.stack(n, -1))
+    n = np.stack(_need(parts, "normal", ["normal.X", "normal.Y", "normal.Z"], origin), -1)
+    size = meta["size"]
+    _shape(origin, "height", h, (size, size))
+    _shape(origin, "normal", n, (size, size, 3))
+    _finite(origin, height=h, normal=n)
+    return MesostructureMaps(h, n)
 
 
-MESOSTRUCTURE = PartKind("mesostructure", ".exr", _pack_mesostructure, _unpack_mesostructure)
+@dataclass(frozen=True)
+class MesostructureMeta:
+    size: int = setting(REQUIRED, Integer(4, 1024), "texels per tile side")
+
+
+MESOSTRUCTURE = PartKind("mesostructure", ".exr", _pack_mesostructure, _unpack_mesostructure, MesostructureMeta)
 
 
 # --- VDM: the SVD-compressed view-dependent displacement and maximal-view-angle tables --------------
@@ -118,11 +203,21 @@ def _unpack_vdm(data, meta, origin) -> VDMTables:
         W = W.astype(np.uint8)
     else:
         scale, offset = np.ones(k, np.float32), np.zeros(k, np.float32)
-    return VDMTables(W.reshape(n_phi, n, n, k), np.stack(_need(parts, "E_vdm", E, origin)),
-                     np.stack(_need(parts, "E_mvm", E, origin))[:, 0], scale, offset)
+    E_vdm, E_mvm = np.stack(_need(parts, "E_vdm", E, origin)), np.stack(_need(parts, "E_mvm", E, origin))
+    if W.shape[0] != n_phi * n or E_mvm.shape[1] != 1 or E_mvm.shape[2] != E_vdm.shape[1]:
+        _bad(origin, f"tables of shapes W {W.shape}, E_vdm {E_vdm.shape}, E_mvm {E_mvm.shape} for n_phi = {n_phi}")
+    _finite(origin, W=W, E_vdm=E_vdm, E_mvm=E_mvm, scale=scale, offset=offset)
+    return VDMTables(W.reshape(n_phi, n, n, k), E_vdm, E_mvm[:, 0], scale, offset)
 
 
-VDM = PartKind("vdm", ".exr", _pack_vdm, _unpack_vdm)
+@dataclass(frozen=True)
+class VDMMeta:
+    k: int = setting(REQUIRED, Integer(1, 4096), "eigenfunctions stored")
+    n_phi: int = setting(REQUIRED, Integer(1, 256), "azimuth samples")
+    storage: str = setting(REQUIRED, Choice("float32", "float16", "uint8"), "the weights' format")
+
+
+VDM = PartKind("vdm", ".exr", _pack_vdm, _unpack_vdm, VDMMeta)
 
 
 # --- enhanced billboards ----------------------------------------------------------------------------
@@ -152,12 +247,41 @@ def _unpack_billboards(data, meta, origin) -> list[Billboard]:
     out = []
     for i, b in enumerate(meta["boards"]):
         a, d, nx, ny, nz = _need(parts, f"bb{i:03d}", ["A", "depth.Z", "normal.X", "normal.Y", "normal.Z"], origin)
-        out.append(Billboard(np.asarray(b["origin"], np.float64), np.asarray(b["axes"], np.float64),
+        axes = np.asarray(b["axes"], np.float64)
+        _finite(origin, **{f"bb{i:03d}": np.stack([a, d, nx, ny, nz])})
+        if abs(np.linalg.det(axes) - 1) > 1e-3 or (np.asarray(b["size"]) <= 0).any():
+            _bad(origin, f"billboard {i}: axes not a right-handed orthonormal frame or a size not positive")
+        out.append(Billboard(np.asarray(b["origin"], np.float64), axes,
                              np.asarray(b["size"], np.float64), a, d, np.stack([nx, ny, nz], -1)))
     return out
 
 
-BILLBOARDS = PartKind("billboards", ".exr", _pack_billboards, _unpack_billboards)
+class Matrix(Type):
+    """rows x cols finite numbers, as nested lists."""
+
+    def __init__(self, rows: int, cols: int):
+        self.row, self.rows = Vector(cols), rows
+        self.text = f"a list of {rows} rows of {cols} finite numbers"
+
+    def parse(self, raw):
+        if not isinstance(raw, list) or len(raw) != self.rows:
+            raise Invalid
+        return tuple(self.row.parse(r) for r in raw)
+
+
+@dataclass(frozen=True)
+class BoardMeta:
+    origin: tuple = setting(REQUIRED, Vector(3), "world corner of the box")
+    axes: tuple = setting(REQUIRED, Matrix(3, 3), "rows u, v, w")
+    size: tuple = setting(REQUIRED, Vector(3, 0.0), "extent along u, v, w")
+
+
+@dataclass(frozen=True)
+class BillboardsMeta:
+    boards: tuple = setting(REQUIRED, Tables(BoardMeta), "each billboard's box")
+
+
+BILLBOARDS = PartKind("billboards", ".exr", _pack_billboards, _unpack_billboards, BillboardsMeta)
 
 
 @dataclass
@@ -191,11 +315,19 @@ def _unpack_bordered(data, meta, origin) -> list[BorderedMaps]:
             sub = {k[len(name) + 1:]: v for k, v in tables.items() if k.startswith(name + ".")}
             _need(sub, "samples", ["depth.Z"], f"{origin} ({name})")
             pyr = pyramid.from_parts(sub, meta["mode"])
+        _finite(origin, **{name: maps})
         out.append(BorderedMaps(maps.astype(np.float32), pyr))
     return out
 
 
-BORDERED = PartKind("bordered-billboards", ".exr", _pack_bordered, _unpack_bordered)
+@dataclass(frozen=True)
+class BorderedMeta:
+    boards: int = setting(REQUIRED, COUNT, "billboards")
+    pyramids: bool = setting(REQUIRED, Boolean(), "every billboard has its pyramid")
+    mode: str = setting(REQUIRED, Choice(*pyramid.MODES), "the pyramids' addressing")
+
+
+BORDERED = PartKind("bordered-billboards", ".exr", _pack_bordered, _unpack_bordered, BorderedMeta)
 
 # --- min/max mip pyramid of a depth field (the hierarchical tracer's, vdmbake/pyramid.py) ------------
 
@@ -203,9 +335,26 @@ def _pack_pyramid(p: pyramid.Pyramid):
     return exr.to_bytes(pyramid.to_parts(p)), {"mode": p.mode, "levels": p.top + 1}
 
 
-PYRAMID = PartKind("pyramid", ".exr", _pack_pyramid,
-                   lambda data, meta, origin: pyramid.from_parts(_channels(data, origin), meta["mode"]))
+def _unpack_pyramid(data, meta, origin):
+    tables = _channels(data, origin)
+    _need(tables, "samples", ["depth.Z"], origin)
+    levels = sorted(k for k in tables if k.startswith("L"))
+    if len(levels) != meta["levels"]:
+        _bad(origin, f"{len(levels)} levels where the manifest says {meta['levels']}")
+    for k in levels:
+        _need(tables, k, ["min.Z", "max.Z"], origin)
+    p = pyramid.from_parts(tables, meta["mode"])
+    _finite(origin, samples=p.samples)
+    return p
 
+
+@dataclass(frozen=True)
+class PyramidMeta:
+    mode: str = setting(REQUIRED, Choice(*pyramid.MODES), "addressing")
+    levels: int = setting(REQUIRED, Integer(1, 64), "mip levels")
+
+
+PYRAMID = PartKind("pyramid", ".exr", _pack_pyramid, _unpack_pyramid, PyramidMeta)
 
 # --- octahedral impostors (Brucks 2018; vdmbake/octahedral.py) ----------------------------------------
 
@@ -244,17 +393,33 @@ def _pack_octahedral(a: OctahedralAtlas):
 def _unpack_octahedral(data, meta, origin) -> OctahedralAtlas:
     nu, nv, d, a = _need(_channels(data, origin), "atlas", ["normal.U", "normal.V", "depth.Z", "A"], origin)
     side = int(meta["views"]) * int(meta["resolution"])
-    if d.shape != (side, side):
-        raise InputError(f"{origin}: atlas of {d.shape[1]}x{d.shape[0]} texels; the manifest says "
-                         f"{meta['views']} views of {meta['resolution']}^2 ({side}^2).")
+    for name, x in (("normal.U", nu), ("normal.V", nv), ("depth.Z", d), ("A", a)):
+        _shape(origin, f"atlas {name} (the manifest says {meta['views']} views of {meta['resolution']}^2)", x,
+               (side, side))
+    _finite(origin, atlas=np.stack([nu, nv, d, a]))
+    if abs(np.linalg.det(np.asarray(meta["basis"], np.float64)) - 1) > 1e-3:
+        _bad(origin, "basis not a right-handed orthonormal frame")
     return OctahedralAtlas(int(meta["views"]), bool(meta["hemi"]), np.asarray(meta["basis"], np.float64),
                            np.asarray(meta["centre"], np.float64), float(meta["radius"]), float(meta["capture"]),
                            np.stack([nu, nv], -1), d, a, int(meta["rays"]))
 
 
-OCTAHEDRAL = PartKind("octahedral", ".exr", _pack_octahedral, _unpack_octahedral)
+@dataclass(frozen=True)
+class OctahedralMeta:
+    views: int = setting(REQUIRED, Integer(2, 64), "N: views per side of the map")
+    resolution: int = setting(REQUIRED, Integer(16, 4096), "R: texels per side of every view")
+    hemi: bool = setting(REQUIRED, Boolean(), "the upper hemisphere only")
+    basis: tuple = setting(REQUIRED, Matrix(3, 3), "rows x, y, z of the map's frame")
+    centre: tuple = setting(REQUIRED, Vector(3), "the bounding sphere's centre")
+    radius: float = setting(REQUIRED, Number(0.0, open_lo=True), "the bounding sphere's radius")
+    capture: float = setting(REQUIRED, Number(0.0, open_lo=True), "half side of every view's square")
+    rays: int = setting(REQUIRED, COUNT, "rays the bake traced")
 
-KINDS = {k.name: k for k in (MESH, QUADRICS, MESOSTRUCTURE, VDM, BILLBOARDS, BORDERED, PYRAMID, OCTAHEDRAL)}
+
+OCTAHEDRAL = PartKind("octahedral", ".exr", _pack_octahedral, _unpack_octahedral, OctahedralMeta)
+
+KINDS = {k.name: k for k in (MESH, QUADRICS, VIEWER_MESH, MESOSTRUCTURE, VDM, BILLBOARDS, BORDERED, PYRAMID,
+                             OCTAHEDRAL)}
 
 
 def stored(kind: PartKind, value):

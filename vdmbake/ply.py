@@ -72,6 +72,8 @@ def to_bytes(mesh: TriMesh) -> bytes:
         fields += [("texture_u", "<f4"), ("texture_v", "<f4")]
     if mesh.frame is not None:
         fields += [(n, "<f4") for n in _FRAME_NAMES]
+    if mesh.colors is not None:
+        fields += [(n, "<f4") for n in _COLOR_NAMES]
     v = np.zeros(len(mesh.vertices), fields)
     for k, name in enumerate("xyz"):
         v[name] = mesh.vertices[:, k]
@@ -80,6 +82,9 @@ def to_bytes(mesh: TriMesh) -> bytes:
         v["texture_u"], v["texture_v"] = mesh.uvs[:, 0], mesh.uvs[:, 1]
     if mesh.frame is not None:
         for name, column in zip(_FRAME_NAMES, _frame_columns(mesh.frame)):
+            v[name] = column
+    if mesh.colors is not None:
+        for name, column in zip(_COLOR_NAMES, mesh.colors.T):
             v[name] = column
     f = np.zeros(len(mesh.faces), _FACE)
     f["n"], f["vertex_indices"] = 3, mesh.faces
@@ -97,9 +102,14 @@ def from_bytes(data: bytes, origin: str) -> TriMesh:
         col = {n: v[n].astype(np.float64) for n in _FRAME_NAMES}
         vec = lambda p: np.stack([col[f"{p}_x"], col[f"{p}_y"], col[f"{p}_z"]], 1)  # noqa: E731
         frame = SurfaceFrame(vec("dpdu"), vec("dpdv"), col["k1"], col["k2"], vec("d1"))
+    colors = (np.stack([v[n] for n in _COLOR_NAMES], 1).astype(np.float64)
+              if set(_COLOR_NAMES) <= set(v.dtype.names) else None)
     return TriMesh(np.stack([v["x"], v["y"], v["z"]], 1), f["vertex_indices"].astype(np.int64),
-                   np.stack([v["nx"], v["ny"], v["nz"]], 1).astype(np.float64), uvs, frame)
+                   np.stack([v["nx"], v["ny"], v["nz"]], 1).astype(np.float64), uvs, frame, colors)
 
+
+# The asset's per-vertex albedo (linear RGB in [0, 1], float), only when the asset has colours.
+_COLOR_NAMES = ("red", "green", "blue")
 
 # The surface frame (meshes.SurfaceFrame) as extra vertex properties, for VDM base meshes.
 _FRAME_NAMES = tuple(f"{p}_{a}" for p in ("dpdu", "dpdv") for a in "xyz") + ("k1", "k2", "d1_x", "d1_y", "d1_z")

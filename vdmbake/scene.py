@@ -13,13 +13,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import InputError
+from .safeio import read_regular
 from .heightfields import PATTERNS, SKIMAGE_PHOTOS
 from .molecules import STYLES
 from .primitives import PRIMITIVES
-from .schema import (REQUIRED, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
+from .schema import (REQUIRED, printable, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
                      Vector, dump, read, setting)
 from .techniques import REGISTRY
 
+MAX_SCENE_BYTES = 64 << 20
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
 
 
@@ -141,6 +143,10 @@ class Object:
                                                   "detail geometry over the surface's UVs (mesh or primitive)")
     techniques: dict = setting(REQUIRED, Custom("a table of technique tables (see the techniques below)"),
                                "the techniques to render and compare, each with its settings")
+    viewer_mesh: int | None = setting(None, Integer(0, 4),
+                                      "quadrics objects: also bake them as one triangle mesh for viewers (standard PLY "
+                                      "with vertex colours, part viewer-mesh), tessellated as `tessellated` draws them "
+                                      "at this level")
     expect_empty: bool = setting(False, Boolean(), "the object may cover no pixel in every frame (a camera test); "
                                  "otherwise a variant none of whose frames has a covered pixel is an error (exit 2)")
 
@@ -168,7 +174,7 @@ def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_regular(path, "scene file", limit=MAX_SCENE_BYTES).decode("utf-8")
     except FileNotFoundError:
         raise InputError(f"{path}: scene file not found.") from None
     except (OSError, UnicodeDecodeError) as e:
@@ -226,6 +232,8 @@ def _object(t: Reader, default_material: Material) -> Object:
         t.fail("style", t.data["style"], "a style only for molecule objects")
     style = t.value("style", Choice(*STYLES), STYLES[0]) if molecule is not None else None
     mesh = t.value("mesh", _PATH, None)
+    if (mesh or primitive) and t.has("viewer_mesh"):
+        t.fail("viewer_mesh", t.data["viewer_mesh"], "a viewer mesh only for quadrics objects (molecules, spheres)")
     if t.has("mesostructure") and not (mesh or primitive):
         t.fail("mesostructure", t.data["mesostructure"], "a mesostructure only on mesh or primitive objects")
     meso = t.value("mesostructure", Table(Mesostructure), None)
@@ -245,7 +253,7 @@ def _techniques(t: Reader, name: str, kind: str, has_meso: bool) -> dict:
     out = {}
     for tech in t.data:
         if tech not in REGISTRY:
-            raise InputError(f"{t.origin}: unknown technique '{tech}' in [{t.where}]; "
+            raise InputError(f"{t.origin}: unknown technique '{printable(tech)}' in [{t.where}]; "
                              f"known techniques: {', '.join(REGISTRY)}.")
         spec = REGISTRY[tech]
         if kind not in spec.kinds:

@@ -18,6 +18,11 @@ from .errors import InputError
 REQUIRED = dataclasses.MISSING
 
 
+def printable(text: str) -> str:
+    """A key or name as a one-line message shows it: escapes for newlines and other unprintables."""
+    return text if text.isprintable() else repr(text)[1:-1]
+
+
 def show(value) -> str:
     """A value as an error message shows it: one line, at most about 200 characters."""
     text = repr(value)
@@ -259,6 +264,7 @@ class Reader:
         self.data, self.where, self.origin = data, where, origin
 
     def key(self, key: str) -> str:
+        key = printable(str(key))
         return f"{self.where}.{key}" if self.where else key
 
     def fail(self, key: str, value, allowed: str):
@@ -378,6 +384,9 @@ class Technique:
     bake: Callable | None = None      # bake(job) -> its manifest entry (vdmbake.bake.Job)
     combine: Callable | None = None   # options -> variant values (with .plain(): the report's spelling), where
                                       # more settings than the knob make a variant
+    reads: Callable | None = None     # (its manifest entry, a variant's value, the object) -> {part path: part
+                                      # kind} the variant's renderer reads; with `bake`. The bundle checks these
+                                      # before rendering (vdmbake.manifest); any lookup error is a bad entry
 
     @property
     def knob(self) -> dataclasses.Field | None:

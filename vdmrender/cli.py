@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from vdmbake import __version__
-from vdmbake.errors import InputError, fail
+from vdmbake.errors import InputError, fail, guarded
 from vdmbake.scene import MAX_SIDE, REGISTRY
 
 from . import gl
@@ -78,7 +78,8 @@ def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error
 
     Exit codes: 0 done; 1 done but a threshold was exceeded (--max-error, --max-error-increase,
     --max-slowdown); 2 bad usage or bad input, or a variant with no covered pixel in any frame
-    (unless the object sets expect_empty = true). --debug also makes GL strict: a uniform or
+    (unless the object sets expect_empty = true), also under --debug, which adds the traceback;
+    128 + N stopped by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). --debug also makes GL strict: a uniform or
     vertex attribute a shader does not have is an error instead of being skipped.
 
     \b
@@ -96,10 +97,7 @@ def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error
                    max_error_increase=max_error_increase, max_slowdown=max_slowdown)
     if debug:
         gl.STRICT = True
-    try:
-        result = run(bundle, out, opts, log)
-    except InputError as e:
-        fail(e, debug)
+    result = guarded(lambda: run(bundle, out, opts, log), debug)
     if as_json:
         click.echo(json.dumps(result, indent=1))
     else:

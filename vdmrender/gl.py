@@ -87,8 +87,16 @@ def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = (), may_
         ctx.extra = {}
     key = (vertex, fragment, *defines)
     if key not in ctx.extra:
-        prog = ctx.program(vertex_shader=_with_defines(source(vertex), defines),
-                           fragment_shader=_with_defines(source(fragment), defines))
+        import moderngl
+
+        try:
+            prog = ctx.program(vertex_shader=_with_defines(source(vertex), defines),
+                               fragment_shader=_with_defines(source(fragment), defines))
+        except moderngl.Error as e:
+            variant = f" [{', '.join(defines)}]" if defines else ""
+            raise InputError(f"{vertex} + {fragment}{variant}: the shaders do "
+                             f"not compile on {renderer_name(ctx)} (an overridden GL version, e.g. "
+                             f"MESA_GL_VERSION_OVERRIDE, or a driver lacking GLSL 4.30?). Compiler log:\n{e}") from None
         prog.extra = {"name": f"{vertex} + {fragment}" + (f" [{', '.join(defines)}]" if defines else ""),
                       "may_lack": frozenset(may_lack), "instrumented": "COUNT" in defines}
         ctx.extra[key] = prog

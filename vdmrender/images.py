@@ -30,8 +30,11 @@ def heatmap(dist: np.ndarray, vmax: float) -> np.ndarray:
 
 
 def overview(rows: list[tuple[str, list[np.ndarray]]], path: Path, tile: int = 192) -> None:
-    """A labelled sheet: one row per (label, images), one column per frame, images scaled to `tile`."""
-    margin, cols = 150, max(len(imgs) for _, imgs in rows)
+    """A labelled sheet: one row per (label, images), one column per frame, images scaled to `tile`; the
+    label column as wide as the longest label."""
+    cols = max(len(imgs) for _, imgs in rows)
+    measure = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    margin = max(150, 12 + int(np.ceil(max(measure.textlength(label) for label, _ in rows))))
     sheet = Image.new("RGB", (margin + cols * tile, len(rows) * tile), (24, 24, 28))
     draw = ImageDraw.Draw(sheet)
     for r, (label, imgs) in enumerate(rows):

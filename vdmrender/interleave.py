@@ -14,8 +14,7 @@ from typing import Callable
 import numpy as np
 
 from vdmbake import exr
-from vdmbake.bundle import MANIFEST, Bundle
-from vdmbake.scene import parse_scene_dict
+from vdmbake.bundle import Bundle
 
 from . import gl, images
 from .camera import cameras_for
@@ -25,7 +24,7 @@ from .metrics import compare
 def scene_of(bundle_path: Path):
     """The bundle, its scene, first object, that object's manifest entry and its cameras."""
     bundle = Bundle(Path(bundle_path))
-    scene = parse_scene_dict(bundle.manifest["scene"], str(bundle.path / MANIFEST))
+    scene = bundle.scene
     obj = scene.objects[0]
     entry = bundle.manifest["objects"][obj.name]
     w, h = scene.render.resolution

@@ -38,7 +38,8 @@ class MeshReference:
         hit = hits.prim >= 0
         tri = self.mesh.faces[hits.prim[hit]]
         w = np.stack([1 - hits.u[hit] - hits.v[hit], hits.u[hit], hits.v[hit]], 1)[:, :, None]
-        p = (w * self.mesh.vertices[tri]).sum(1)
+        local = (w * (self.mesh.vertices - self.scene.anchor)[tri]).sum(1)   # about the anchor: keeps the shadow
+        p = local + self.scene.anchor                                          # offset's digits far from the origin
         n = safe_normalize((w * self.mesh.normals[tri]).sum(1))
         dh = d[hit]
         ng = hits.ng[hit]
@@ -46,8 +47,10 @@ class MeshReference:
         n[back], ng[back] = -n[back], -ng[back]
         to_eye = safe_normalize(camera.eye - p)
         L = np.broadcast_to(np.asarray(self.light.direction), p.shape)
-        lit = ~self.scene.occluded(p + ng * self.eps, L)
-        return _frame(camera, hit, shade(self.material.albedo, n, to_eye, lit, self.light, self.material))
+        lit = ~self.scene.occluded(local + ng * self.eps, L, relative=True)
+        # The asset's colours where it has them, interpolated at the hit as the rasteriser interpolates them.
+        albedo = self.material.albedo if self.mesh.colors is None else (w * self.mesh.colors[tri]).sum(1)
+        return _frame(camera, hit, shade(albedo, n, to_eye, lit, self.light, self.material))
 
 
 _BOX = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)

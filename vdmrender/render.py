@@ -13,9 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from vdmbake import __version__, code_fingerprint, exr, imported_closure, parts
-from vdmbake.bundle import MANIFEST, Bundle
+from vdmbake.bundle import Bundle
 from vdmbake.errors import InputError
-from vdmbake.scene import parse_scene_dict
 from vdmbake.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
@@ -27,6 +26,27 @@ from .techniques import Source, mesostructure, variants
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
 # (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
 BYTES_PER_PIXEL = 800
+# Peak memory of an object's geometry (the reference's Embree scene and the uploaded buffers; llvmpipe
+# keeps them in RAM), with about 4x headroom: peak RSS over 80k -> 200k inline spheres (impostor, 48^2)
+# grew 2.15 kB per sphere, over 200k -> 800k mesh faces (mesh, 48^2) 150 bytes per face.
+BYTES_PER_QUADRIC = 8192
+BYTES_PER_FACE = 600
+
+
+def geometry_bytes(bundle) -> tuple[int, str]:
+    """The largest object's geometry memory (every mesh part of the object counted, the quadrics) and a
+    description of it, from the manifest alone."""
+    worst, what = 0, ""
+    for name, entry in bundle.manifest["objects"].items():
+        prefix = f"objects/{name}/"
+        meshes = [m for rel, m in bundle.manifest["parts"].items() if rel.startswith(prefix) and m["kind"] == "mesh"]
+        faces = sum(m["faces"] for m in meshes)
+        q = bundle.manifest["parts"][entry["quadrics"]] if entry.get("quadrics") else {"spheres": 0, "cylinders": 0}
+        quadrics = q["spheres"] + q["cylinders"]
+        need = faces * BYTES_PER_FACE + quadrics * BYTES_PER_QUADRIC
+        if need > worst:
+            worst, what = need, f"object {name!r}: {faces} mesh faces and {quadrics} spheres and cylinders"
+    return worst, what
 
 
 @dataclass
@@ -43,15 +63,17 @@ class Options:
     max_slowdown: float | None = None
 
 
-def check_memory(width: int, height: int, available: int | None = None) -> None:
-    """Refuse resolutions whose reference would not fit in memory, before any work starts."""
+def check_memory(width: int, height: int, available: int | None = None, geometry: tuple[int, str] = (0, "")) -> None:
+    """Refuse resolutions and geometry (bytes, what) whose reference and buffers would not fit in memory,
+    before any work starts."""
     if available is None:
         available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     need = width * height * BYTES_PER_PIXEL
-    if need > 0.8 * available:
-        raise InputError(f"resolution {width}x{height} needs about {need / 2**30:.1f} GiB for the reference, "
-                         f"more than 80% of the {available / 2**30:.1f} GiB available; lower render.resolution "
-                         "or --resolution.")
+    if need + geometry[0] > 0.8 * available:
+        raise InputError(f"resolution {width}x{height} ({need / 2**30:.1f} GiB for the reference)"
+                         + (f" and the geometry of {geometry[1]} (about {geometry[0] / 2**30:.1f} GiB)" if geometry[0] else "")
+                         + f" need more than 80% of the {available / 2**30:.1f} GiB available; lower render.resolution "
+                         "or --resolution, or bake fewer or simpler objects.")
 
 
 def reference_code(mesostructure: bool) -> str:
@@ -149,13 +171,13 @@ def _technique_filter(opts: Options, scene) -> set | None:
 
 def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) -> dict:
     bundle = Bundle(bundle_path)
-    scene = parse_scene_dict(bundle.manifest["scene"], str(bundle.path / MANIFEST))
+    scene = bundle.scene
     width, height = opts.resolution or scene.render.resolution
     repeats = opts.repeats or scene.render.repeats
     warmup = scene.render.warmup if opts.warmup is None else opts.warmup
     only = _technique_filter(opts, scene)
     old = baseline.load(opts.baseline) if opts.baseline else None
-    check_memory(width, height)
+    check_memory(width, height, geometry=geometry_bytes(bundle))
     ctx = gl.create_context(opts.device)
     device = gl.renderer_name(ctx)
     out = StagedDir(out_path, "report.json", "vdmrender output folder")

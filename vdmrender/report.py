@@ -39,25 +39,42 @@ def write(folder: Path, report: dict) -> None:
     plot(folder / "error_vs_time.png", report)
 
 
-def plot(path: Path, report: dict) -> None:
-    """Mean delta-Luv against median ms per frame; a technique's knob values joined by a line."""
+PANEL_COLUMNS = 3   # panels per row of error_vs_time.png: any number of objects stays readable
+
+
+def figure(report: dict):
+    """Mean delta-Luv against median ms per frame, one panel per object in a grid of up to PANEL_COLUMNS
+    columns; a technique's knob values joined by a line, each point labelled on the side facing the
+    panel's middle so that no label runs off the figure."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
 
     rows = report["rows"]
     objects = list(dict.fromkeys(r["object"] for r in rows))
-    fig, axes = plt.subplots(1, len(objects), figsize=(6.4 * len(objects), 4.8), squeeze=False)
-    for ax, obj in zip(axes[0], objects):
+    ncols = min(PANEL_COLUMNS, len(objects))
+    nrows = -(-len(objects) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(5.6 * ncols, 4.4 * nrows), squeeze=False)
+    for ax in axes.ravel()[len(objects):]:
+        ax.remove()
+    for ax, obj in zip(axes.ravel(), objects):
         mine = [r for r in rows if r["object"] == obj]
+        points = []
         for tech in dict.fromkeys(r["technique"] for r in mine):
             pts = [r for r in mine if r["technique"] == tech and r["mean_dluv"] is not None]   # in knob order
             ax.plot([r["median_ms"] for r in pts], [r["mean_dluv"] for r in pts], "o-", label=tech)
-            for r in pts:
-                ax.annotate(r["label"], (r["median_ms"], r["mean_dluv"]), textcoords="offset points",
-                            xytext=(4, 4), fontsize=7)
+            points += pts
         ax.set_xscale("log")
+        ax.margins(x=0.12, y=0.12)
+        if points:
+            logs = np.log([r["median_ms"] for r in points])
+            middle = 0.5 * (logs.min() + logs.max())
+            for r, x in zip(points, logs):
+                right = x <= middle
+                ax.annotate(r["label"], (r["median_ms"], r["mean_dluv"]), textcoords="offset points",
+                            xytext=(5 if right else -5, 4), ha="left" if right else "right", fontsize=7)
         ax.set_xlabel("median wall time per frame [ms] (log)")
         ax.set_ylabel("mean ΔL*u*v* against the reference (eq. 2.2)")
         ax.set_title(f"{obj}  {report['resolution'][0]}x{report['resolution'][1]}", fontsize=10)
@@ -65,5 +82,12 @@ def plot(path: Path, report: dict) -> None:
         ax.legend(fontsize=8)
     fig.suptitle(f"error against time on {report['device']}", fontsize=9)
     fig.tight_layout()
+    return fig
+
+
+def plot(path: Path, report: dict) -> None:
+    import matplotlib.pyplot as plt
+
+    fig = figure(report)
     fig.savefig(path, dpi=110)
     plt.close(fig)

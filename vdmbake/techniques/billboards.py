@@ -79,6 +79,14 @@ def bake(job) -> dict:
     return out
 
 
+def reads(entry: dict, variant: Variant, obj) -> dict:
+    p = entry[variant.projection]
+    out = {p["maps"]: parts.BILLBOARDS, p["bordered"]: parts.BORDERED}
+    if variant.coarse or variant.method == "hier":
+        out[entry["coarse"]] = parts.MESH
+    return out
+
+
 TECHNIQUE = Technique("billboards", "enhanced billboards: per pixel a march (or, hier, an exact hierarchical "
                       "trace) through each billboard's depth map, exact depth, optional coarse-mesh hole filling",
-                      ("surface",), Options, bake=bake)
+                      ("surface",), Options, bake=bake, reads=reads)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .. import coarse, parts
+from ..errors import InputError
 from ..schema import ListOf, Number, Technique, setting
 
 
@@ -18,10 +19,17 @@ def bake(job) -> dict:
     meshes = []
     for ratio in job.options.ratios:
         c = coarse.simplify(job.mesh, ratio)
+        if not len(c.faces):
+            raise InputError(f"object {job.obj.name!r}: techniques.coarse.ratios value {ratio:g} leaves no face of "
+                             f"the {len(job.mesh.faces)}; choose a larger ratio.")
         meshes.append({"ratio": ratio, "mesh": job.write(f"coarse-{ratio:g}", parts.MESH, c)})
         job.log(f"coarse {ratio:g} -> {len(c.faces)} faces")
     return {"meshes": meshes}
 
 
+def reads(entry: dict, ratio: float, obj) -> dict:
+    return {next(m["mesh"] for m in entry["meshes"] if m["ratio"] == ratio): parts.MESH}
+
+
 TECHNIQUE = Technique("coarse", "the mesh simplified by fast-simplification (quadric collapses)", ("surface",),
-                      Options, bake=bake)
+                      Options, bake=bake, reads=reads)

@@ -25,5 +25,9 @@ def bake(job) -> dict:
     return {"meshes": meshes}
 
 
+def reads(entry: dict, level: int, obj) -> dict:
+    return {next(m["mesh"] for m in entry["meshes"] if m["level"] == level): parts.MESH}
+
+
 TECHNIQUE = Technique("displaced", "conventional displacement mapping: the base mesh subdivided and displaced, "
-                      "rasterised", ("surface",), Options, mesostructure=True, bake=bake)
+                      "rasterised", ("surface",), Options, mesostructure=True, bake=bake, reads=reads)

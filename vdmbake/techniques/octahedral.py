@@ -71,4 +71,5 @@ def bake(job) -> dict:
 
 TECHNIQUE = Technique("octahedral", "octahedral impostors: one quad over the bounding sphere, per pixel the three "
                       "nearest of N x N baked views searched along the ray and blended, exact depth",
-                      ("surface",), Options, bake=bake)
+                      ("surface",), Options, bake=bake,
+                      reads=lambda entry, variant, obj: {entry[variant.atlas]: parts.OCTAHEDRAL})

@@ -33,4 +33,5 @@ def bake(job) -> dict:
 
 TECHNIQUE = Technique("relief", "relief mapping by an exact hierarchical tracer: the view and shadow rays through "
                       "the height field's min/max pyramid to the exact bilinear hit, bent by the surface's "
-                      "curvature", ("surface",), Options, mesostructure=True, bake=bake)
+                      "curvature", ("surface",), Options, mesostructure=True, bake=bake,
+                      reads=lambda entry, iterations, obj: {entry["pyramid"]: parts.PYRAMID})

@@ -6,10 +6,13 @@ vdmbake/vdm.py holds the kernels. Each variant is a k and a refine setting: refi
 per-pixel algorithm, R > 0 finishes the view ray's hit and the self-shadow on the height field."""
 from __future__ import annotations
 
+import math
+import os
 import time
 from dataclasses import dataclass
 
 from .. import parts, texspace, vdm, vdm_storage
+from ..errors import InputError
 from ..schema import Choice, Either, Integer, ListOf, Technique, setting
 
 
@@ -41,8 +44,26 @@ def variants(options: Options) -> list[Variant]:
     return [Variant(k, r) for r in options.refine for k in options.k]
 
 
+# Peak bake memory per byte of the float32 VDM table (size^2 x phi x theta x curvatures), with about 2x
+# headroom: peak RSS grew 3.5 bytes per table byte from size 64 to 128 (phi 16, theta 8, 8 curvatures).
+BAKE_BYTES_PER_TABLE_BYTE = 8
+
+
+def check_memory(m, origin: str, available: int | None = None) -> None:
+    """Refuse, before the bake starts, VDM tables whose bake would not fit in memory."""
+    if available is None:
+        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    table = m.size ** 2 * m.phi * m.theta * m.curvatures * 4
+    if table * BAKE_BYTES_PER_TABLE_BYTE > 0.8 * available:
+        raise InputError(f"{origin}: the VDM table of mesostructure size {m.size}, phi {m.phi}, theta {m.theta}, "
+                         f"curvatures {m.curvatures} ({table / 2**30:.1f} GiB) needs about "
+                         f"{table * BAKE_BYTES_PER_TABLE_BYTE / 2**30:.1f} GiB to bake, more than 80% of the "
+                         f"{available / 2**30:.1f} GiB available; lower mesostructure.size, phi, theta or curvatures.")
+
+
 def bake(job) -> dict:
     m, mesh = job.obj.mesostructure, job.mesh
+    check_memory(m, f"object {job.obj.name!r}")
     lo, hi = texspace.curvature_range(mesh.frame, mesh.normals, m.tiling)
     sampling = vdm.Sampling(m.size, m.phi, m.theta, vdm.curvature_samples(lo, hi, m.curvatures))
     t0 = time.perf_counter()
@@ -74,7 +95,18 @@ def bake(job) -> dict:
     return entry
 
 
+def reads(entry: dict, variant: Variant, obj) -> dict:
+    """The tables; k, and the curvature samples (increasing finite numbers) the renderer's axis is made of."""
+    k, cs = entry["k"], entry["curvatures"]
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1 or not cs or not all(
+            isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in cs) or any(
+            b <= a for a, b in zip(cs, cs[1:])):
+        raise ValueError("k or curvatures")
+    return {entry["tables"]: parts.VDM}
+
+
 TECHNIQUE = Technique("vdm", "view-dependent displacement mapping, the paper's four steps per pixel over the base "
                       "mesh: silhouette from the MVM, real texture coordinate, self-shadow by a second lookup, "
                       "shading; d and theta_MVM rebuilt from the SVD; refined on the height field as an option",
-                      ("surface",), Options, mesostructure=True, bake=bake, combine=variants)
+                      ("surface",), Options, mesostructure=True, bake=bake, combine=variants,
+                      reads=reads)

@@ -45,7 +45,7 @@ from vdmbake import parts
 from vdmbake.errors import InputError
 
 from .. import gl
-from .raster import RasterPasses
+from .raster import Passes, RasterPasses
 from .shadowmap import ShadowMap, translation
 
 METHODS = ("thesis", "improved")
@@ -72,6 +72,20 @@ def surface_points(b) -> np.ndarray:
     return np.asarray(b.origin, np.float64) + (s * np.asarray(b.size, np.float64)) @ np.asarray(b.axes, np.float64)
 
 
+def coarse_draws(ctx, mesh, anchor) -> tuple[dict, list]:
+    """The coarse mesh (sec. 3.4) uploaded once, anchor-relative, and drawn by mesh.vert two ways:
+    {"depth": (program, vao) writing depth only (depth.frag), "shaded": (program, vao) (mesh.frag)};
+    and the buffers to release."""
+    vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
+                     ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
+    draws = {}
+    for kind, frag, attrs in (("depth", "depth.frag", [(vbo, "3f", "in_pos")]),
+                              ("shaded", "mesh.frag", [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")])):
+        prog = gl.program(ctx, "mesh.vert", frag)
+        draws[kind] = (prog, gl.vertex_array(ctx, prog, attrs, ibo))
+    return draws, [vbo, nbo, ibo]
+
+
 def infinite_far(projection: np.ndarray) -> np.ndarray:
     """A perspective projection with its far plane at infinity: same x, y, w and near plane."""
     p = projection.copy()
@@ -80,7 +94,7 @@ def infinite_far(projection: np.ndarray) -> np.ndarray:
     return p
 
 
-class Billboards:
+class Billboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, method: str = "improved",
                  hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0,
                  count: bool = False):
@@ -148,14 +162,10 @@ class Billboards:
                 vao = gl.vertex_array(ctx, prog, [(cube, "3f", "in_corner"),
                                                   (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
                 self.draws.append((stage, prog, vao, "boards"))
-        if coarse is not None:   # sec. 3.4: the coarse mesh, drawn like RasterMesh
-            vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
-                             ((coarse.vertices - self.anchor, "f4"), (coarse.normals, "f4"), (coarse.faces, "i4")))
-            self.objects += [vbo, nbo, ibo]
-            for stage, frag, attrs in (("shadow", "depth.frag", [(vbo, "3f", "in_pos")]),
-                                       ("frame", "mesh.frag", [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")])):
-                prog = gl.program(ctx, "mesh.vert", frag)
-                self.draws.append((stage, prog, gl.vertex_array(ctx, prog, attrs, ibo), "mesh"))
+        if coarse is not None:   # sec. 3.4: the coarse mesh, in both passes
+            draws, buffers = coarse_draws(ctx, coarse, self.anchor)
+            self.objects += buffers
+            self.draws += [("shadow", *draws["depth"], "mesh"), ("frame", *draws["shaded"], "mesh")]
 
     def _draw(self, stage: str, view_proj, raster, viewport, push, **uniforms) -> None:
         """One pass. raster: the billboards' box matrix (wider depth range than view_proj); push: the coarse
@@ -218,10 +228,6 @@ class Billboards:
                 self.ctx.blend_func = moderngl.DEFAULT_BLENDING
                 self.ctx.enable(moderngl.DEPTH_TEST)
         return [("shadow", shadow), ("frame", frame)]
-
-    def render(self, camera, target) -> None:
-        for _, run in self.passes(camera, target):
-            run()
 
     def release(self) -> None:
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.objects, self.shadow)

@@ -31,8 +31,8 @@ from vdmbake import pyramid
 from vdmbake.errors import InputError
 
 from .. import gl
-from .billboards import _CORNERS, _CUBE, BOARD_TEXELS, COARSE_BEHIND, NORMAL_OFFSET_TEXELS, infinite_far
-from .raster import RasterPasses
+from .billboards import _CORNERS, _CUBE, BOARD_TEXELS, COARSE_BEHIND, NORMAL_OFFSET_TEXELS, coarse_draws, infinite_far
+from .raster import Passes, RasterPasses
 from .shadowmap import ShadowMap, translation
 
 OCCUPANCY_LEVEL = 4   # pass 3 draws the boxes of the non-empty pyramid cells of this level (16^2 texels)
@@ -40,16 +40,7 @@ MAX_TEXTURE = 16384   # pass 3's tiles share one texture of at most this side
 LEVELS = 16           # pyramid levels the shader's origin table holds (maps up to 32768 texels)
 
 
-def _mesh_draw(ctx, mesh, anchor, frag: str, normals: bool):
-    """A TriMesh drawn by mesh.vert with `frag` (mesh.frag shades it, depth.frag writes depth only)."""
-    arrays = [(mesh.vertices - anchor, "f4")] + ([(mesh.normals, "f4")] if normals else []) + [(mesh.faces, "i4")]
-    buffers = [ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in arrays]
-    prog = gl.program(ctx, "mesh.vert", frag)
-    attrs = [(buffers[0], "3f", "in_pos")] + ([(buffers[1], "3f", "in_normal")] if normals else [])
-    return prog, gl.vertex_array(ctx, prog, attrs, buffers[-1]), buffers
-
-
-class HierBillboards:
+class HierBillboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, coarse=None, bounds=None,
                  shadow_mesh=None, count: bool = False):
         """boards: vdmbake.parts.Billboard (their boxes: origin, axes, size); bordered: their
@@ -73,16 +64,16 @@ class HierBillboards:
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, self.radius)
         self.objects, self.count, self.draws = [], len(boards), {}
         self.depth = self.occupancy = None        # pass 2's and pass 3's targets, made at the first frame's size
+        uploaded = {}                             # a mesh filling holes and casting shadows is uploaded once
+        for mesh in (coarse, shadow_mesh):
+            if mesh is not None and id(mesh) not in uploaded:
+                uploaded[id(mesh)], buffers = coarse_draws(ctx, mesh, self.anchor)
+                self.objects += buffers
         if coarse is not None:
-            prog, vao, bufs = _mesh_draw(ctx, coarse, self.anchor, "depth.frag", False)
-            self.draws["coarse depth"] = (prog, vao)
-            prog, vao, bufs2 = _mesh_draw(ctx, coarse, self.anchor, "mesh.frag", True)
-            self.draws["coarse"] = (prog, vao)
-            self.objects += bufs + bufs2
+            self.draws["coarse depth"] = uploaded[id(coarse)]["depth"]
+            self.draws["coarse"] = uploaded[id(coarse)]["shaded"]
         if shadow_mesh is not None:
-            prog, vao, bufs = _mesh_draw(ctx, shadow_mesh, self.anchor, "depth.frag", False)
-            self.draws["shadow mesh"] = (prog, vao)
-            self.objects += bufs
+            self.draws["shadow mesh"] = uploaded[id(shadow_mesh)]["depth"]
         if not boards:
             return
         res = bordered[0].maps.shape[0] - 2
@@ -158,10 +149,6 @@ class HierBillboards:
         if "coarse" in self.draws and not self.counting:
             out.append(("coarse", lambda: self._coarse(view_proj @ push, eye)))
         return out
-
-    def render(self, camera, target) -> None:
-        for _, run in self.passes(camera, target):
-            run()
 
     def _shadow(self) -> None:
         ctx = self.ctx
@@ -286,13 +273,6 @@ class HierBillboards:
         return (int(lo[0]), int(lo[1]), int(max(hi[0] - lo[0], 0)), int(max(hi[1] - lo[1], 0)))
 
     def release(self) -> None:
-        for _, vao in self.draws.values():
-            vao.release()
-        for fbo, tex in ((getattr(self, "depth_fbo", None), self.depth), (getattr(self, "occ_fbo", None), self.occupancy)):
-            if tex is not None:
-                fbo.release()
-                tex.release()
-        if self.count:
-            self.occ_vao.release()
-        for o in (*self.objects, self.shadow):
-            o.release()
+        vaos = {id(vao): vao for _, vao in self.draws.values()}        # shared draws released once
+        gl.release(*vaos.values(), getattr(self, "depth_fbo", None), self.depth, getattr(self, "occ_fbo", None),
+                   self.occupancy, getattr(self, "occ_vao", None), *self.objects, self.shadow)

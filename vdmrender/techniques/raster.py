@@ -9,7 +9,19 @@ from .. import gl
 from .shadowmap import ShadowMap, translation
 
 
-class RasterPasses:
+class Passes:
+    """A renderer whose frame is a list of passes (`passes`: (name, callable) in order): render runs
+    them; a profile times each (bench_billboards)."""
+
+    def passes(self, camera, target) -> list:
+        raise NotImplementedError
+
+    def render(self, camera, target) -> None:
+        for _, run in self.passes(camera, target):
+            run()
+
+
+class RasterPasses(Passes):
     """Triangle meshes drawn in two passes per frame: the shadow map (depth.frag, with polygon
     offset), then the shaded frame (mesh.frag, or a subclass's fragment stage, whose extra
     uniforms and textures `bind_frame` sets). Subclasses fill `draws` through `add`."""
@@ -70,16 +82,13 @@ class RasterPasses:
             ctx.disable(moderngl.CULL_FACE)
         return [("shadow", shadow), ("frame", frame)]
 
-    def render(self, camera, target) -> None:
-        for _, run in self.passes(camera, target):
-            run()
-
     def release(self) -> None:
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.buffers, self.shadow)
 
 
 class RasterMesh(RasterPasses):
-    """One triangle mesh with per-vertex normals and the material's albedo."""
+    """One triangle mesh with per-vertex normals and the material's albedo, or the mesh's own colours
+    per vertex where it has them."""
 
     def __init__(self, ctx, mesh, light, material, shadow_size: int):
         anchor, radius = mesh.bounding_sphere()
@@ -87,6 +96,10 @@ class RasterMesh(RasterPasses):
         self.faces = len(mesh.faces)
         vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
                          ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
-        self.add("mesh.vert", (), [vbo, nbo, ibo], [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")],
-                 [(vbo, "3f", "in_pos")], ibo)
+        buffers, attributes, defines = [vbo, nbo, ibo], [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")], ()
+        if mesh.colors is not None:
+            cbo = ctx.buffer(np.ascontiguousarray(mesh.colors, dtype="f4").tobytes())
+            buffers, attributes, defines = buffers + [cbo], attributes + [(cbo, "3f", "in_color")], ("VERTEX_COLOR",)
+            self.UNIFORM_ALBEDO = False
+        self.add("mesh.vert", defines, buffers, attributes, [(vbo, "3f", "in_pos")], ibo)
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from vdmbake import parts
+from vdmbake.errors import InputError
 
 from .mesostructure import MesostructurePass, texture
 
@@ -45,6 +46,11 @@ class VDMPass(MesostructurePass):
                  defines: tuple = ()):
         m, part = src.obj.mesostructure, src.part
         t = src.bundle.read(part["tables"], parts.VDM)
+        n_c = len(part["curvatures"])
+        if (t.W.shape[:3], t.W.shape[3], t.E_vdm.shape[1:]) != ((m.phi, m.size, m.size), part["k"], (n_c, m.theta)):
+            raise InputError(f"{src.bundle.path / part['tables']}: VDM tables of shapes W {t.W.shape}, E_vdm "
+                             f"{t.E_vdm.shape} do not fit the scene's mesostructure (phi {m.phi}, size {m.size}, "
+                             f"theta {m.theta}), k {part['k']} and {n_c} curvatures; re-bake with vdmbake --force.")
         k = part["k"] if k == "all" else min(k, part["k"])
         W, E_vdm, E_mvm, scale, offset = t.W, t.E_vdm, t.E_mvm, t.scale, t.offset
         if original or as_float:
