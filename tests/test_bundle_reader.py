@@ -101,7 +101,7 @@ curvatures = {FLAT_MESO['curvatures']}
 vdm = {{ k = [4] }}
 """
 
-BALL = dict(radius=0.8, centre=(0.5, -1.0, 2.0), segments=24, rings=12, resolution=16)
+BALL = dict(radius=0.8, centre=(0.5, -1.0, 2.0), segments=24, rings=12, resolution=16, views=5, view_resolution=24)
 SPHERES = [[0, 0, 0, 1.0], [2, 0, 0, 0.5], [5, 5, 5, 0.0]]  # the last has no volume
 CYLINDERS = [[0, 0, 0, 2, 0, 0, 0.2], [0, 0, 0, 0, 0, 1.5, 0.1],
              [1, 1, 1, 1, 1, 1, 0.3], [1, 1, 1, 2, 2, 2, 0.0]]  # the last two have no volume
@@ -113,7 +113,7 @@ name = "ball"
 primitive = "sphere"
 params = {{ radius = {BALL['radius']}, segments = {BALL['segments']}, rings = {BALL['rings']} }}
 transform = {{ translate = [{BALL['centre'][0]}, {BALL['centre'][1]}, {BALL['centre'][2]}] }}
-techniques = {{ mesh = {{}}, billboards = {{ variants = ["greedy-improved+coarse", "greedy-hier", "axis-hit0.01"], resolution = {BALL['resolution']}, coarse_ratio = 0.25 }} }}
+techniques = {{ mesh = {{}}, billboards = {{ variants = ["greedy-improved+coarse", "greedy-hier", "axis-hit0.01"], resolution = {BALL['resolution']}, coarse_ratio = 0.25 }}, octahedral = {{ variants = ["full-{BALL['views']}x{BALL['view_resolution']}-march", "full-{BALL['views']}x{BALL['view_resolution']}-virtual"] }} }}
 
 [[objects]]
 name = "atoms"
@@ -347,6 +347,15 @@ class SpecReader:
             })
         return out
 
+    def octahedral(self, rel: str) -> dict:
+        x = self.exr(rel, "octahedral")
+        if sorted(x) != ["atlas"]:
+            raise BundleError(f"{rel}: EXR parts {sorted(x)}, want ['atlas']")
+        ch, meta = x["atlas"].channels, self.manifest["parts"][rel]
+        return {"A": ch["A"], "depth": ch["depth.Z"], "code": np.stack([ch["normal.U"], ch["normal.V"]], -1),
+                **{k: meta[k] for k in ("views", "resolution", "hemi", "radius", "capture", "rays")},
+                "basis": np.array(meta["basis"], float), "centre": np.array(meta["centre"], float)}
+
 
 def _read_list_element(data, offset, count, props):
     """An element with list properties. The spec promises three indices per face, so the common case
@@ -448,7 +457,7 @@ def test_manifest_lists_every_part_with_checksum(meso, shapes):
         assert set(m["parts"]) <= on_disk
         for rel, entry in m["parts"].items():
             assert not rel.startswith("/") and ".." not in rel.split("/") and "\\" not in rel
-            assert entry["kind"] in {"mesh", "quadrics", "mesostructure", "vdm", "billboards", "bordered-billboards"}
+            assert entry["kind"] in {"mesh", "quadrics", "mesostructure", "vdm", "billboards", "bordered-billboards", "octahedral"}
             r.part_bytes(rel, entry["kind"])  # checksum and size
         assert m["stats"]["objects"] == len(m["objects"])
         assert m["stats"]["parts"] == len(m["parts"])
@@ -654,7 +663,8 @@ def test_transform_scale_then_xyz_rotations_then_translation(meso):
 
 def test_coarse_meshes(meso):
     """One mesh per ratio in the scene's order, about ratio x the full mesh's faces, no UVs, normals
-    equal to area-weighted vertex normals recomputed from the coarse mesh itself, close to the torus."""
+    equal to the area-weighted normals of the faces around each corner's position within 60 degrees of
+    the corner's face, recomputed from the coarse mesh itself; close to the torus."""
     obj = meso.manifest["objects"]["torus"]
     full_faces = meso.manifest["parts"][obj["mesh"]]["faces"]
     entries = obj["techniques"]["coarse"]["meshes"]
@@ -664,11 +674,19 @@ def test_coarse_meshes(meso):
         assert "uvs" not in mesh and "dpdu" not in mesh
         assert abs(len(mesh["faces"]) - e["ratio"] * full_faces) <= max(2, 0.05 * e["ratio"] * full_faces)
         v, f = mesh["vertices"], mesh["faces"]
-        acc = np.zeros_like(v)
         face_n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])   # |.| = 2 x area
-        for k in range(3):
-            np.add.at(acc, f[:, k], face_n)
-        assert np.abs(unit_rows(acc) - mesh["normals"]).max() < 1e-4
+        unit_f = unit_rows(face_n)
+        _, point = np.unique(v, axis=0, return_inverse=True)
+        point = point.ravel()
+        around = {}
+        for face, corners in enumerate(f):
+            for c in corners:
+                around.setdefault(point[c], []).append(face)
+        for face, corners in enumerate(f):
+            for c in corners:
+                group = [g for g in around[point[c]] if unit_f[g] @ unit_f[face] >= math.cos(math.radians(60)) - 1e-9]
+                want = unit_rows(face_n[group].sum(0)[None])[0]
+                assert np.abs(want - mesh["normals"][c]).max() < 1e-4, (face, c)
         rho = np.hypot(v[:, 0], v[:, 1])
         dev = np.abs(np.hypot(rho - TORUS["major"], v[:, 2]) - TORUS["minor"])
         assert dev.max() < 0.1 * TORUS["minor"] * 2
@@ -779,7 +797,7 @@ def test_exr_files_layout(meso, shapes):
     of the part sizes; arrays are [row, column] of the dataWindow's size."""
     want_parts = {
         "mesostructure": {"height": ["h"], "normal": ["normal.X", "normal.Y", "normal.Z"]},
-        "vdm": None, "billboards": None,
+        "vdm": None, "billboards": None, "octahedral": {"atlas": ["A", "depth.Z", "normal.U", "normal.V"]},
     }
     seen = set()
     for r in (meso, shapes):
@@ -788,8 +806,8 @@ def test_exr_files_layout(meso, shapes):
                 continue
             seen.add(entry["kind"])
             x = r.exr(rel)
-            if entry["kind"] == "mesostructure":
-                assert {k: sorted(p.channels) for k, p in x.items()} == want_parts["mesostructure"]
+            if entry["kind"] in ("mesostructure", "octahedral"):
+                assert {k: sorted(p.channels) for k, p in x.items()} == want_parts[entry["kind"]]
             elif entry["kind"] == "vdm":
                 assert sorted(x) == ["E_mvm", "E_vdm", "W"] + (["W_dequant"] if entry["storage"] == "uint8" else [])
                 assert sorted(x["W"].channels) == [f"W.{i:03d}" for i in range(entry["k"])]
@@ -824,7 +842,7 @@ def test_exr_files_layout(meso, shapes):
             for p in x.values():
                 lo, size = _window_size(p.header["displayWindow"])
                 assert (lo == 0).all() and (size == union).all(), rel
-    assert seen == {"mesostructure", "vdm", "billboards", "bordered-billboards"}
+    assert seen == {"mesostructure", "vdm", "billboards", "bordered-billboards", "octahedral"}
 
 
 def test_mesostructure_maps(meso):
@@ -1033,6 +1051,71 @@ def test_billboards_reproject_onto_the_sphere(shapes):
     assert 0.5 * 0.25 * full_faces < len(coarse["faces"]) < 1.5 * 0.25 * full_faces
 
 
+# --------------------------------------------------------------------------------------------------
+# Octahedral impostors
+# --------------------------------------------------------------------------------------------------
+
+
+def oct_decode(g, hemi):
+    """The spec's octahedral map, inverted: map points (..., 2) -> unit directions (..., 3)."""
+    g = np.asarray(g, float)
+    if hemi:
+        g = np.stack([(g[..., 0] + g[..., 1]) / 2, (g[..., 0] - g[..., 1]) / 2], -1)
+    z = 1 - np.abs(g).sum(-1)
+    s = np.where(g >= 0, 1.0, -1.0)
+    xy = np.where(z[..., None] < 0, (1 - np.abs(g[..., ::-1])) * s, g)
+    return unit_rows(np.concatenate([xy, z[..., None]], -1))
+
+
+def test_octahedral_atlas_reprojects_onto_the_sphere(shapes):
+    """One atlas for the two methods; with the spec's lattice, frames and texel formula every covered
+    texel lies on the ball and its decoded normal is the ball's; uncovered texels far from covered ones
+    have depth 1 and code 0, those near them are extrapolated; the
+    views' directions, each at the map point of its tile, cover the sphere (full layout)."""
+    obj = shapes.manifest["objects"]["ball"]
+    entry = obj["techniques"]["octahedral"]
+    n, res = BALL["views"], BALL["view_resolution"]
+    assert list(entry) == [f"full-{n}x{res}"]
+    a = shapes.octahedral(entry[f"full-{n}x{res}"])
+    assert (a["views"], a["resolution"], a["hemi"]) == (n, res, False)
+    assert a["A"].shape == (n * res, n * res) and set(np.unique(a["A"])) == {0.0, 1.0}
+    near = np.zeros(a["A"].shape, bool)    # within 2 texels of a covered one: extrapolated
+    for di in range(-2, 3):
+        for dj in range(-2, 3):
+            near |= np.roll(np.roll(a["A"] == 1, di, 0), dj, 1)
+    assert (a["depth"][~near] == 1).all() and (a["code"][~near] == 0).all() and (a["depth"][near] < 1).all()
+    assert a["depth"].min() >= 0 and np.abs(a["code"]).max() <= 1 and a["rays"] >= n * n * res * res
+    centre, cap, basis = a["centre"], a["capture"], a["basis"]
+    np.testing.assert_allclose(centre, BALL["centre"], atol=1e-9)
+    assert np.allclose(basis @ basis.T, np.eye(3))
+    dirs = []
+    for j in range(n):
+        for i in range(n):
+            g = np.array([-1 + 2 * i / (n - 1), -1 + 2 * j / (n - 1)])
+            e = oct_decode(g, False)
+            sg = 1.0 if abs(2 * i - n + 1) + abs(2 * j - n + 1) <= n - 1 else -1.0
+            q = -1 / (sg + e[2])
+            b = e[0] * e[1] * q
+            u = np.array([1 + sg * e[0] ** 2 * q, sg * b, -sg * e[0]])
+            v = np.array([b, sg + e[1] ** 2 * q, -e[1]])
+            e, u, v = e @ basis, u @ basis, v @ basis
+            assert np.allclose(np.cross(u, v), e)
+            dirs.append(e)
+            tile = np.s_[j * res:(j + 1) * res, i * res:(i + 1) * res]
+            cov, depth, code = a["A"][tile] == 1, a["depth"][tile].astype(float), a["code"][tile].astype(float)
+            assert cov.any()
+            rb, ra = np.nonzero(cov)
+            p = (centre + cap * e + (((ra + 0.5) / res * 2 - 1) * cap)[:, None] * u
+                 + (((rb + 0.5) / res * 2 - 1) * cap)[:, None] * v - (depth[rb, ra] * 2 * cap)[:, None] * e)
+            off = np.abs(np.linalg.norm(p - centre, axis=1) - BALL["radius"])
+            assert off.max() < 0.02, (i, j, off.max())
+            local = oct_decode(code[rb, ra], False)
+            nrm = local[:, :1] * u + local[:, 1:2] * v + local[:, 2:] * e
+            assert np.abs(nrm - unit_rows(p - centre)).max() < 0.1
+    dirs = np.array(dirs)
+    assert (dirs @ dirs.T).min() < -0.99 and np.abs(dirs).max(0).min() > 0.99   # opposite views, every axis
+
+
 def test_sphere_mesh_in_its_bounding_sphere(shapes):
     obj = shapes.manifest["objects"]["ball"]
     mesh = _check_mesh_basics(shapes, obj["mesh"])
@@ -1087,6 +1170,13 @@ def test_reader_agrees_with_project_unpacking(meso, shapes):
         np.testing.assert_allclose(a["axes"], b.axes)
         np.testing.assert_allclose(a["size"], b.size)
 
+    rel = next(iter(shapes.manifest["objects"]["ball"]["techniques"]["octahedral"].values()))
+    ours, theirs = shapes.octahedral(rel), Bundle(shapes.root).read(rel, parts.OCTAHEDRAL)
+    np.testing.assert_array_equal(ours["A"], theirs.coverage)
+    np.testing.assert_array_equal(ours["depth"], theirs.depth)
+    np.testing.assert_array_equal(ours["code"], theirs.normal)
+    np.testing.assert_array_equal(ours["basis"], theirs.basis)
+    assert (ours["views"], ours["capture"]) == (theirs.views, theirs.capture)
 
 def test_bordered_billboards_as_documented(shapes):
     """bordered-billboards, read from the spec alone: bordered texel [i, j] is map texel [i - 1, j - 1]

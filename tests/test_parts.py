@@ -71,6 +71,26 @@ def test_billboards():
             assert np.array_equal(getattr(a, f), getattr(b, f)), f
 
 
+def test_octahedral_atlas():
+    n, res = 3, 16
+    basis = np.linalg.qr(RNG.normal(size=(3, 3)))[0]
+    basis *= np.sign(np.linalg.det(basis))          # right-handed
+    a = parts.OctahedralAtlas(n, True, basis, RNG.normal(size=3), 1.5, 1.9, f32(RNG.uniform(-1, 1, (n * res, n * res, 2))),
+                              f32(RNG.uniform(size=(n * res, n * res))), f32(RNG.uniform(size=(n * res, n * res)) > 0.5), 777)
+    back = parts.stored(parts.OCTAHEDRAL, a)
+    assert back.resolution == res
+    for f in ("views", "hemi", "basis", "centre", "radius", "capture", "normal", "depth", "coverage", "rays"):
+        assert np.array_equal(getattr(a, f), getattr(back, f)), f
+    data, meta = parts.OCTAHEDRAL.pack(a)
+    with pytest.raises(InputError, match="the manifest says 3 views of 8"):
+        parts.OCTAHEDRAL.unpack(data, {**meta, "resolution": 8}, "x.exr")
+    with pytest.raises(InputError, match="basis not a right-handed"):
+        parts.OCTAHEDRAL.unpack(data, {**meta, "basis": (-basis).tolist()}, "x.exr")
+    a.depth[0, 0] = np.nan
+    with pytest.raises(InputError, match="NaN or Inf"):
+        parts.OCTAHEDRAL.unpack(*parts.OCTAHEDRAL.pack(a), "x.exr")
+
+
 def test_missing_channels_and_wrong_kind_are_input_errors(tmp_path):
     data, meta = parts.MESOSTRUCTURE.pack(parts.MesostructureMaps(f32(np.ones((4, 4))), f32(np.ones((4, 4, 3)))))
     with pytest.raises(InputError, match="'height' with channels h is missing"):

@@ -14,7 +14,7 @@ import numpy as np
 
 from . import exr, ply, pyramid, quadric_mesh, quadrics
 from .errors import InputError
-from .schema import REQUIRED, Boolean, Choice, Integer, Invalid, Tables, Type, Vector, setting
+from .schema import REQUIRED, Boolean, Choice, Integer, Invalid, Number, Tables, Type, Vector, setting
 
 COUNT = Integer(0, 2**31 - 1)   # element counts: PLY and EXR index with 32-bit integers
 
@@ -356,7 +356,70 @@ class PyramidMeta:
 
 PYRAMID = PartKind("pyramid", ".exr", _pack_pyramid, _unpack_pyramid, PyramidMeta)
 
-KINDS = {k.name: k for k in (MESH, QUADRICS, VIEWER_MESH, MESOSTRUCTURE, VDM, BILLBOARDS, BORDERED, PYRAMID)}
+# --- octahedral impostors (Brucks 2018; vdmbake/octahedral.py) ----------------------------------------
+
+@dataclass
+class OctahedralAtlas:
+    """N x N orthographic views of an object on the lattice of an octahedral map of directions (the full
+    sphere, or the hemisphere above the map's z: hemi), R x R texels each, in one atlas of N R x N R
+    texels: view (i, j) is the tile at rows j R.., columns i R.. (row 0 at v = 0). View k looks along
+    -e_k over the square [-capture, capture]^2 of its frame (u_k, v_k) around `centre`; the frames and
+    the map follow vdmbake/octahedral.py (`basis` turns world directions into the map's)."""
+    views: int             # N
+    hemi: bool
+    basis: np.ndarray      # (3, 3) rows x, y, z of the map's frame (z: up)
+    centre: np.ndarray     # (3,) world centre of the bounding sphere: every view's centre
+    radius: float          # the bounding sphere's radius
+    capture: float         # half side of every view's square, world units
+    normal: np.ndarray     # (N R, N R, 2) float32 in [-1, 1]: the normal in its view's frame (u, v, e), octahedral code
+    depth: np.ndarray      # (N R, N R) float32 in [0, 1] along -e_k over 2 capture, 1 where not covered
+    coverage: np.ndarray   # (N R, N R) float32, 1 where a surface was hit, else 0
+    rays: int              # rays the bake traced
+
+    @property
+    def resolution(self) -> int:
+        """R: texels per side of every view."""
+        return self.depth.shape[0] // self.views
+
+
+def _pack_octahedral(a: OctahedralAtlas):
+    data = exr.to_bytes({"atlas": {"normal.U": a.normal[..., 0], "normal.V": a.normal[..., 1],
+                                   "depth.Z": a.depth, "A": a.coverage}})
+    return data, {"views": a.views, "resolution": a.resolution, "hemi": a.hemi, "basis": np.asarray(a.basis).tolist(),
+                  "centre": np.asarray(a.centre).tolist(), "radius": float(a.radius), "capture": float(a.capture),
+                  "rays": int(a.rays)}
+
+
+def _unpack_octahedral(data, meta, origin) -> OctahedralAtlas:
+    nu, nv, d, a = _need(_channels(data, origin), "atlas", ["normal.U", "normal.V", "depth.Z", "A"], origin)
+    side = int(meta["views"]) * int(meta["resolution"])
+    for name, x in (("normal.U", nu), ("normal.V", nv), ("depth.Z", d), ("A", a)):
+        _shape(origin, f"atlas {name} (the manifest says {meta['views']} views of {meta['resolution']}^2)", x,
+               (side, side))
+    _finite(origin, atlas=np.stack([nu, nv, d, a]))
+    if abs(np.linalg.det(np.asarray(meta["basis"], np.float64)) - 1) > 1e-3:
+        _bad(origin, "basis not a right-handed orthonormal frame")
+    return OctahedralAtlas(int(meta["views"]), bool(meta["hemi"]), np.asarray(meta["basis"], np.float64),
+                           np.asarray(meta["centre"], np.float64), float(meta["radius"]), float(meta["capture"]),
+                           np.stack([nu, nv], -1), d, a, int(meta["rays"]))
+
+
+@dataclass(frozen=True)
+class OctahedralMeta:
+    views: int = setting(REQUIRED, Integer(2, 64), "N: views per side of the map")
+    resolution: int = setting(REQUIRED, Integer(16, 4096), "R: texels per side of every view")
+    hemi: bool = setting(REQUIRED, Boolean(), "the upper hemisphere only")
+    basis: tuple = setting(REQUIRED, Matrix(3, 3), "rows x, y, z of the map's frame")
+    centre: tuple = setting(REQUIRED, Vector(3), "the bounding sphere's centre")
+    radius: float = setting(REQUIRED, Number(0.0, open_lo=True), "the bounding sphere's radius")
+    capture: float = setting(REQUIRED, Number(0.0, open_lo=True), "half side of every view's square")
+    rays: int = setting(REQUIRED, COUNT, "rays the bake traced")
+
+
+OCTAHEDRAL = PartKind("octahedral", ".exr", _pack_octahedral, _unpack_octahedral, OctahedralMeta)
+
+KINDS = {k.name: k for k in (MESH, QUADRICS, VIEWER_MESH, MESOSTRUCTURE, VDM, BILLBOARDS, BORDERED, PYRAMID,
+                             OCTAHEDRAL)}
 
 
 def stored(kind: PartKind, value):

@@ -6,8 +6,9 @@ line below, a renderer there, its shaders."""
 from __future__ import annotations
 
 from ..schema import Technique
-from . import billboards, bump, coarse, displaced, impostor, mesh, pom, relief, tessellated, vdm
+from . import billboards, bump, coarse, displaced, impostor, mesh, octahedral, pom, relief, tessellated, vdm
 
 REGISTRY: dict[str, Technique] = {t.name: t for t in (
     mesh.TECHNIQUE, coarse.TECHNIQUE, impostor.TECHNIQUE, tessellated.TECHNIQUE, vdm.TECHNIQUE, pom.TECHNIQUE,
-    relief.TECHNIQUE, bump.TECHNIQUE, displaced.TECHNIQUE, billboards.TECHNIQUE)}
+    relief.TECHNIQUE, bump.TECHNIQUE, displaced.TECHNIQUE, billboards.TECHNIQUE,
+    octahedral.TECHNIQUE)}

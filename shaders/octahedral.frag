@@ -1,0 +1,37 @@
+#version 430
+// Octahedral impostors, per pixel (Brucks 2018): the pixel's ray clipped to the bounding sphere, the three
+// atlas views nearest its direction each intersected with it in their own frame (octahedral.glsl: MARCH,
+// a ray / depth-map search, or VIRTUAL, Amplify's single parallax step), blended; the blended hit's exact
+// depth, and its blended normal shaded with the shared model and the shadow map. SHADOW: the light's pass
+// (the light's direction picks its own views); only the depth is written.
+// COUNT (instrumentation): the frame pass writes its fetches instead (fetch_count.glsl: atlas lookups in blue).
+#include "quadric.glsl"
+#include "octahedral.glsl"
+#if !defined(SHADOW)
+#include "shading.glsl"
+#include "shadow.glsl"
+uniform vec3 u_eye;            // anchor-relative
+uniform vec3 u_albedo;
+uniform float u_atlas_texels;  // extra shadow offset along the normal, in atlas texels
+out vec4 frag;
+#endif
+uniform float u_radius;
+
+void main() {
+    vec3 p0, seg;
+    pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
+    float t;
+    vec3 n;
+    if (!impostor_hit(p0, seg, u_radius, t, n)) discard;
+    vec3 p = p0 + seg * t;
+    gl_FragDepth = window_depth(u_view_proj, p);
+#if !defined(SHADOW)
+    vec3 V = normalize(u_eye - p);
+    // The surface is known to about an atlas texel, and the light's views differ from the eye's:
+    // the shadow lookup moves that far along the normal, on top of the shadow map's own offset.
+    float texel = 2.0 * u_capture / (float(textureSize(u_atlas, 0).x) / float(u_views));
+    float lit = shadow_lit(p + n * (u_atlas_texels * texel), n);
+    frag = vec4(shade(u_albedo, n, V, lit), 1.0);
+    COUNT_OUT(frag);
+#endif
+}

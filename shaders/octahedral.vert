@@ -1,0 +1,13 @@
+#version 430
+// Octahedral impostors: one screen-aligned quad per object over the projection of its bounding sphere
+// (Sigg's bounds, quadric.glsl; the whole screen when the eye is inside the sphere), at depth 0 so that
+// it is never clipped; the fragment stage intersects the pixel's ray with the impostor and writes the
+// hit's depth. Anchor-relative world: the anchor is the bounding sphere's centre.
+#include "quadric.glsl"
+in vec2 in_corner;        // (+-1, +-1)
+uniform float u_radius;   // the bounding sphere's radius, grown by a little (techniques/octahedral.py)
+
+void main() {
+    mat4 T = mat4(u_radius, 0.0, 0.0, 0.0,  0.0, u_radius, 0.0, 0.0,  0.0, 0.0, u_radius, 0.0,  0.0, 0.0, 0.0, 1.0);
+    gl_Position = quad_corner(quadric_bounds(T), in_corner);
+}

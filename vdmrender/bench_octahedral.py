@@ -1,0 +1,340 @@
+"""make bench, octahedral-impostor part: octahedral impostors against the enhanced billboards at equal
+GPU texture bytes, written to JSON and markdown, never asserted.
+
+Models as in bench_billboards (sphere, torus, cone, cylinder primitives and the scanned bunny), 16
+cameras each (8 on an orbit at 25 degrees, then top-down, near-top, two grazing, from below, two
+close-ups and one inside the bounding sphere), at 800x600 and 400x300. Per model the billboards
+(greedy projection, 512^2 maps; the hierarchical trace, hier, with and without the coarse mesh filling
+holes; it casts hier's shadows either way) are baked first; the larger variant's GPU asset bytes (bordered
+maps, pyramid atlases, coarse mesh and occupancy-box buffers; not the per-frame depth and occupancy
+targets, reported apart) fix the octahedral atlases: N x N views of R^2 texels at 8 bytes a texel (RGBA16)
+with 8 N^2 R^2 as close as possible to the billboards' bytes, for N = 5, 9, 13, and N = 9 at a quarter
+of them. All variants of a model are timed interleaved (per camera: one render
+each, in turn) after one warm-up render, with ctx.finish() inside the timed region; the shadow map pass
+is part of every frame (billboards: the scene's 1024^2 map of the coarse mesh; octahedral: its own, shadow_scale 2, and one
+row with the scene's 1024^2 map for a like-for-like comparison). Octahedral rows also give the atlas
+lookups per covered pixel (the COUNT variant of the shader, one camera) and the shadow pass's time.
+
+    python -m vdmrender.bench_octahedral -o out/bench [--quick]
+"""
+from __future__ import annotations
+
+import json
+import re
+import statistics
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+
+from vdmbake import parts
+from vdmbake.bake import bake, object_mesh
+from vdmbake.bundle import Bundle
+from vdmbake.scene import load_scene
+from vdmbake.techniques.octahedral import VARIANT as OCT_VARIANT
+
+from . import gl, images, reference, techniques
+from .camera import cameras_for
+from .metrics import compare
+from .techniques import octahedral
+
+MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
+          ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]
+RESOLUTIONS = [(800, 600), (400, 300)]
+BILLBOARDS = ["greedy-hier", "greedy-hier+coarse"]   # the best billboard variants (issue 9)
+SHADOW_MAP = 1024
+TEXEL_BYTES = 8   # the atlas texture: RGBA16 unorm
+
+# The cameras after the orbit: (label, azimuth deg, elevation deg, distance in radii, fov deg).
+POSES = [("top-down", 0.0, 90.0, 2.6, 40.0), ("near-top", 60.0, 80.0, 2.6, 40.0), ("grazing-0", 15.0, 0.0, 2.6, 40.0),
+         ("grazing-5", 105.0, 5.0, 2.6, 40.0), ("below", 200.0, -30.0, 2.6, 40.0), ("close", 300.0, 20.0, 1.4, 50.0),
+         ("close-wide", 150.0, 35.0, 1.2, 90.0), ("inside", 240.0, 15.0, 0.95, 70.0)]
+ORBIT = 8
+
+SCENE = """
+[render]
+resolution = [{w}, {h}]
+shadow_map = {shadow_map}
+[camera]
+orbit = {{ count = {orbit}, elevation_deg = 25, azimuth_deg = 30, distance = 2.6, fov_deg = 40 }}
+{poses}
+[[objects]]
+name = "{name}"
+{source}
+techniques = {{ mesh = {{}}{techniques} }}
+"""
+
+
+def _poses(centre, radius, poses) -> str:
+    out = []
+    for _, az, el, dist, fov in poses:
+        a, e = np.radians(az), np.radians(el)
+        eye = centre + dist * radius * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+        out.append(f"[[camera.poses]]\neye = {eye.tolist()}\ntarget = {list(map(float, centre))}\nfov_deg = {fov}")
+    return "\n".join(out)
+
+
+def _gl_objects(renderer) -> list:
+    """The moderngl objects a renderer holds: its attributes, and the items of its list, tuple and dict
+    attributes (one level), each once."""
+    found, seen = [], set()
+    for v in vars(renderer).values():
+        items = v.values() if isinstance(v, dict) else v if isinstance(v, (list, tuple)) else [v]
+        for o in items:
+            for x in (o if isinstance(o, tuple) else (o,)):
+                if id(x) not in seen and type(x).__module__.split(".")[0] == "moderngl":
+                    seen.add(id(x))
+                    found.append(x)
+    return found
+
+
+def _texture_bytes(t) -> int:
+    layers = t.layers if type(t).__name__ == "TextureArray" else 1
+    return t.width * t.height * layers * t.components * int(re.sub(r"\D", "", t.dtype))
+
+
+def gpu_bytes(renderer) -> tuple[int, int]:
+    """(asset, targets): bytes of the textures and buffers a renderer uploads for its asset (maps, pyramid
+    atlases, coverage, the coarse mesh's and the occupancy boxes' buffers, the atlas), and of the textures
+    it renders into every frame (the occupancy and depth pre-pass targets, at the frame's size; its shadow
+    map is neither)."""
+    objs = _gl_objects(renderer)
+    drawn = {id(a) for f in objs if type(f).__name__ == "Framebuffer"
+             for a in (*f.color_attachments, f.depth_attachment) if a is not None}
+    asset = targets = 0
+    for o in objs:
+        name = type(o).__name__
+        if name in ("Texture", "TextureArray"):
+            if id(o) in drawn:
+                targets += _texture_bytes(o)
+            else:
+                asset += _texture_bytes(o)
+        elif name == "Buffer":
+            asset += o.size
+    return asset, targets
+
+
+def _equal_bytes_resolution(target: int, views: int) -> int:
+    return int(min(16384 // views, max(16, np.sqrt(target / TEXEL_BYTES) // views)))
+
+
+def _bake(out: Path, tag: str, text: str):
+    """Bake the scene (forced); its bundle, scene, only object, the object's entry and bake steps, and its
+    variants from the registry by label."""
+    path = out / "scenes" / f"{tag}.toml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    bundle = out / "bundles" / f"{tag}.bundle"
+    bake(path, bundle, force=True)
+    b, scene = Bundle(bundle), load_scene(path)
+    obj = scene.objects[0]
+    entry = b.manifest["objects"][obj.name]
+    steps = json.loads((bundle / "timing.json").read_text())["steps_s"].get(obj.name, {})
+    return b, scene, obj, entry, steps, {v.label: v for v in techniques.variants(obj, entry, b, scene)}
+
+
+def _model(out: Path, name: str, source: str, quick: bool) -> list[dict]:
+    w0, h0 = RESOLUTIONS[-1] if not quick else (200, 150)
+    poses = POSES if not quick else POSES[:1] + POSES[5:6]
+    orbit = ORBIT if not quick else 2
+    bb_res = 512 if not quick else 64
+    base = SCENE.format(w=w0, h=h0, shadow_map=SHADOW_MAP, orbit=orbit, poses="", name=name, source=source,
+                        techniques="")
+    probe = out / "scenes" / f"oct-{name}-probe.toml"
+    probe.parent.mkdir(parents=True, exist_ok=True)
+    probe.write_text(base)
+    centre, radius = object_mesh(load_scene(probe).objects[0], probe.parent).bounding_sphere()
+    pose_text = _poses(centre, radius, poses)
+    labels = [f"orbit-{k}" for k in range(orbit)] + [p[0] for p in poses]
+
+    def scene_text(techniques):
+        return SCENE.format(w=w0, h=h0, shadow_map=SHADOW_MAP, orbit=orbit, poses=pose_text, name=name,
+                            source=source, techniques=techniques)
+
+    bb_tech = f", billboards = {{ variants = {json.dumps(BILLBOARDS)}, resolution = {bb_res} }}"
+    bbb, scene, obj, entry, bb_steps, bb_variants = _bake(out, f"oct-{name}-billboards", scene_text(bb_tech))
+    mesh = bbb.read(entry["mesh"], parts.MESH)
+    bb_bake_s = sum(v for k, v in bb_steps.items() if k.startswith("billboards"))
+    bb_info = {"billboards": len(entry["techniques"]["billboards"]["greedy"]["faces"]), "map_resolution": bb_res}
+
+    ctx = gl.create_context()
+    try:
+        bb_bytes = 0
+        for v in BILLBOARDS:    # the largest billboard variant's bytes fix the atlases' sizes
+            r = bb_variants[f"billboards@{v}"].build(ctx)
+            bb_bytes = max(bb_bytes, gpu_bytes(r)[0])
+            r.release()
+        sizes = {n: _equal_bytes_resolution(bb_bytes, n) for n in (5, 9, 13)}
+        small = max(16, sizes[9] // 2)
+        oct_values = [f"full-{n}x{r}-march" for n, r in sizes.items()] + [
+            f"full-9x{sizes[9]}-virtual", f"hemi-9x{sizes[9]}-march", f"full-9x{small}-march"]
+        oct_tech = f", octahedral = {{ variants = {json.dumps(oct_values)} }}"
+        octb, _, oobj, oentry, oct_steps, oct_variants = _bake(out, f"oct-{name}-octahedral", scene_text(oct_tech))
+
+        builds = {"mesh": (bb_variants["mesh"].build, 0.0, {})}
+        for v in BILLBOARDS:
+            builds[f"billboards@{v}"] = (bb_variants[f"billboards@{v}"].build, bb_bake_s, bb_info)
+        like = OCT_VARIANT.parse(oct_values[1])     # N = 9 at equal bytes, with the scene's shadow map
+        for v in oct_values + [f"{like}@shadow{SHADOW_MAP}"]:
+            o = OCT_VARIANT.parse(v.split("@")[0])
+            shadow = SHADOW_MAP if "@" in v else octahedral.shadow_size(
+                o.resolution, oobj.techniques["octahedral"].shadow_scale, SHADOW_MAP)
+            build = (oct_variants[f"octahedral@{v}"].build if "@" not in v else
+                     lambda ctx, o=o: octahedral.Octahedral(
+                         ctx, octb.read(oentry["techniques"]["octahedral"][o.atlas], parts.OCTAHEDRAL), scene.light,
+                         obj.material, SHADOW_MAP, o.method))
+            builds[f"octahedral@{v}"] = (build, oct_steps[f"octahedral_{o.atlas}_s"],
+                                         {"views": o.views, "view_resolution": o.resolution,
+                                          "atlas": o.views * o.resolution, "shadow_map": shadow})
+        rows = []
+        for w, h in ([(w0, h0)] if quick else RESOLUTIONS):
+            rows += _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels)
+        return rows
+    finally:
+        ctx.release()
+
+
+def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[dict]:
+    cams = cameras_for(scene.camera, entry["centre"], entry["radius"], w, h)
+    ref = reference.MeshReference(mesh, scene.light, obj.material)
+    bg = scene.render.background
+    refs = [images.encode(ref.render(c), bg) for c in cams]
+    renderers = {label: b(ctx) for label, (b, _, _) in builds.items()}
+    target = gl.Target(ctx, w, h)
+    try:
+        for r in renderers.values():          # warm-up: shader compilation and first-use costs
+            r.render(cams[0], target)
+            ctx.finish()
+        ms = {k: [] for k in renderers}
+        cpu = {k: [] for k in renderers}
+        shadow_ms = {k: [] for k in renderers if k.startswith("octahedral")}
+        per_cam = {k: [] for k in renderers}
+        dists = {k: [] for k in renderers}
+        for cam, r8 in zip(cams, refs):
+            for label, r in renderers.items():   # interleaved: every variant on this camera, in turn
+                t0, c0 = time.perf_counter(), time.process_time()
+                r.render(cam, target)
+                ctx.finish()
+                ms[label].append((time.perf_counter() - t0) * 1e3)
+                cpu[label].append((time.process_time() - c0) * 1e3)
+                frame = target.read()
+                c = compare(images.encode(frame, bg), r8)
+                per_cam[label].append({"mean_dluv": round(c["mean"] or 0.0, 4), "iou": round(c["iou"] or 0.0, 6),
+                                       "nonfinite": int((~np.isfinite(frame)).any(-1).sum())})
+                dists[label].append(c["values"])
+                if label in shadow_ms:
+                    t0 = time.perf_counter()
+                    r.shadow.begin()
+                    r._draw("shadow", r.shadow.view_proj, r.shadow.texture.size)
+                    ctx.finish()
+                    shadow_ms[label].append((time.perf_counter() - t0) * 1e3)
+        rows = []
+        for label, r in renderers.items():
+            d = np.concatenate(dists[label])
+            row = {"object": name, "resolution": f"{w}x{h}", "label": label, "device": gl.renderer_name(ctx),
+                   "median_ms": round(statistics.median(ms[label]), 2),
+                   "median_cpu_ms": round(statistics.median(cpu[label]), 2),
+                   "mean_dluv": round(float(d.mean()), 4) if d.size else 0.0,
+                   "p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else 0.0,
+                   "iou": round(float(np.mean([p["iou"] for p in per_cam[label]])), 6),
+                   "nonfinite": sum(p["nonfinite"] for p in per_cam[label]),
+                   **dict(zip(("gpu_bytes", "target_bytes"), gpu_bytes(r))), "bake_s": builds[label][1], **builds[label][2],
+                   "cameras": {lab: {**p, "ms": round(t, 2), "cpu_ms": round(c, 2)}
+                               for lab, p, t, c in zip(labels, per_cam[label], ms[label], cpu[label])}}
+            if label in shadow_ms:
+                row["shadow_ms"] = round(statistics.median(shadow_ms[label]), 2)
+                row["lookups_per_pixel"] = _lookups(ctx, r, cams[0], target)
+            rows.append(row)
+        return rows
+    finally:
+        target.release()
+        for r in renderers.values():
+            r.release()
+
+
+def _lookups(ctx, r, cam, target) -> float:
+    """Mean atlas lookups per covered pixel of one frame (the shader's COUNT variant), instrumented."""
+    prog = gl.program(ctx, "octahedral.vert", "octahedral.frag", r.defines + ("COUNT",), r.may_lack)
+    saved = r.draws["frame"]
+    vao = gl.vertex_array(ctx, prog, [(r.corners, "2f", "in_corner")])
+    r.draws["frame"] = (prog, vao)
+    try:
+        r.render(cam, target)
+        f = target.read()
+    finally:
+        r.draws["frame"] = saved
+        vao.release()
+    covered = f[..., 3] > 0
+    return round(float(f[..., 2][covered].mean()), 1) if covered.any() else 0.0
+
+
+CATEGORIES = [("orbit", lambda lab: lab.startswith("orbit")), ("top", lambda lab: lab in ("top-down", "near-top")),
+              ("grazing", lambda lab: lab.startswith("grazing")), ("below", lambda lab: lab == "below"),
+              ("close", lambda lab: lab in ("close", "close-wide")), ("inside", lambda lab: lab == "inside")]
+
+
+def _category(r: dict, pick) -> tuple[float, float, float] | None:
+    """Mean of the per-frame mean ΔLuv, mean IoU and median CPU ms over the row's cameras that `pick` takes."""
+    cams = [v for lab, v in r["cameras"].items() if pick(lab)]
+    if not cams:
+        return None
+    return (float(np.mean([v["mean_dluv"] for v in cams])), float(np.mean([v["iou"] for v in cams])),
+            float(statistics.median([v["cpu_ms"] for v in cams])))
+
+
+def _markdown(rows: list[dict], device: str) -> str:
+    cats = [("outside", lambda lab: lab != "inside")] + CATEGORIES
+    lines = [f"# Octahedral impostors against enhanced billboards ({device})", "",
+             "Mean ΔLuv over all cameras (union of coverage masks); median wall ms and CPU ms per frame (shadow pass "
+             "included; CPU: the process's time over all its threads, llvmpipe's included, which other processes on "
+             "the machine barely inflate); shadow ms: the octahedral shadow pass alone (wall); "
+             "asset MB: the textures and buffers a variant uploads (maps, pyramid atlases, coverage, coarse mesh, "
+             "occupancy boxes, the octahedral atlas); target MB: what it renders into every frame besides the "
+             "frame and its shadow map (the billboards' depth pre-pass and occupancy targets); bake seconds.", "",
+             "| model | resolution | variant | asset MB | target MB | bake s | wall ms | CPU ms | shadow ms | lookups/px | "
+             "mean ΔLuv | p95 | IoU |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | {r['gpu_bytes'] / 2**20:.2f} | "
+                     f"{r['target_bytes'] / 2**20:.2f} | {r['bake_s']:.1f} | {r['median_ms']:.0f} | {r['median_cpu_ms']:.0f} | "
+                     f"{r.get('shadow_ms', '')} | {r.get('lookups_per_pixel', '')} | {r['mean_dluv']:.3f} | "
+                     f"{r['p95_dluv']:.2f} | {r['iou']:.4f} |")
+    lines += ["", "Per camera category: mean ΔLuv / mean IoU / median CPU ms over the cameras of that kind.", "",
+              "| model | resolution | variant | " + " | ".join(c for c, _ in cats) + " |",
+              "|---|---|---|" + "---|" * len(cats)]
+    for r in rows:
+        cells = []
+        for _, pick in cats:
+            c = _category(r, pick)
+            cells.append(f"{c[0]:.2f} / {c[1]:.3f} / {c[2]:.0f}" if c else "")
+        lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | " + " | ".join(cells) + " |")
+    lines += ["", "outside: the cameras outside the bounding sphere (all but inside). orbit: 8 at 25 degrees; "
+              "top: top-down and 80 degrees; grazing: 0 and 5 degrees; below: -30 degrees; close: 1.4 and 1.2 radii "
+              "(fov 50 and 90); inside: 0.95 radii, inside the bounding sphere."]
+    return "\n".join(lines) + "\n"
+
+
+@click.command()
+@click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
+@click.option("--quick", is_flag=True, help="Sphere only, 200x150, 4 cameras, 64-texel billboard maps (a smoke run).")
+@click.option("--models", default=None, help="Comma-separated subset of: " + ", ".join(m for m, _ in MODELS))
+def main(out: Path, quick: bool, models: str | None):
+    """Run the octahedral benchmark and write OUT/octahedral.json and OUT/octahedral.md."""
+    chosen = MODELS[:1] if quick else [m for m in MODELS if models is None or m[0] in models.split(",")]
+    rows = []
+    for name, source in chosen:
+        for r in _model(out, name, source, quick):
+            rows.append(r)
+            click.echo(f"{name:8} {r['resolution']:8} {r['label']:42} {r['median_ms']:9.1f} ms {r['median_cpu_ms']:9.1f} CPU ms  dLuv {r['mean_dluv']:.3f}  "
+                       f"IoU {r['iou']:.4f}  {r['gpu_bytes'] / 2**20:6.1f} MB", err=True)
+    out.mkdir(parents=True, exist_ok=True)
+    device = rows[0]["device"]
+    (out / "octahedral.json").write_text(json.dumps({"device": device, "shadow_map": SHADOW_MAP, "rows": rows},
+                                                    indent=1) + "\n")
+    (out / "octahedral.md").write_text(_markdown(rows, device))
+    click.echo(f"wrote {out / 'octahedral.json'}, {out / 'octahedral.md'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,131 @@
+"""Technique `octahedral`: octahedral impostors, the render side (Brucks 2018, "Octahedral Impostors";
+Unreal's impostor baker as used in Fortnite, Amplify Impostors).
+
+The bake (vdmbake.octahedral) holds N x N orthographic views of the object, on the lattice of an
+octahedral map of directions (full sphere or upper hemisphere), in one atlas of normal, depth and
+coverage. Each object is drawn as ONE screen-aligned quad over its bounding sphere (octahedral.vert).
+Per pixel (octahedral.frag, shaders/include/octahedral.glsl): the ray's direction picks the lattice
+triangle it falls in, i.e. three views and their barycentric weights; every view is intersected with
+the pixel's ray in its own frame, by
+  "march"   a ray / depth-map search over the ray's chord of the bounding sphere: a step per atlas
+            texel that the ray's projection crosses (short, since the view looks nearly along the ray),
+            a hit where the ray passes behind the map where it is covered, bisection and a secant step;
+  "virtual" Amplify's single parallax step: the ray meets the view's middle plane, the depth read there
+            moves it to that depth, where it is read again;
+and the hits are blended by weight over the views that hit (the pixel is covered if they weigh at least
+1/2). The blended hit writes its exact gl_FragDepth and is shaded with the shared model and the shadow map.
+Unlike Brucks' and Amplify's per-object choice of views, every pixel picks its own, so close-ups and
+wide fields of view need no special case; a camera inside the bounding sphere needs none either (the
+ray starts on the near plane), but what the views never saw from outside (the inside of a concavity
+the eye sits in) cannot be shown.
+
+Shadows: the shadow map holds the impostor drawn from the light's orthographic camera (the light's
+direction picks its own three views), so the technique's shadows carry its own errors and nothing of
+the full mesh. Lookups move along the normal by the shadow map's normal offset plus ATLAS_TEXELS atlas
+texels (the surface is known to about a texel, and the light's views are not the eye's).
+
+Texture: one 2-D texture, RGBA16 unorm by default (rg: the normal's octahedral code in its view's
+frame, b: depth, a: coverage), linear filtering, no mipmaps; the bake extrapolated the empty texels near
+covered ones from them (vdmbake.octahedral.to_part), so filtering at a silhouette follows the surface. The
+bake leaves EMPTY empty rings around every tile, so nothing crosses from one view into another.
+"""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from vdmbake import parts
+from vdmbake.errors import InputError
+
+from .. import gl
+from .shadowmap import ShadowMap, translation
+
+METHODS = ("march", "virtual")
+TEXTURE_DTYPES = {"nu2": 2, "f4": 4}   # RGBA16 unorm (default), RGBA32F: bytes per channel
+NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels (as impostors) ...
+ATLAS_TEXELS = 0.5           # ... plus this many atlas texels (the surface is known to about half a texel)
+CLIP_TEXELS = 2.0            # rays are clipped to the bounding sphere grown by this many atlas texels (less than
+                             # the bake's EMPTY rings), so that every search starts strictly in front of the surface
+
+
+def atlas_texels(a) -> np.ndarray:
+    """(N R, N R, 4) float32 in [0, 1]: normal code / 2 + 1/2, depth, coverage (the bake extrapolated
+    code and depth around the silhouettes: vdmbake.octahedral.to_part)."""
+    return np.clip(np.concatenate([np.asarray(a.normal, np.float32) * 0.5 + 0.5, np.asarray(a.depth, np.float32)[..., None],
+                                   np.asarray(a.coverage, np.float32)[..., None]], -1), 0.0, 1.0)
+
+
+class Octahedral:
+    def __init__(self, ctx, atlas, light, material, shadow_size: int, method: str = "march",
+                 steps_per_texel: float = 1.0, dtype: str = "nu2", count: bool = False):
+        """atlas: vdmbake.parts.OctahedralAtlas; method: "march" or "virtual"; steps_per_texel: the
+        march's step density; dtype: the atlas texture's channel type ("nu2": 16-bit unorm, "f4":
+        float32); count: the frame pass writes atlas lookups per pixel (instrumentation) instead of colour."""
+        if method not in METHODS:
+            raise InputError(f"octahedral: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
+        if dtype not in TEXTURE_DTYPES:
+            raise InputError(f"octahedral: texture type '{dtype}' is unknown; use one of {', '.join(TEXTURE_DTYPES)}.")
+        if not steps_per_texel > 0:
+            raise InputError(f"octahedral: steps_per_texel = {steps_per_texel}; it must be > 0.")
+        self.ctx, self.light, self.material = ctx, light, material
+        self.views, self.steps_per_texel = int(atlas.views), float(steps_per_texel)
+        self.anchor, self.radius, self.capture = np.asarray(atlas.centre, np.float64), float(atlas.radius), float(atlas.capture)
+        self.basis = np.asarray(atlas.basis, np.float64)
+        self.faces = None
+        texels = atlas_texels(atlas)
+        side = texels.shape[0]
+        self.clip = self.radius + CLIP_TEXELS * 2.0 * self.capture * self.views / side
+        data = (np.round(texels * 65535).astype(np.uint16) if dtype == "nu2" else texels.astype(np.float32))
+        self.texture = ctx.texture((side, side), 4, data.tobytes(), dtype=dtype)
+        self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.texture.repeat_x = self.texture.repeat_y = False
+        self.texture_bytes = side * side * 4 * TEXTURE_DTYPES[dtype]
+        self.shadow = ShadowMap(ctx, shadow_size, light.direction, self.radius)
+        self.corners = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
+        self.defines = (method.upper(),) + (("HEMI",) if atlas.hemi else ())
+        self.may_lack = ("u_steps_per_texel",) if method == "virtual" else ()   # the single parallax step
+        self.draws = {}
+        for stage, extra in (("shadow", ("SHADOW",)), ("frame", ("COUNT",) if count else ())):
+            prog = gl.program(ctx, "octahedral.vert", "octahedral.frag", self.defines + extra, self.may_lack)
+            self.draws[stage] = (prog, gl.vertex_array(ctx, prog, [(self.corners, "2f", "in_corner")]))
+
+    def _draw(self, stage: str, view_proj, viewport, **uniforms) -> None:
+        prog, vao = self.draws[stage]
+        self.texture.use(1)
+        gl.set_uniforms(prog, u_atlas=1, u_views=self.views, u_capture=self.capture, u_radius=self.clip,
+                        u_steps_per_texel=self.steps_per_texel, u_view_proj=view_proj,
+                        u_inv_view_proj=np.linalg.inv(view_proj), u_viewport=tuple(float(x) for x in viewport),
+                        **uniforms)
+        if "u_basis" in prog:   # GLSL mat3 is column-major: M = basis (map = M world)
+            prog["u_basis"].write(np.ascontiguousarray(self.basis.T, np.float32).tobytes())
+        vao.render(moderngl.TRIANGLE_STRIP, vertices=4)
+
+    def render(self, camera, target) -> None:
+        ctx = self.ctx
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        self.shadow.begin()
+        self._draw("shadow", self.shadow.view_proj, self.shadow.texture.size)
+        target.begin()
+        prog = self.draws["frame"][0]
+        gl.set_shading(prog, self.light, self.material)
+        self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
+        self._draw("frame", camera.projection() @ camera.view() @ translation(self.anchor), target.size,
+                   u_eye=tuple(camera.eye - self.anchor), u_atlas_texels=ATLAS_TEXELS)
+
+    def release(self) -> None:
+        gl.release(*(vao for _, vao in self.draws.values()), self.texture, self.corners, self.shadow)
+
+
+def shadow_size(resolution: int, scale: float, scene_size: int) -> int:
+    """The shadow map's side: `scale` texels per atlas texel of a view (resolution R), at most the
+    scene's. The impostor resolves nothing finer than its views' texels, and the shadow pass, which
+    searches every view-texel's worth of the map, costs in proportion to the map's area."""
+    return int(min(scene_size, max(16, round(scale * resolution))))
+
+
+def build(ctx, src, variant):
+    """One LAYOUT-NxR-METHOD variant (vdmbake.techniques.octahedral.Variant); its methods share the atlas."""
+    atlas = src.bundle.read(src.part[variant.atlas], parts.OCTAHEDRAL)
+    return Octahedral(ctx, atlas, src.scene.light, src.obj.material,
+                      shadow_size(variant.resolution, src.options.shadow_scale, src.shadow_map), variant.method)
