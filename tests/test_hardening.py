@@ -359,9 +359,16 @@ def _siblings(out: Path) -> list[str]:
     return sorted(p.name for p in out.parent.iterdir() if p.name.startswith(f".{out.name}."))
 
 
+def _default_signals() -> None:
+    """In the child: the default dispositions a terminal gives. A test run started in the background or
+    under nohup has SIGINT or SIGHUP ignored, which the tools rightly keep ignored (vdmbake/signals.py)."""
+    for s in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):
+        signal.signal(s, signal.SIG_DFL)
+
+
 def _signal_when_staging(cmd, out: Path, sig: int) -> subprocess.CompletedProcess:
     """Start cmd, send `sig` once its staging folder exists (plus a moment), return its result."""
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals)
     tmp = out.parent / f".{out.name}.tmp-{p.pid}"
     t0 = time.monotonic()
     while not tmp.exists() and p.poll() is None and time.monotonic() - t0 < 60:
