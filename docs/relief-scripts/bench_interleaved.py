@@ -1,8 +1,7 @@
 """Interleaved timing of a scene's variants (and relief stage variants) on llvmpipe: every round renders
 each variant once per camera (shadow map included, ctx.finish() inside the timed region), in turn, so the
 load of the shared machine hits all alike; medians over rounds and ratios to a baseline variant."""
-import sys, time, statistics, json, argparse
-import numpy as np
+import time, statistics, json, argparse
 from vdmbake.bundle import Bundle
 from vdmbake.scene import parse_scene_dict
 from vdmrender import gl

@@ -1,6 +1,6 @@
 """docs/relief-error-vs-time.png (mean dLuv against interleaved wall time / displaced@2, from out/m/timing2-*.log
 and the runs' report.json) and docs/relief-torus-bricks.png (frame 0: reference, relief@32, heat maps)."""
-import json, re, sys
+import json, re
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt

@@ -1,6 +1,6 @@
 # Run from the repository root: .venv/bin/python docs/trust-scripts/inside.py OUTDIR
 """Stiff quadric cases: impostor against the fixed reference and against the old walk (reach = 0)."""
-import json, sys
+import sys
 import numpy as np
 from pathlib import Path
 from vdmbake.bake import bake

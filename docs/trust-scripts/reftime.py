@@ -11,7 +11,6 @@ scene = load_scene(sys.argv[1]); obj = scene.objects[0]
 q, _ = object_quadrics(obj, Path(sys.argv[1]).parent)
 c, r = q.bounding_sphere()
 cams = cameras_for(scene.camera, c, r, 512, 384)
-from dataclasses import replace
 ref = reference.QuadricReference(q, scene.light, obj.material)
 reach = ref.tracer.reach
 res = {"old": [], "new": []}
