@@ -17,7 +17,8 @@ from vdmrender import gl, images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.billboards_hier import HierBillboards
 
-from test_billboards_render import LIGHT, MATERIAL, BG, SHADOW, draw, model, orbit_camera, render, score
+from frames import BG, LIGHT, MATERIAL, draw, score
+from test_billboards_render import SHADOW, model, orbit_camera, render
 
 
 # ----------------------------------------------------------------------------- the pyramid with empty cells

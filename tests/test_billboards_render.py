@@ -10,18 +10,15 @@ from vdmbake import billboard_maps, coarse, primitives
 from vdmbake import billboards as bb
 from vdmbake.errors import InputError
 from vdmbake.meshes import TriMesh
-from vdmbake.scene import Light, Material
-from vdmrender import gl, images, metrics, reference
+from vdmrender import gl, images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmbake import parts
 from vdmbake.parts import Billboard
 from vdmrender.techniques.billboards import Billboards
 
-BG = (0.05, 0.05, 0.06)
+from frames import BG, LIGHT, MATERIAL, draw, score
+
 SHADOW = 512
-_d = np.asarray(Light().direction)
-LIGHT = Light(direction=tuple(_d / np.linalg.norm(_d)))
-MATERIAL = Material()
 MESHES = {"sphere": lambda: primitives.sphere(1.0, 64, 32), "torus": lambda: primitives.torus(1.0, 0.35, 64, 32)}
 _cache: dict = {}
 
@@ -60,23 +57,6 @@ def render(ctx, boards, camera, method="improved", hit_range=0.01, coarse_mesh=N
                 camera)
 
 
-def draw(r, camera) -> np.ndarray:
-    """One frame of renderer r, which is released after."""
-    target = gl.Target(r.ctx, camera.width, camera.height)
-    try:
-        r.render(camera, target)
-        return target.read()
-    finally:
-        target.release()
-        r.release()
-
-
-def score(frame, mesh, camera) -> tuple[float, float]:
-    """(mean dLuv, IoU) against the traced full mesh; every pixel must be finite."""
-    assert np.isfinite(frame).all()
-    ref = reference.MeshReference(mesh, LIGHT, MATERIAL).render(camera)
-    m = metrics.compare(images.encode(frame, BG), images.encode(ref, BG))
-    return m["mean"], m["iou"]
 
 
 # (mean dLuv bound, IoU bound) per (mesh, method, hit range, coarse): R 128, 96x96, azimuth 30, elevation 25.

@@ -11,18 +11,14 @@ from vdmbake import octahedral as oc
 from vdmbake import primitives
 from vdmbake.errors import InputError
 from vdmbake.meshes import TriMesh
-from vdmbake.scene import Light, Material
-from vdmrender import gl, images, metrics, reference
+from vdmrender import gl
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.octahedral import Octahedral, atlas_texels, shadow_size
 
+from frames import LIGHT, MATERIAL, draw, score
 from scenes import TINY_HEAD, bake_and_render, rows_by_label
 
-BG = (0.05, 0.05, 0.06)
 SHADOW = 256
-_d = np.asarray(Light().direction)
-LIGHT = Light(direction=tuple(_d / np.linalg.norm(_d)))
-MATERIAL = Material()
 MESHES = {"sphere": lambda: primitives.sphere(1.0, 64, 32), "torus": lambda: primitives.torus(1.0, 0.35, 64, 32),
           "cylinder": lambda: primitives.build("cylinder", {"radius": 0.5, "height": 2.0, "segments": 64,
                                                             "rings": 4, "caps": 1})}
@@ -54,22 +50,8 @@ def orbit_camera(mesh, azimuth, elevation, size=96, distance=2.8, fov=40.0, up=(
 
 
 def render(ctx, atlas, camera, **kw) -> np.ndarray:
-    r = Octahedral(ctx, atlas, LIGHT, MATERIAL, SHADOW, **kw)
-    target = gl.Target(ctx, camera.width, camera.height)
-    try:
-        r.render(camera, target)
-        return target.read()
-    finally:
-        target.release()
-        r.release()
+    return draw(Octahedral(ctx, atlas, LIGHT, MATERIAL, SHADOW, **kw), camera)
 
-
-def score(frame, mesh, camera) -> tuple[float, float]:
-    """(mean dLuv, IoU) against the traced full mesh; every pixel must be finite."""
-    assert np.isfinite(frame).all()
-    ref = reference.MeshReference(mesh, LIGHT, MATERIAL).render(camera)
-    m = metrics.compare(images.encode(frame, BG), images.encode(ref, BG))
-    return m["mean"], m["iou"]
 
 
 # --- the shader's twin of vdmbake.octahedral ------------------------------------------------------
