@@ -13,7 +13,7 @@ from vdmbake import billboard_maps, parts, primitives
 from vdmbake import billboards as bb
 from vdmbake import pyramid as P
 from vdmbake.meshes import TriMesh, vertex_normals
-from vdmrender import gl, images, metrics
+from vdmrender import images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.billboards_hier import HierBillboards
 
@@ -153,13 +153,6 @@ def hier_boards(baked):
 
 def render_hier(ctx, boards, camera, coarse=None, shadow_mesh=None, bounds=None) -> np.ndarray:
     return draw(HierBillboards(ctx, *boards, LIGHT, MATERIAL, SHADOW, coarse, bounds, shadow_mesh=shadow_mesh), camera)
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    c = gl.create_context()
-    yield c
-    c.release()
 
 
 @pytest.mark.parametrize("name", ["sphere", "torus"])

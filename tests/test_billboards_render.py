@@ -10,7 +10,7 @@ from vdmbake import billboard_maps, coarse, primitives
 from vdmbake import billboards as bb
 from vdmbake.errors import InputError
 from vdmbake.meshes import TriMesh
-from vdmrender import gl, images, metrics
+from vdmrender import images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmbake import parts
 from vdmbake.parts import Billboard
@@ -21,13 +21,6 @@ from frames import BG, LIGHT, MATERIAL, draw, score
 SHADOW = 512
 MESHES = {"sphere": lambda: primitives.sphere(1.0, 64, 32), "torus": lambda: primitives.torus(1.0, 0.35, 64, 32)}
 _cache: dict = {}
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    c = gl.create_context()
-    yield c
-    c.release()
 
 
 def model(name: str, res: int = 128, offset=(0.0, 0.0, 0.0)):

@@ -4,7 +4,6 @@ on the GL device (llvmpipe here): the two must agree to float32 precision."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from vdmbake.geometry import onb
 from vdmrender import gl
@@ -12,13 +11,6 @@ from vdmrender.camera import Camera, pixel_ray, window_depth
 
 VERTEX = gl.source("fullscreen.vert")
 RNG = np.random.default_rng(7)
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    c = gl.create_context()
-    yield c
-    c.release()
 
 
 def run(ctx, body: str, inputs: np.ndarray, outputs: int, m=None) -> list[np.ndarray]:

@@ -224,13 +224,6 @@ void main() {{
 """
 
 
-@pytest.fixture(scope="module")
-def ctx():
-    c = gl.create_context()
-    yield c
-    c.release()
-
-
 def trace_gl(ctx, p: P.Pyramid, rays: np.ndarray, reentry=False, defines=()) -> np.ndarray:
     """Each ray (origin, t0, direction, t1, bend) traced by the include in one pixel: (t, visits, exhausted,
     t_reached)."""

@@ -25,13 +25,6 @@ MESHES = {"sphere": lambda: primitives.sphere(1.0, 64, 32), "torus": lambda: pri
 _cache: dict = {}
 
 
-@pytest.fixture(scope="module")
-def ctx():
-    c = gl.create_context()
-    yield c
-    c.release()
-
-
 def model(name: str, views=9, res=64, hemi=False, offset=(0.0, 0.0, 0.0)):
     key = (name, views, res, hemi, tuple(offset))
     if key not in _cache:
