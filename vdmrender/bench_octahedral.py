@@ -224,9 +224,9 @@ def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[d
                                        "nonfinite": int((~np.isfinite(frame)).any(-1).sum())})
                 dists[label].append(c["values"])
                 if label in shadow_ms:
+                    shadow_pass = dict(r.passes(cam, target))["shadow"]
                     t0 = time.perf_counter()
-                    r.shadow.begin()
-                    r._draw("shadow", r.shadow.view_proj, r.shadow.texture.size)
+                    shadow_pass()
                     ctx.finish()
                     shadow_ms[label].append((time.perf_counter() - t0) * 1e3)
         rows = []

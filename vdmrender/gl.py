@@ -126,12 +126,16 @@ def _lacks(prog, name: str, what: str) -> bool:
 
 def set_uniforms(prog, **values) -> None:
     """Set uniforms by name; one the program lacks is skipped if declared in may_lack (or when not
-    strict), an error otherwise."""
+    strict), an error otherwise. A 4x4 array is a matrix (row-major here, column-major in GLSL); any
+    other array is written as it lies in memory (int32 for integer and bool arrays, float32 otherwise),
+    e.g. a uniform array of ivec2 or of matrices the caller laid out column-major."""
     for name, value in values.items():
         if _lacks(prog, name, "uniform"):
             continue
         if isinstance(value, np.ndarray) and value.shape == (4, 4):
             prog[name].write(mat(value))
+        elif isinstance(value, np.ndarray):
+            prog[name].write(np.ascontiguousarray(value, np.int32 if value.dtype.kind in "iub" else np.float32).tobytes())
         else:
             prog[name].value = value
 

@@ -209,8 +209,6 @@ class Billboards(Passes):
         to_anchor = camera.view() @ translation(self.anchor)
 
         def shadow():
-            self.ctx.enable(moderngl.DEPTH_TEST)
-            self.ctx.disable(moderngl.CULL_FACE)
             self.shadow.begin()
             self._draw("shadow", self.shadow.view_proj, self.shadow_raster, self.shadow.texture.size,
                        translation(-np.asarray(self.light.direction, np.float64) * self.behind))

@@ -152,8 +152,6 @@ class HierBillboards(Passes):
 
     def _shadow(self) -> None:
         ctx = self.ctx
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
         self.shadow.begin()
         if "shadow mesh" in self.draws:
             prog, vao = self.draws["shadow mesh"]
@@ -252,9 +250,7 @@ class HierBillboards(Passes):
         if occupancy is not None:
             arrays.update(u_tile=occupancy[0][order], u_occ_off=occupancy[1][order])
             self.occupancy.use(4)
-        for name, a in arrays.items():
-            if name in prog:
-                prog[name].write(np.ascontiguousarray(a, np.int32 if a.dtype.kind in "iu" else np.float32).tobytes())
+        gl.set_uniforms(prog, **arrays)
         self.pyramids.use(1)
         self.maps.use(2)
         self.ctx.scissor = rect

@@ -70,8 +70,6 @@ class Impostors:
 
     def render(self, camera, target) -> None:
         ctx = self.ctx
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
         self.shadow.begin()
         self._draw("depth", self.shadow.view_proj, self.shadow.texture.size)
         view_proj = camera.projection() @ camera.view() @ translation(self.anchor)

@@ -38,6 +38,7 @@ from vdmbake import parts
 from vdmbake.errors import InputError
 
 from .. import gl
+from .raster import Passes
 from .shadowmap import ShadowMap, translation
 
 METHODS = ("march", "virtual")
@@ -55,7 +56,7 @@ def atlas_texels(a) -> np.ndarray:
                                    np.asarray(a.coverage, np.float32)[..., None]], -1), 0.0, 1.0)
 
 
-class Octahedral:
+class Octahedral(Passes):
     def __init__(self, ctx, atlas, light, material, shadow_size: int, method: str = "march",
                  steps_per_texel: float = 1.0, dtype: str = "nu2", count: bool = False):
         """atlas: vdmbake.parts.OctahedralAtlas; method: "march" or "virtual"; steps_per_texel: the
@@ -95,23 +96,23 @@ class Octahedral:
         gl.set_uniforms(prog, u_atlas=1, u_views=self.views, u_capture=self.capture, u_radius=self.clip,
                         u_steps_per_texel=self.steps_per_texel, u_view_proj=view_proj,
                         u_inv_view_proj=np.linalg.inv(view_proj), u_viewport=tuple(float(x) for x in viewport),
-                        **uniforms)
-        if "u_basis" in prog:   # GLSL mat3 is column-major: M = basis (map = M world)
-            prog["u_basis"].write(np.ascontiguousarray(self.basis.T, np.float32).tobytes())
+                        u_basis=self.basis.T, **uniforms)   # GLSL mat3 is column-major: M = basis (map = M world)
         vao.render(moderngl.TRIANGLE_STRIP, vertices=4)
 
-    def render(self, camera, target) -> None:
-        ctx = self.ctx
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        self.shadow.begin()
-        self._draw("shadow", self.shadow.view_proj, self.shadow.texture.size)
-        target.begin()
-        prog = self.draws["frame"][0]
-        gl.set_shading(prog, self.light, self.material)
-        self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
-        self._draw("frame", camera.projection() @ camera.view() @ translation(self.anchor), target.size,
-                   u_eye=tuple(camera.eye - self.anchor), u_atlas_texels=ATLAS_TEXELS)
+    def passes(self, camera, target) -> list:
+        """The frame's passes in order, as (name, callable): the impostor into the light's map, then the frame."""
+        def shadow():
+            self.shadow.begin()
+            self._draw("shadow", self.shadow.view_proj, self.shadow.texture.size)
+
+        def frame():
+            target.begin()
+            prog = self.draws["frame"][0]
+            gl.set_shading(prog, self.light, self.material)
+            self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
+            self._draw("frame", camera.projection() @ camera.view() @ translation(self.anchor), target.size,
+                       u_eye=tuple(camera.eye - self.anchor), u_atlas_texels=ATLAS_TEXELS)
+        return [("shadow", shadow), ("frame", frame)]
 
     def release(self) -> None:
         gl.release(*(vao for _, vao in self.draws.values()), self.texture, self.corners, self.shadow)

@@ -56,8 +56,6 @@ class RasterPasses(Passes):
         ctx = self.ctx
 
         def shadow():
-            ctx.enable(moderngl.DEPTH_TEST)
-            ctx.disable(moderngl.CULL_FACE)
             self.shadow.begin()
             ctx.polygon_offset = self.POLYGON_OFFSET
             for stage, prog, vao, n in self.draws:

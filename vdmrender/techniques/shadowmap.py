@@ -38,6 +38,9 @@ class ShadowMap:
         self.texel = 2 * r / size   # world size of one texel
 
     def begin(self) -> None:
+        """Start the light's pass: the map cleared, depth-tested, no face culled."""
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.disable(moderngl.CULL_FACE)
         self.fbo.use()
         self.ctx.viewport = (0, 0, *self.texture.size)
         self.fbo.clear(depth=1.0)
