@@ -197,7 +197,7 @@ class HierBillboards(Passes):
             self.occupancy.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self.occ_fbo = ctx.framebuffer([self.occupancy])
         tiles = np.array([((k % cols) * w, (k // cols) * h) for k in range(self.count)], np.int32)
-        fwd = (camera.target - camera.eye) / np.linalg.norm(camera.target - camera.eye)
+        fwd = -camera.basis()[2]                                                # the view direction
         depth = (self.corners - eye) @ fwd                                      # view depth of every box corner
         off = ((depth.min(1) <= camera.near * 1.001) | (np.arange(self.count) >= cols * rows)).astype(np.int32)
         self.occ_fbo.use()
