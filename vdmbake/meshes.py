@@ -36,6 +36,8 @@ class TriMesh:
     uvs: np.ndarray | None = None   # (V, 2) float64
     frame: SurfaceFrame | None = None
     colors: np.ndarray | None = None   # (V, 3) linear RGB albedo per vertex (the asset's own), or None
+    texture: np.ndarray | None = None  # the asset's albedo map (vdmbake.texture: (H, W, 3) uint8 sRGB, row 0
+                                       # at v = 0), read at `uvs`; None where it has none
 
     @staticmethod
     def concatenate(parts: list["TriMesh"]) -> "TriMesh":
@@ -46,7 +48,8 @@ class TriMesh:
                        np.concatenate([p.normals for p in parts]),
                        None if any(u is None for u in uvs) else np.concatenate(uvs),
                        None if any(f is None for f in frames) else SurfaceFrame.concatenate(frames),
-                       None if any(c is None for c in colors) else np.concatenate(colors))
+                       None if any(c is None for c in colors) else np.concatenate(colors),
+                       parts[0].texture if all(p.texture is parts[0].texture for p in parts) else None)
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre of the bounding box and the radius that encloses every vertex."""
@@ -156,7 +159,8 @@ def transformed(mesh: TriMesh, transform) -> TriMesh:
     if mesh.frame is not None and sx == sy == sz:   # a non-uniform scale changes curvatures otherwise: dropped
         f = mesh.frame
         frame = SurfaceFrame(f.dpdu @ m.T, f.dpdv @ m.T, f.k1 / sx, f.k2 / sx, f.d1 @ rotation_xyz(transform.rotate_deg).T)
-    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs, frame, mesh.colors)
+    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs, frame, mesh.colors,
+                   mesh.texture)
 
 
 def validate(mesh: TriMesh, origin: str) -> TriMesh:
