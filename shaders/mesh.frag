@@ -1,6 +1,10 @@
 #version 430
 #include "shading.glsl"
 #include "shadow.glsl"
+#ifdef ALBEDO_MAP
+#include "albedo.glsl"
+in vec2 v_uv;
+#endif
 in vec3 v_pos;
 in vec3 v_normal;
 in vec3 v_albedo;
@@ -11,5 +15,9 @@ void main() {
     vec3 N = safe_normalize(v_normal);
     if (!gl_FrontFacing) N = -N;   // two-sided: the normal faces the viewer (reference: Ng . dir < 0)
     vec3 V = normalize(u_eye - v_pos);
-    frag = vec4(shade(v_albedo, N, V, shadow_lit(v_pos, N)), 1.0);
+    vec3 albedo = v_albedo;
+#ifdef ALBEDO_MAP
+    albedo *= albedo_map(v_uv);
+#endif
+    frag = vec4(shade(albedo, N, V, shadow_lit(v_pos, N)), 1.0);
 }

@@ -2,13 +2,18 @@
 // Rasterised triangle meshes (techniques `mesh` and `coarse`). Positions are relative to
 // the object's anchor (its bounding-box centre) so far-off objects keep float32 precision.
 // VERTEX_COLOR: the asset's albedo per vertex (linear RGB), interpolated over each triangle as the
-// reference interpolates it at the hit; otherwise the material's.
+// reference interpolates it at the hit; ALBEDO_MAP: the asset's texture coordinates, its albedo map
+// read per fragment (times the vertex colour, if any); otherwise the material's albedo.
 in vec3 in_pos;
 in vec3 in_normal;
 #ifdef VERTEX_COLOR
 in vec3 in_color;
-#else
+#elif !defined(ALBEDO_MAP)
 uniform vec3 u_albedo;
+#endif
+#ifdef ALBEDO_MAP
+in vec2 in_uv;
+out vec2 v_uv;
 #endif
 uniform mat4 u_mvp;   // clip space from anchor-relative coordinates
 out vec3 v_pos;
@@ -20,8 +25,13 @@ void main() {
     v_normal = in_normal;
 #ifdef VERTEX_COLOR
     v_albedo = in_color;
+#elif defined(ALBEDO_MAP)
+    v_albedo = vec3(1.0);
 #else
     v_albedo = u_albedo;
+#endif
+#ifdef ALBEDO_MAP
+    v_uv = in_uv;
 #endif
     gl_Position = u_mvp * vec4(in_pos, 1.0);
 }

@@ -165,7 +165,10 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
         centre, radius = mesh.bounding_sphere()
         entry = {"kind": obj.kind, "centre": centre.tolist(), "radius": radius,
                  "mesh": writer.add(f"objects/{obj.name}/mesh", parts.MESH, mesh)}
-        say(f"{len(mesh.faces)} faces")
+        if mesh.texture is not None:   # the asset's own colour, read by every technique that shades it
+            entry["albedo_map"] = writer.add(f"objects/{obj.name}/albedo", parts.ALBEDO_MAP, mesh.texture)
+        say(f"{len(mesh.faces)} faces" + (f", albedo map {mesh.texture.shape[1]}x{mesh.texture.shape[0]}"
+                                          if mesh.texture is not None else ""))
         if obj.mesostructure:
             m = obj.mesostructure
             heights = heightfields.from_spec(m.height, m.size, base).astype(np.float32)

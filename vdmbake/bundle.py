@@ -116,6 +116,16 @@ class Bundle:
                              "re-bake with vdmbake --force.")
         return data
 
+    def surface(self, entry: dict):
+        """A surface object's full mesh (its manifest entry's `mesh`) with the asset's albedo map attached
+        (`albedo_map`), if it has one."""
+        from .parts import ALBEDO_MAP, MESH
+
+        mesh = self.read(entry["mesh"], MESH)
+        if entry.get("albedo_map"):
+            mesh.texture = self.read(entry["albedo_map"], ALBEDO_MAP)
+        return mesh
+
     def read(self, rel: str, kind: PartKind):
         """The part at `rel`, which the manifest must record as of `kind`, unpacked from the bytes checked."""
         data = self.read_bytes(rel)

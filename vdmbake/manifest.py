@@ -32,6 +32,7 @@ class ObjectEntry:
     quadrics: str | None = setting(None, _PATH, "quadrics: the spheres and cylinders")
     mesostructure: str | None = setting(None, _PATH, "the height field and normal map")
     viewer_mesh: str | None = setting(None, _PATH, "quadrics: the optional triangle mesh for viewers")
+    albedo_map: str | None = setting(None, _PATH, "surfaces: the asset's base-colour texture, if it has one")
     spheres_dropped: int = setting(0, Integer(0, 2**53), "spheres without volume left out")
     cylinders_dropped: int = setting(0, Integer(0, 2**53), "cylinders without volume left out")
     techniques: dict = setting(REQUIRED, Custom("a table of technique entries"), "each baking technique's parts")
@@ -99,6 +100,8 @@ def validate(manifest, origin: str):
              e.mesh if obj.kind == "surface" else e.quadrics, KINDS["mesh" if obj.kind == "surface" else "quadrics"])
         if obj.viewer_mesh is not None:
             part(f"{where}.viewer_mesh", e.viewer_mesh, KINDS["viewer-mesh"])
+        if e.albedo_map is not None:
+            part(f"{where}.albedo_map", e.albedo_map, KINDS["albedo-map"])
         if obj.mesostructure:
             part(f"{where}.mesostructure", e.mesostructure, KINDS["mesostructure"])
             if parts[e.mesostructure]["size"] != obj.mesostructure.size:

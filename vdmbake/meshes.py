@@ -238,7 +238,32 @@ def load_mesh_file(path: Path) -> TriMesh:
     # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
     # of all its faces on both sides, so shading and displacement agree across the seam.
     w = weld(v)
-    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs, colors=colors)
+    albedo_map = base_colour_map(visual) if uvs is not None else None
+    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs, colors=colors,
+                   texture=albedo_map)
+
+
+def base_colour_map(visual) -> np.ndarray | None:
+    """The asset's base-colour texture as an albedo map (vdmbake.texture), or None: OBJ's `map_Kd` as it is
+    (as MeshLab and Blender show it: exporters write a default Kd beside a map), glTF's baseColorTexture
+    times its baseColorFactor (glTF 2.0 sec. 3.9.2)."""
+    from . import texture
+
+    material = getattr(visual, "material", None)
+    image = getattr(material, "baseColorTexture", None)
+    factor = np.ones(3)
+    if image is not None:
+        bcf = getattr(material, "baseColorFactor", None)
+        factor = np.ones(3) if bcf is None else np.asarray(bcf, np.float64)[:3] / (255.0 if np.asarray(bcf).dtype == np.uint8 else 1.0)
+    else:
+        image = getattr(material, "image", None)
+    if image is None:
+        return None
+    rgb = texture.from_image(image)
+    if not np.allclose(factor, 1.0):   # the factor multiplies linear colour: applied once, re-encoded to 8 bits
+        from .colour import srgb8_to_linear, srgb_encode
+        rgb = np.round(srgb_encode(srgb8_to_linear(rgb) * factor) * 255).astype(np.uint8)
+    return rgb
 
 
 def vertex_colors(visual, count: int) -> np.ndarray | None:

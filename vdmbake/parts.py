@@ -12,7 +12,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import exr, ply, pyramid, quadric_mesh, quadrics
+from . import exr, ply, pyramid, quadric_mesh, quadrics, texture
 from .errors import InputError
 from .schema import REQUIRED, Boolean, Choice, Integer, Invalid, Number, Tables, Type, Vector, setting
 
@@ -124,6 +124,45 @@ def _unpack_viewer_mesh(data, meta, origin):
 VIEWER_MESH = PartKind("viewer-mesh", ".ply",
                        lambda mc: (quadric_mesh.to_bytes(*mc), {"vertices": len(mc[0].vertices), "faces": len(mc[0].faces)}),
                        _unpack_viewer_mesh, MeshMeta)
+
+
+# --- albedo maps: an asset's base-colour texture, a mesostructure tile's colour ----------------------
+
+@dataclass(frozen=True)
+class AlbedoMapMeta:
+    width: int = setting(REQUIRED, Integer(1, 65536), "texels per row")
+    height: int = setting(REQUIRED, Integer(1, 65536), "rows")
+
+
+def _pack_albedo_map(a: np.ndarray):
+    """8-bit sRGB PNG, as the asset's texture was (no precision lost), top row first as viewers expect."""
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(a[::-1]), "RGB").save(buf, "PNG", optimize=False, compress_level=6)
+    return buf.getvalue(), {"width": a.shape[1], "height": a.shape[0]}
+
+
+def _unpack_albedo_map(data, meta, origin) -> np.ndarray:
+    import io
+
+    from PIL import Image
+
+    try:
+        image = Image.open(io.BytesIO(data), formats=["PNG"])
+        if image.mode != "RGB" or image.size != (meta["width"], meta["height"]):
+            _bad(origin, f"a {image.mode} PNG of {image.size[0]}x{image.size[1]} where an RGB one of "
+                         f"{meta['width']}x{meta['height']} was written")
+        return texture.from_image(image)
+    except InputError:
+        raise
+    except Exception as e:  # PIL raises many types for damaged files
+        raise InputError(f"{origin}: unreadable PNG ({type(e).__name__}: {e}).") from None
+
+
+ALBEDO_MAP = PartKind("albedo-map", ".png", _pack_albedo_map, _unpack_albedo_map, AlbedoMapMeta)
 
 
 # --- mesostructure: the height field and its normal map --------------------------------------------
@@ -418,7 +457,7 @@ class OctahedralMeta:
 
 OCTAHEDRAL = PartKind("octahedral", ".exr", _pack_octahedral, _unpack_octahedral, OctahedralMeta)
 
-KINDS = {k.name: k for k in (MESH, QUADRICS, VIEWER_MESH, MESOSTRUCTURE, VDM, BILLBOARDS, BORDERED, PYRAMID,
+KINDS = {k.name: k for k in (MESH, QUADRICS, VIEWER_MESH, ALBEDO_MAP, MESOSTRUCTURE, VDM, BILLBOARDS, BORDERED, PYRAMID,
                              OCTAHEDRAL)}
 
 

@@ -10,6 +10,7 @@ import importlib.resources
 import os
 import re
 
+import moderngl
 import numpy as np
 
 from vdmbake.errors import InputError
@@ -198,6 +199,20 @@ def set_shading(prog, light, material, albedo: bool = True) -> None:
     set_uniforms(prog, u_light_dir=tuple(light.direction), u_light_color=tuple(light.color),
                  u_ambient=tuple(light.ambient), u_kd=material.diffuse, u_ks=material.specular,
                  u_shininess=material.shininess, **({"u_albedo": tuple(material.albedo)} if albedo else {}))
+
+
+ALBEDO_UNIT = 6   # texture unit of the asset's albedo map (shaders/include/albedo.glsl)
+
+
+def albedo_texture(ctx, albedo_map: np.ndarray):
+    """An albedo map (vdmbake.texture: uint8 sRGB, row 0 at v = 0) as an sRGB8 texture read as its numpy twin
+    reads it: linear filtering of decoded texels, wrap-around, no mipmaps."""
+    h, w = albedo_map.shape[:2]
+    tex = ctx.texture((w, h), 3, np.ascontiguousarray(albedo_map, np.uint8).tobytes(), alignment=1,
+                      internal_format=0x8C41)   # GL_SRGB8
+    tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    tex.repeat_x = tex.repeat_y = True
+    return tex
 
 
 class Target:

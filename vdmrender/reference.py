@@ -7,6 +7,7 @@ import numpy as np
 
 from vdmbake.embree import RayScene
 from vdmbake.geometry import onb
+from vdmbake.texture import surface_albedo
 
 from . import quadric_math
 from .shading import safe_normalize, shade
@@ -48,8 +49,7 @@ class MeshReference:
         to_eye = safe_normalize(camera.eye - p)
         L = np.broadcast_to(np.asarray(self.light.direction), p.shape)
         lit = ~self.scene.occluded(local + ng * self.eps, L, relative=True)
-        # The asset's colours where it has them, interpolated at the hit as the rasteriser interpolates them.
-        albedo = self.material.albedo if self.mesh.colors is None else (w * self.mesh.colors[tri]).sum(1)
+        albedo = surface_albedo(self.mesh, hits.prim[hit], w[:, :, 0], self.material.albedo)
         return _frame(camera, hit, shade(albedo, n, to_eye, lit, self.light, self.material))
 
 

@@ -98,6 +98,8 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     folder = f"reference/{obj.name}"
     part = entry.get("mesh") or entry["quadrics"]
     geometry = {"part": bundle.manifest["parts"][part]["sha256"]}
+    if entry.get("albedo_map"):
+        geometry["albedo_map"] = bundle.manifest["parts"][entry["albedo_map"]]["sha256"]
     if obj.mesostructure:   # the truly displaced geometry: the base mesh, the maps and how they are mapped
         geometry.update(maps=bundle.manifest["parts"][entry["mesostructure"]]["sha256"],
                         mesostructure=asdict(obj.mesostructure))
@@ -119,7 +121,7 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
             ref = reference.MeshReference(mesostructure.reference_mesh(src), scene.light, obj.material)
             skirt = mesostructure.skirt_scene(src)
         elif obj.kind == "surface":
-            ref = reference.MeshReference(bundle.read(part, parts.MESH), scene.light, obj.material)
+            ref = reference.MeshReference(bundle.surface(entry), scene.light, obj.material)
         else:
             ref = reference.QuadricReference(bundle.read(part, parts.QUADRICS), scene.light, obj.material)
         frames = [ref.render(c) for c in progress.bar(cams, f"{obj.name}: reference")]

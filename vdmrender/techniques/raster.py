@@ -85,8 +85,8 @@ class RasterPasses(Passes):
 
 
 class RasterMesh(RasterPasses):
-    """One triangle mesh with per-vertex normals and the material's albedo, or the mesh's own colours
-    per vertex where it has them."""
+    """One triangle mesh with per-vertex normals and the material's albedo, or the asset's own: colours per
+    vertex and an albedo map read at its texture coordinates, where it has them (vdmbake.texture)."""
 
     def __init__(self, ctx, mesh, light, material, shadow_size: int):
         anchor, radius = mesh.bounding_sphere()
@@ -99,5 +99,19 @@ class RasterMesh(RasterPasses):
             cbo = ctx.buffer(np.ascontiguousarray(mesh.colors, dtype="f4").tobytes())
             buffers, attributes, defines = buffers + [cbo], attributes + [(cbo, "3f", "in_color")], ("VERTEX_COLOR",)
             self.UNIFORM_ALBEDO = False
+        self.albedo_map = None
+        if mesh.texture is not None:
+            tbo = ctx.buffer(np.ascontiguousarray(mesh.uvs, dtype="f4").tobytes())
+            buffers, attributes, defines = buffers + [tbo], attributes + [(tbo, "2f", "in_uv")], defines + ("ALBEDO_MAP",)
+            self.albedo_map, self.UNIFORM_ALBEDO = gl.albedo_texture(ctx, mesh.texture), False
         self.add("mesh.vert", defines, buffers, attributes, [(vbo, "3f", "in_pos")], ibo)
+
+    def bind_frame(self, prog, camera) -> None:
+        if self.albedo_map is not None:
+            self.albedo_map.use(gl.ALBEDO_UNIT)
+            gl.set_uniforms(prog, u_albedo_map=gl.ALBEDO_UNIT)
+
+    def release(self) -> None:
+        super().release()
+        gl.release(self.albedo_map)
 

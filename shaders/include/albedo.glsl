@@ -1,0 +1,7 @@
+// The asset's albedo map (vdmbake/texture.py, whose `sample` is this lookup's numpy twin): an sRGB8
+// texture, decoded to linear before bilinear filtering, wrapping, without mipmaps (as the reference).
+uniform sampler2D u_albedo_map;
+
+vec3 albedo_map(vec2 uv) {
+    return texture(u_albedo_map, uv).rgb;
+}
