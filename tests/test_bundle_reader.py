@@ -278,6 +278,16 @@ class SpecReader:
         return out
 
     # ---- part kinds ---------------------------------------------------------------------------------
+    def albedo_map(self, rel: str) -> np.ndarray:
+        """(H, W, 3) linear albedo, row 0 at v = 0 (the PNG's bottom row)."""
+        from PIL import Image
+
+        img = Image.open(io.BytesIO(self.part_bytes(rel, "albedo-map")))
+        meta = self.manifest["parts"][rel]
+        assert img.format == "PNG" and img.mode == "RGB" and img.size == (meta["width"], meta["height"])
+        c = np.asarray(img, np.float64)[::-1] / 255.0
+        return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
     def mesh(self, rel: str) -> dict:
         ply = self.ply(rel, "mesh")
         v, f = ply.elements["vertex"], ply.elements["face"]
@@ -1216,3 +1226,35 @@ def test_bordered_billboards_as_documented(shapes):
                 for j in range(clo.shape[1]):
                     if clo[i, j] < 1e30:
                         assert plo[i // 2, j // 2] <= clo[i, j] and phi[i // 2, j // 2] >= chi[i, j]
+
+
+def test_albedo_map_as_documented(tmp_path):
+    """A textured OBJ (a quad, its map a 3x2 picture): the object's `albedo_map` PNG holds the picture as it
+    was, top row first; the full mesh keeps the OBJ's UVs, the coarse mesh carries UVs too; reading the map at
+    the documented texel centres gives the picture's pixels decoded from sRGB."""
+    from PIL import Image
+
+    picture = np.array([[[255, 0, 0], [0, 255, 0], [0, 0, 255]],          # top row: v = 1
+                        [[10, 20, 30], [128, 128, 128], [250, 200, 100]]], np.uint8)
+    Image.fromarray(picture).save(tmp_path / "card.png")
+    (tmp_path / "card.mtl").write_text("newmtl card\nKd 0.6 0.6 0.6\nmap_Kd card.png\n")
+    (tmp_path / "quad.obj").write_text(
+        "mtllib card.mtl\nusemtl card\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 0.1\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0.5\nvn 0 0 1\n"
+        "f 1/1/1 2/2/1 5/5/1\nf 2/2/1 3/3/1 5/5/1\nf 3/3/1 4/4/1 5/5/1\nf 4/4/1 1/1/1 5/5/1\n")
+    r = SpecReader(_bake(tmp_path, "card", HEAD + """
+[[objects]]
+name = "card"
+mesh = "quad.obj"
+techniques = { mesh = {}, coarse = { ratios = [0.5] } }
+"""))
+    obj = r.manifest["objects"]["card"]
+    linear = r.albedo_map(obj["albedo_map"])
+    c = picture[::-1] / 255.0
+    np.testing.assert_allclose(linear, np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4))
+    mesh = r.mesh(obj["mesh"])
+    np.testing.assert_allclose(mesh["uvs"], mesh["vertices"][:, :2])   # the OBJ's UVs are its x, y
+    coarse = r.mesh(obj["techniques"]["coarse"]["meshes"][0]["mesh"])
+    assert "uvs" in coarse and len(coarse["uvs"]) == len(coarse["vertices"])
+    # the quad's UVs are its x, y: the transfer keeps that on the coarse corners
+    np.testing.assert_allclose(coarse["uvs"], coarse["vertices"][:, :2], atol=1e-6)

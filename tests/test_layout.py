@@ -14,8 +14,9 @@ from vdmbake.scene import REGISTRY
 
 RENDER_MAY_IMPORT = {"vdmbake", "vdmbake.bundle", "vdmbake.parts", "vdmbake.scene", "vdmbake.errors",
                      "vdmbake.exr", "vdmbake.embree", "vdmbake.staging",
-                     # neutral pure numpy: shared geometry, the sRGB transfer, the tracer's pyramid layout
-                     "vdmbake.geometry", "vdmbake.colour", "vdmbake.pyramid"}
+                     # neutral pure numpy: shared geometry, the sRGB transfer, the tracer's pyramid layout,
+                     # the albedo-map lookup (the reference's twin of the GL texture read)
+                     "vdmbake.geometry", "vdmbake.colour", "vdmbake.pyramid", "vdmbake.texture"}
 
 
 def imports(path: Path) -> set[str]:

@@ -116,13 +116,13 @@ class Bundle:
                              "re-bake with vdmbake --force.")
         return data
 
-    def surface(self, entry: dict):
-        """A surface object's full mesh (its manifest entry's `mesh`) with the asset's albedo map attached
-        (`albedo_map`), if it has one."""
+    def surface(self, entry: dict, rel: str | None = None):
+        """A surface object's mesh part `rel` (default: its full mesh, the manifest entry's `mesh`) with the
+        asset's albedo map (`albedo_map`) attached if it has one and the mesh has texture coordinates."""
         from .parts import ALBEDO_MAP, MESH
 
-        mesh = self.read(entry["mesh"], MESH)
-        if entry.get("albedo_map"):
+        mesh = self.read(rel or entry["mesh"], MESH)
+        if entry.get("albedo_map") and mesh.uvs is not None:
             mesh.texture = self.read(entry["albedo_map"], ALBEDO_MAP)
         return mesh
 

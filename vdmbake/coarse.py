@@ -11,6 +11,8 @@ per sheet (`split_pinches`), so the output's faces meet only along manifold edge
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .meshes import TriMesh, crease_normals, weld
@@ -20,34 +22,135 @@ CREASE_DEG = 60.0   # faces meeting at a larger angle do not share a vertex norm
 
 def simplify(mesh: TriMesh, ratio: float) -> TriMesh:
     """Keep about `ratio` of the faces (at least one) of the surface welded by position (`surface`); vertex
-    normals are recomputed over the simplified surface with sharp edges kept sharp, UVs dropped (no technique
-    textures a coarse mesh), per-vertex colours carried (`collapsed_colors`)."""
+    normals are recomputed over the simplified surface with sharp edges kept sharp, per-vertex colours
+    carried (`collapsed_colors`), and for an asset with an albedo map its UVs (`transferred_uvs`) and the
+    map; other UVs are dropped (no other technique reads a coarse mesh's)."""
+    textured = mesh.texture is not None
     if ratio >= 1.0:
-        return TriMesh(mesh.vertices, mesh.faces, mesh.normals, colors=mesh.colors)
-    v, f, colors = surface(mesh, ratio)
+        return TriMesh(mesh.vertices, mesh.faces, mesh.normals, mesh.uvs if textured else None,
+                       colors=mesh.colors, texture=mesh.texture)
+    v, f, colors, lineage = surface(mesh, ratio)
     # Welding joined the faces across sharp edges too (a cone's rim): normals are smoothed only within
     # CREASE_DEG, so an edge sharp in the input stays sharp in the shading.
     v, f, n, source = crease_normals(v, f, CREASE_DEG)
-    return TriMesh(v, f, n, colors=None if colors is None else colors[source])
+    colors = None if colors is None else colors[source]
+    if not textured:
+        return TriMesh(v, f, n, colors=colors)
+    # A vertex whose faces lie in different UV charts (a seam) is split into one copy per chart, at the same
+    # position: the surface stays closed where the charts meet.
+    corner_uv = transferred_uvs(mesh, lineage, v[f])
+    key = np.column_stack([f.ravel(), corner_uv.reshape(-1, 2)])
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    keep = f.ravel()[first]
+    return TriMesh(v[keep], inv.reshape(-1, 3), n[keep], corner_uv.reshape(-1, 2)[first],
+                   colors=None if colors is None else colors[keep], texture=mesh.texture)
 
 
-def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """The simplified surface: vertices, faces (manifold edges only, no fins) and per-vertex colours (or
-    None): one vertex per point, but where a pinched edge was split."""
+class Lineage(NamedTuple):
+    """Where the simplified surface came from (the faces keep their order through every later step)."""
+    origin: np.ndarray     # (F,) the full mesh's face each face descends from
+    raw: np.ndarray        # (F, 3) each corner's vertex as the simplifier numbered it
+    mapping: np.ndarray    # welded input vertex -> that numbering (-1: unused)
+    ids: np.ndarray        # full mesh vertex -> welded vertex (meshes.weld)
+
+
+def transferred_uvs(mesh: TriMesh, lineage: Lineage, corners: np.ndarray) -> np.ndarray:
+    """(F, 3, 2) texture coordinates of the coarse faces' corners (positions `corners`, (F, 3, 3)).
+
+    Each coarse face descends from one face of the full mesh (`lineage.origin`: an edge collapse moves a
+    face's corners but keeps the face), and a corner from the vertices that collapsed into it. The faces
+    around those vertices form the corner's region; the part of it joined to the origin face through shared
+    vertices (a mesh file splits vertices at UV seams, so a seam separates the parts) is one piece of one UV
+    chart, continuous, however the chart wraps around elsewhere. The corner takes the UV of the nearest point
+    of that piece: the nearest face's affine UV map at the corner projected onto its plane (beyond the face
+    where the corner lies beyond the chart's border, continuing the chart linearly). So the texture follows
+    the moved corners rather than sliding with them, and the faces on either side of a seam read their own
+    chart."""
+    origin, mapping = lineage.origin, lineage.mapping
+    n_faces = np.int64(len(mesh.faces))
+    # (coarse vertex, full face) pairs, sorted: the faces around the vertices collapsed into each coarse vertex
+    pairs = np.unique(np.column_stack([mapping[lineage.ids[mesh.faces]].ravel(),
+                                       np.repeat(np.arange(n_faces), 3)]), axis=0)
+    pairs = pairs[pairs[:, 0] >= 0]
+    piece = _pieces(pairs, mesh.faces)
+    start = np.searchsorted(pairs[:, 0], np.arange(mapping.max() + 2))
+    p = corners.reshape(-1, 3)
+    vertex, own = lineage.raw.reshape(-1), np.repeat(origin, 3)
+    key = pairs[:, 0] * n_faces + pairs[:, 1]
+    mine = piece[np.searchsorted(key, vertex * n_faces + own)]   # the piece holding the corner's origin face
+    lo, count = start[vertex], start[vertex + 1] - start[vertex]
+    cand_corner = np.repeat(np.arange(len(p)), count)
+    cand = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count) + np.repeat(lo, count)
+    same = piece[cand] == mine[cand_corner]
+    cand_corner, cand_face = cand_corner[same], pairs[cand[same], 1]
+    b, dist = _project(mesh.vertices[mesh.faces[cand_face]], p[cand_corner])
+    order = np.lexsort((dist, cand_corner))
+    best = order[np.searchsorted(cand_corner[order], np.arange(len(p)))]
+    return np.einsum("nk,nkc->nc", b[best], mesh.uvs[mesh.faces[cand_face[best]]]).reshape(-1, 3, 2)
+
+
+def _pieces(pairs: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(P,) label of each (coarse vertex, face) pair: pairs of one coarse vertex whose faces are joined
+    through shared vertices (within that vertex's faces) share a label."""
+    rows = np.repeat(np.arange(len(pairs)), 3)
+    _, group = np.unique(np.column_stack([pairs[rows, 0], faces[pairs[:, 1]].ravel()]), axis=0, return_inverse=True)
+    group = group.ravel()
+    label = np.arange(len(pairs))
+    while True:
+        low = np.full(group.max() + 1, len(pairs))
+        np.minimum.at(low, group, label[rows])
+        new = label.copy()
+        np.minimum.at(new, rows, low[group])
+        new = new[new]                                          # pointer jumping: halves the chains
+        if np.array_equal(new, label):
+            return label
+        label = new
+
+
+def _project(tri: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric coordinates (N, 3) of points p projected onto their triangles' planes (unclamped: outside
+    the triangle they extend it), and the distance from p to the triangle itself (clamped), for ranking.
+    A sliver (no plane) gives its nearest corner."""
+    e1, e2, d = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], p - tri[:, 0]
+    g11, g12, g22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    r1, r2 = (d * e1).sum(1), (d * e2).sum(1)
+    det = g11 * g22 - g12 * g12
+    ok = det > 1e-12 * g11 * g22
+    safe = np.where(ok, det, 1.0)
+    b1 = np.where(ok, (g22 * r1 - g12 * r2) / safe, 0.0)
+    b2 = np.where(ok, (g11 * r2 - g12 * r1) / safe, 0.0)
+    b = np.column_stack([1 - b1 - b2, b1, b2])
+    corner = np.argmin(np.linalg.norm(p[:, None] - tri, axis=2), 1)
+    b = np.where(ok[:, None], b, np.eye(3)[corner])
+    # distance to the triangle: to the clamped-and-renormalised barycentric point (a ranking, not exact)
+    c = np.clip(b, 0.0, None)
+    c /= np.maximum(c.sum(1, keepdims=True), 1e-300)
+    return b, np.linalg.norm(np.einsum("nk,nkc->nc", c, tri) - p, axis=1)
+
+
+def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """The simplified surface: vertices, faces (manifold edges only, no fins), per-vertex colours (or
+    None) and its Lineage: one vertex per point, but where a pinched edge was split."""
     import fast_simplification
 
     ids = weld(mesh.vertices)
     points = mesh.vertices[np.unique(ids, return_index=True)[1]]
     faces = ids[mesh.faces]
-    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
+    whole = np.flatnonzero((faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0]))
+    faces = faces[whole]
     # Simplify about the centre: quadric errors of a far-off mesh lose digits otherwise.
     centre = 0.5 * (points.min(0) + points.max(0))
     target = max(1, int(round(ratio * len(mesh.faces))))
     v, f, collapses = fast_simplification.simplify(points - centre, faces, target_count=target, return_collapses=True)
     v = np.asarray(v, np.float64) + centre
     f = np.asarray(f, np.int64).reshape(-1, 3)
-    colors = None if mesh.colors is None else collapsed_colors(points, faces, ids, mesh.colors, collapses, len(v))
-    f = remove_fins(f) if len(remove_fins(f)) else f   # all fins (a handful of faces): keep them, not nothing
+    mapping = np.asarray(fast_simplification.replay_simplification(points, faces, collapses)[2])
+    colors = None if mesh.colors is None else collapsed_colors(points, faces, ids, mesh.colors, mapping, len(v))
+    origin = whole[surviving_faces(faces, f, mapping)]
+    keep = fin_free(f)
+    if keep.any():                                     # all fins (a handful of faces): keep them, not nothing
+        f, origin = f[keep], origin[keep]
+    raw = f
     v, f, used = compact(v, f)
     v, f, source = split_pinches(v, f)
     colors = None if colors is None else colors[used][source]
@@ -56,16 +159,28 @@ def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.nda
     sphere_centre, radius = mesh.bounding_sphere()
     reach = np.linalg.norm(v - sphere_centre, axis=1, keepdims=True)
     v = sphere_centre + (v - sphere_centre) * np.minimum(1.0, radius / np.maximum(reach, 1e-300))
-    return v, f, colors
+    return v, f, colors, Lineage(origin, raw, mapping, ids)
 
 
-def collapsed_colors(points, faces, ids, colors, collapses, count: int) -> np.ndarray:
+def surviving_faces(faces: np.ndarray, out: np.ndarray, mapping: np.ndarray) -> np.ndarray:
+    """For each simplified face, the input face it is: edge collapses only delete faces and renumber the
+    corners of the others, so an output face is the one input face whose corners map (`mapping`: input
+    vertex -> output vertex, fast-simplification's replay) onto its three vertices."""
+    both = np.concatenate([np.sort(out, 1), np.sort(mapping[faces], 1)])
+    _, inv = np.unique(both, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    face_of = np.full(inv.max() + 1, -1, np.int64)
+    face_of[inv[len(out):]] = np.arange(len(faces))
+    origin = face_of[inv[:len(out)]]
+    if (origin < 0).any():
+        raise RuntimeError("coarse: a simplified face matches no input face (fast-simplification changed?)")
+    return origin
+
+
+def collapsed_colors(points, faces, ids, colors, mapping, count: int) -> np.ndarray:
     """(count, 3) colours of the simplified vertices: each the area-weighted mean of the welded vertices
-    collapsed into it (fast-simplification's replay of the collapses maps every input vertex to its output
-    vertex); a welded vertex's colour is the mean of the vertices it welds."""
-    import fast_simplification
-
-    mapping = np.asarray(fast_simplification.replay_simplification(points, faces, collapses)[2])
+    collapsed into it (`mapping`: fast-simplification's replay of the collapses maps every input vertex to
+    its output vertex); a welded vertex's colour is the mean of the vertices it welds."""
     welded = np.zeros((len(points), 3))
     np.add.at(welded, ids, colors)
     welded /= np.bincount(ids, minlength=len(points))[:, None]
@@ -78,10 +193,10 @@ def collapsed_colors(points, faces, ids, colors, collapses, count: int) -> np.nd
     return total / np.maximum(np.bincount(mapping[kept], weight[kept], count), 1e-300)[:, None]
 
 
-def remove_fins(faces: np.ndarray) -> np.ndarray:
-    """Faces without their repeats: every face whose three vertices another face also has goes, both of a
-    pair facing opposite ways (a zero-volume fin that a collapse left behind) and repeats facing the same
-    way (one copy kept)."""
+def fin_free(faces: np.ndarray) -> np.ndarray:
+    """Which faces to keep so that none repeats: every face whose three vertices another face also has goes,
+    both of a pair facing opposite ways (a zero-volume fin that a collapse left behind) and repeats facing
+    the same way (one copy kept)."""
     key = np.sort(faces, 1)
     _, first, inverse, count = np.unique(key, axis=0, return_index=True, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
@@ -90,8 +205,7 @@ def remove_fins(faces: np.ndarray) -> np.ndarray:
         np.all(np.roll(faces, 1, 1) == faces[first[inverse]], 1) | np.all(np.roll(faces, 2, 1) == faces[first[inverse]], 1)
     fin = np.zeros(len(first), bool)
     np.logical_or.at(fin, inverse, ~same)
-    keep = (count[inverse] == 1) | (~fin[inverse] & (np.arange(len(faces)) == first[inverse]))
-    return faces[keep]
+    return (count[inverse] == 1) | (~fin[inverse] & (np.arange(len(faces)) == first[inverse]))
 
 
 def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -1,11 +1,9 @@
 """Renderer of `coarse`: one simplified mesh (baked by vdmbake) per ratio, rasterised like `mesh`."""
 from __future__ import annotations
 
-from vdmbake import parts
-
 from .raster import RasterMesh
 
 
 def build(ctx, src, ratio):
     rel = next(m["mesh"] for m in src.part["meshes"] if m["ratio"] == ratio)
-    return RasterMesh(ctx, src.bundle.read(rel, parts.MESH), src.scene.light, src.obj.material, src.shadow_map)
+    return RasterMesh(ctx, src.bundle.surface(src.entry, rel), src.scene.light, src.obj.material, src.shadow_map)
