@@ -5,7 +5,6 @@
 #include "shadow.glsl"
 #include "mesostructure.glsl"
 uniform vec3 u_eye;
-uniform vec3 u_albedo;
 out vec4 frag;
 
 void main() {
@@ -15,6 +14,6 @@ void main() {
     vec2 T = v_uv * u_tiling;
     vec3 n = mesostructure_normal(F, T);
     vec3 Vw = normalize(u_eye - v_pos);
-    frag = vec4(shade(u_albedo, n, Vw, shadow_lit(v_pos, N)), 1.0);
+    frag = vec4(shade(tile_albedo(T), n, Vw, shadow_lit(v_pos, N)), 1.0);
     COUNT_OUT(frag);
 }

@@ -7,7 +7,6 @@
 #include "shadow.glsl"
 #include "mesostructure.glsl"
 uniform vec3 u_eye;
-uniform vec3 u_albedo;
 uniform int u_steps;
 out vec4 frag;
 
@@ -50,6 +49,6 @@ void main() {
     vec3 n = mesostructure_normal(F, T1);
     lit *= shadow_lit(v_pos, N);
     gl_FragDepth = window_depth(u_mvp, P);
-    frag = vec4(shade(u_albedo, n, Vw, lit), 1.0);
+    frag = vec4(shade(tile_albedo(T1), n, Vw, lit), 1.0);
     COUNT_OUT(frag);
 }

@@ -25,7 +25,6 @@ uniform int u_iterations;
 #define HF_START_LEVEL 0
 #include "heightfield_trace.glsl"
 uniform vec3 u_eye;
-uniform vec3 u_albedo;
 out vec4 frag;
 
 // A world vector v of the frame at the pixel, carried to the frame at tile offset dT along the base surface:
@@ -85,7 +84,7 @@ void main() {
 #endif
     lit *= shadow_lit(v_pos, N);
     gl_FragDepth = window_depth(u_mvp, P);
-    frag = vec4(shade(u_albedo, nw, Vw, lit), 1.0);
+    frag = vec4(shade(tile_albedo(T1), nw, Vw, lit), 1.0);
 #if defined(COUNT)
     fetches[2] += hf_visits;
     COUNT_OUT(frag);

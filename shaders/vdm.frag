@@ -12,7 +12,6 @@
 #include "curved_ray.glsl"
 const float PI = 3.14159265358979;
 uniform vec3 u_eye;                 // anchor-relative
-uniform vec3 u_albedo;
 uniform sampler2DArray u_E_vdm;     // layer g: (theta, c) -> E_vdm of eigenfunctions 4g..4g+3, clamped
 uniform sampler2D u_E_mvm;          // (c, g) -> E_mvm of eigenfunctions 4g..4g+3, clamped
 uniform int u_groups;               // rows of u_E_mvm
@@ -178,6 +177,6 @@ void main() {
     vec3 n = mesostructure_normal(F, T1);
     lit *= shadow_lit(v_pos, N);
     gl_FragDepth = window_depth(u_mvp, P);
-    frag = vec4(shade(u_albedo, n, Vw, lit), 1.0);
+    frag = vec4(shade(tile_albedo(T1), n, Vw, lit), 1.0);
     COUNT_OUT(frag);
 }

@@ -17,8 +17,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import (__version__, code_fingerprint, curvature, heightfields, package_modules, parts, primitives, quadric_mesh,
-               quadrics, staging, vdm)
+from . import (__version__, code_fingerprint, curvature, heightfields, meso_albedo, package_modules, parts, primitives,
+               quadric_mesh, quadrics, staging, vdm)
 from .bundle import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter
 from .errors import InputError
 from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
@@ -58,15 +58,17 @@ def input_hash(scene: Scene, base: Path, code: str | None = None) -> tuple[str, 
     """One hash over the resolved scene, the input files' contents, the format/tool versions and
     the bake code's fingerprint (`code`, bake_code() by default)."""
     files = [f for o in scene.objects for f in (o.mesh, o.molecule) if f]
-    files += [o.mesostructure.height for o in scene.objects if o.mesostructure and _is_file(o.mesostructure.height)]
+    for m in (o.mesostructure for o in scene.objects if o.mesostructure):   # height and albedo pictures
+        files += [spec for spec, patterns in ((m.height, heightfields.PATTERNS), (m.albedo, meso_albedo.PATTERNS))
+                  if spec and _is_file(spec, patterns)]
     inputs = {f: file_sha256(resolve_path(f, base)) for f in files}
     key = json.dumps({"format_version": FORMAT_VERSION, "tool_version": __version__, "code": code or bake_code(),
                       "scene": scene.to_dict(), "inputs": inputs}, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest(), inputs
 
 
-def _is_file(height: str) -> bool:
-    return height not in heightfields.PATTERNS and not height.startswith("skimage:")
+def _is_file(spec: str, patterns) -> bool:
+    return spec not in patterns and not spec.startswith("skimage:")
 
 
 def stale(out: Path, digest: str, code: str) -> str | None:
@@ -175,6 +177,11 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
             maps = parts.MesostructureMaps(heights, vdm.height_normals(heights.astype(np.float64), m.depth)
                                            .astype(np.float32))
             entry["mesostructure"] = writer.add(f"objects/{obj.name}/mesostructure", parts.MESOSTRUCTURE, maps)
+            if m.albedo:   # the tile's colour, read by every mesostructure technique and the reference
+                tile = meso_albedo.from_spec(m.albedo, m.size, base)
+                entry["mesostructure_albedo"] = writer.add(f"objects/{obj.name}/mesostructure-albedo", parts.ALBEDO_MAP,
+                                                           tile)
+                say(f"mesostructure albedo {tile.shape[1]}x{tile.shape[0]}")
     entry["techniques"] = {}
     for name, options in obj.techniques.items():
         technique = REGISTRY[name]

@@ -163,7 +163,8 @@ def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: fl
     their copies' displacements (equal where the height field is continuous across the seam), so the
     displaced surface has no cracks. The shading normals are those every per-pixel technique uses: the
     mesostructure's texture-space normals `normals` (MesostructureMaps) mapped through the
-    interpolated frame, so the comparison measures geometry, not a different normal."""
+    interpolated frame, so the comparison measures geometry, not a different normal. The texture
+    coordinates are the base mesh's, interpolated (the tile albedo is read at them times `tiling`)."""
     faces_out = len(mesh.faces) * 4 ** levels
     if faces_out > MAX_FACES:
         raise InputError(f"displacement at {levels} subdivision levels would make {faces_out:,} faces "
@@ -186,7 +187,7 @@ def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: fl
     amount = (np.bincount(w, amount) / np.bincount(w))[w]   # the copies of a seam vertex move together
     moved = a["pos"] - a["normal"] * amount[:, None]
     n_tex = np.stack([sample(np.asarray(c, np.float64), T) for c in np.moveaxis(normals, -1, 0)], -1)
-    return TriMesh(moved, f, texspace.world_normals(J, a["normal"], n_tex))
+    return TriMesh(moved, f, texspace.world_normals(J, a["normal"], n_tex), a["uv"])
 
 
 # Open boundaries (VDM sec. 5: "VDMs will be extended to model open surface boundaries, which are not

@@ -81,13 +81,15 @@ def _pdist(x: np.ndarray, c) -> np.ndarray:
 
 # --------------------------------------------------------------------------- patterns
 
+BRICK_TOP_VARIATION = 0.06  # brick tops of `bricks` vary within [1 - this, 1] (vdmbake.meso_albedo colours them)
+
 
 def _bricks(size: int) -> np.ndarray:
     # Running bond, two courses per tile; each brick is one tile wide and half a tile high
     # (2:1), the upper course is offset by half a brick, so a tiled wall has the usual bond.
     mortar_half = 0.02  # flat mortar floor: 4 % of the tile across each joint
     bevel = 0.03  # linear ramp from the mortar floor to the brick top
-    amp = 0.06  # brick tops vary within [1 - amp, 1]
+    amp = BRICK_TOP_VARIATION
     u = _centres(size)[None, :]
     v = _centres(size)[:, None]
     course = np.floor(v * 2.0).astype(int) % 2  # 0: v in [0, .5), 1: v in [.5, 1)
@@ -339,16 +341,12 @@ def load_image(path: Path, size: int | None) -> np.ndarray:
     return _finish(h, size, str(path))
 
 
-def skimage_photo(name: str, size: int | None) -> np.ndarray:
-    """Real photographs bundled with scikit-image (e.g. 'brick', 'gravel', 'grass'): luminance as height,
-    normalised and oriented as every image file (load_image). Raise InputError naming the extra to install if scikit-image is missing,
-    and naming the allowed photo names if the name is unknown. Only the photos inside the scikit-image
-    wheel are used; they are read straight from its skimage/data folder (nothing is ever downloaded)."""
-    if name not in SKIMAGE_PHOTOS:
-        raise InputError(f"scikit-image photo {name!r} is unknown (allowed: {', '.join(SKIMAGE_PHOTOS)})")
-    where = f"scikit-image photo {name!r}"
-    if size is not None:
-        _check_size(size, where)
+def skimage_file(name: str, catalogue: dict, where: str) -> Path:
+    """The file of photo `name` of `catalogue` ({name: (file, provenance)}) inside the installed
+    scikit-image wheel's skimage/data folder (nothing is ever downloaded). Raise InputError naming the
+    allowed names if the name is unknown, and the extra to install if scikit-image is missing."""
+    if name not in catalogue:
+        raise InputError(f"{where} is unknown (allowed: {', '.join(catalogue)})")
     try:
         spec = importlib.util.find_spec("skimage")
     except (ImportError, ValueError):
@@ -356,14 +354,21 @@ def skimage_photo(name: str, size: int | None) -> np.ndarray:
     if spec is None or not spec.submodule_search_locations:
         raise InputError(f"{where}: scikit-image is not installed (install the '{SKIMAGE_EXTRA}' extra: "
                          f"pip install 'vdmbake[{SKIMAGE_EXTRA}]', or pip install scikit-image)")
-    file = SKIMAGE_PHOTOS[name][0]
+    file = catalogue[name][0]
     for loc in spec.submodule_search_locations:
         path = Path(loc) / "data" / file
         if path.is_file():
-            break
-    else:
-        raise InputError(f"{where}: {file} is not in this scikit-image installation's skimage/data "
-                         f"(allowed: {', '.join(SKIMAGE_PHOTOS)}, from a scikit-image wheel)")
+            return path
+    raise InputError(f"{where}: {file} is not in this scikit-image installation's skimage/data "
+                     f"(allowed: {', '.join(catalogue)}, from a scikit-image wheel)")
+
+
+def skimage_photo(name: str, size: int | None) -> np.ndarray:
+    """Real photographs bundled with scikit-image (e.g. 'brick', 'gravel', 'grass'): luminance as height,
+    normalised and oriented as every image file (load_image). Raise InputError naming the extra to install if
+    scikit-image is missing, and naming the allowed photo names if the name is unknown (skimage_file)."""
+    where = f"scikit-image photo {name!r}"
+    path = skimage_file(name, SKIMAGE_PHOTOS, where)
     return _finish(_png_stored(path), size, f"{where} ({path})")
 
 

@@ -33,6 +33,7 @@ class ObjectEntry:
     mesostructure: str | None = setting(None, _PATH, "the height field and normal map")
     viewer_mesh: str | None = setting(None, _PATH, "quadrics: the optional triangle mesh for viewers")
     albedo_map: str | None = setting(None, _PATH, "surfaces: the asset's base-colour texture, if it has one")
+    mesostructure_albedo: str | None = setting(None, _PATH, "the mesostructure's colour tile, if the scene gives one")
     spheres_dropped: int = setting(0, Integer(0, 2**53), "spheres without volume left out")
     cylinders_dropped: int = setting(0, Integer(0, 2**53), "cylinders without volume left out")
     techniques: dict = setting(REQUIRED, Custom("a table of technique entries"), "each baking technique's parts")
@@ -107,6 +108,12 @@ def validate(manifest, origin: str):
             if parts[e.mesostructure]["size"] != obj.mesostructure.size:
                 raise InputError(f"{origin}: part {e.mesostructure!r} has size {parts[e.mesostructure]['size']} "
                                  f"but the scene's mesostructure size is {obj.mesostructure.size}; re-bake.")
+            if (e.mesostructure_albedo is None) != (obj.mesostructure.albedo is None):
+                raise InputError(f"{origin}: key '{where}.mesostructure_albedo' is "
+                                 f"{'missing' if e.mesostructure_albedo is None else 'present'} but the scene's "
+                                 f"mesostructure has {'an' if obj.mesostructure.albedo else 'no'} albedo; re-bake.")
+            if e.mesostructure_albedo is not None:
+                part(f"{where}.mesostructure_albedo", e.mesostructure_albedo, KINDS["albedo-map"])
         for name, options in obj.techniques.items():
             t = REGISTRY[name]
             if t.reads is None:

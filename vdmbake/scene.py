@@ -15,6 +15,7 @@ from pathlib import Path
 from .errors import InputError
 from .safeio import read_regular
 from .heightfields import PATTERNS, SKIMAGE_PHOTOS
+from . import meso_albedo
 from .molecules import STYLES
 from .primitives import PRIMITIVES
 from .schema import (REQUIRED, printable, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
@@ -96,6 +97,11 @@ class Mesostructure:
     height: str = setting(REQUIRED, Text(f"a pattern ({', '.join(PATTERNS)}), skimage:NAME "
                                          f"({', '.join(SKIMAGE_PHOTOS)}) or a PNG/EXR path (relative to the scene, "
                                          "or pkg:PACKAGE/PATH)"), "the height field, 1 = the surface")
+    albedo: str | None = setting(None, Text(f"a colouring ({', '.join(meso_albedo.PATTERNS)}), skimage:NAME "
+                                            f"({', '.join(meso_albedo.SKIMAGE_NAMES)}) or an 8-bit picture path (PNG, "
+                                            "JPEG; relative to the scene, or pkg:PACKAGE/PATH)"),
+                                 "colour tile (sRGB) repeating with the height field: the albedo of every mesostructure "
+                                 "technique and of the reference, in place of the material's and the asset's own")
     size: int = setting(128, Integer(4, 1024), "texels per tile side")
     depth: float = setting(0.05, Number(0.0, 1.0), "depth of the mesostructure, tile units")
     tiling: tuple[float, float] = setting((1.0, 1.0), Vector(2, 1e-3, 1e4), "tiles over the UV square")

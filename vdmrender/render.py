@@ -98,8 +98,9 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     folder = f"reference/{obj.name}"
     part = entry.get("mesh") or entry["quadrics"]
     geometry = {"part": bundle.manifest["parts"][part]["sha256"]}
-    if entry.get("albedo_map"):
-        geometry["albedo_map"] = bundle.manifest["parts"][entry["albedo_map"]]["sha256"]
+    for key in ("albedo_map", "mesostructure_albedo"):   # colour textures
+        if entry.get(key):
+            geometry[key] = bundle.manifest["parts"][entry[key]]["sha256"]
     if obj.mesostructure:   # the truly displaced geometry: the base mesh, the maps and how they are mapped
         geometry.update(maps=bundle.manifest["parts"][entry["mesostructure"]]["sha256"],
                         mesostructure=asdict(obj.mesostructure))

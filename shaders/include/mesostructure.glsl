@@ -75,6 +75,21 @@ vec3 mesostructure_normal(Frame F, vec2 T) {
     return world_normal(F, FETCH(3, textureLod(u_normals, T, 0.0)).xyz);
 }
 
+// The albedo at tile coordinate T: the mesostructure's colour tile, which repeats with the height field
+// (TILE_ALBEDO: an sRGB8 albedo map, albedo.glsl; the reference reads it at the traced hit's T), or the
+// material's constant.
+#ifdef TILE_ALBEDO
+#include "albedo.glsl"
+vec3 tile_albedo(vec2 T) {
+    return FETCH(3, albedo_map(T));
+}
+#else
+uniform vec3 u_albedo;
+vec3 tile_albedo(vec2 T) {
+    return u_albedo;
+}
+#endif
+
 // Depth below the reference surface at tile coordinate T, texture units.
 float depth_at(vec2 T, vec2 dx, vec2 dy) {
     return u_depth * (1.0 - FETCH(2, textureGrad(u_height, T, dx, dy)).r);

@@ -20,6 +20,8 @@ def bake(job) -> dict:
     meshes = []
     for level in job.options.levels:
         d = geometry.displaced(base, job.maps.heights, job.maps.normals, m.depth, m.tiling, level)
+        if m.albedo is None:   # texture coordinates only for the tile albedo (vdmrender/techniques/displaced.py)
+            d.uvs = None
         meshes.append({"level": level, "mesh": job.write(f"displaced-{level}", parts.MESH, d)})
         job.log(f"displaced level {level}: {len(d.faces)} faces")
     return {"meshes": meshes}

@@ -9,6 +9,7 @@ import numpy as np
 
 from vdmbake import geometry, parts
 from vdmbake.embree import RayScene
+from vdmbake.errors import InputError
 
 from .. import gl
 from .raster import RasterPasses
@@ -17,16 +18,35 @@ def maps(src) -> parts.MesostructureMaps:
     return src.bundle.read(src.entry["mesostructure"], parts.MESOSTRUCTURE)
 
 
+def tile_albedo(src):
+    """The mesostructure's colour tile (an albedo map, vdmbake.meso_albedo), None where the scene gives none."""
+    rel = src.entry.get("mesostructure_albedo")
+    return src.bundle.read(rel, parts.ALBEDO_MAP) if rel else None
+
+
+def textured(mesh, src):
+    """A displaced mesh (carrying the base mesh's texture coordinates) with the tile albedo attached, read at
+    the tile coordinate T = uv * tiling as an asset's albedo map is read at its UVs (vdmbake.texture);
+    unchanged where the mesostructure has no albedo."""
+    tile = tile_albedo(src)
+    if tile is not None:
+        if mesh.uvs is None:
+            raise InputError(f"{src.bundle.path}: object {src.obj.name!r}: a displaced mesh without texture "
+                             "coordinates under a mesostructure albedo; re-bake with vdmbake --force.")
+        mesh.uvs, mesh.texture = mesh.uvs * np.asarray(src.obj.mesostructure.tiling), tile
+    return mesh
+
+
 def reference_mesh(src):
     """The truly displaced geometry the reference traces: the base mesh subdivided until no edge spans
-    more than half a texel, and displaced (DESIGN.md, "The reference"). Too large to bake (8 M faces on
-    the benchmark's torus), it is built here from the bundle's base mesh and maps by the same kernel
-    the `displaced` bake uses."""
+    more than half a texel, and displaced (DESIGN.md, "The reference"), textured by the tile albedo if
+    any. Too large to bake (8 M faces on the benchmark's torus), it is built here from the bundle's base
+    mesh and maps by the same kernel the `displaced` bake uses."""
     m = src.obj.mesostructure
     base = src.bundle.read(src.entry["mesh"], parts.MESH)
     meso = maps(src)
-    return geometry.displaced(base, meso.heights, meso.normals, m.depth, m.tiling,
-                              geometry.reference_levels(base, m.size, m.tiling))
+    return textured(geometry.displaced(base, meso.heights, meso.normals, m.depth, m.tiling,
+                                       geometry.reference_levels(base, m.size, m.tiling)), src)
 
 
 def skirt_scene(src):
@@ -68,8 +88,12 @@ class MesostructurePass(RasterPasses):
         stage, and the others compile those attributes away. cull: the stage discards the base surface
         seen from behind, so the frame pass lets the rasteriser cull those faces (back_faces: on llvmpipe
         a discard at the top of a stage still costs about the whole stage). defines: of the stage, e.g.
-        ("COUNT",) for an instrumented build."""
+        ("COUNT",) for an instrumented build. The albedo is the material's (u_albedo), or the tile albedo read
+        at the hit's tile coordinate where the mesostructure has one (TILE_ALBEDO, mesostructure.glsl)."""
         mesh = src.bundle.read(src.entry["mesh"], parts.MESH)
+        tile = tile_albedo(src)
+        if tile is not None:
+            defines, self.UNIFORM_ALBEDO = (*defines, "TILE_ALBEDO"), False
         anchor, radius = mesh.bounding_sphere()
         super().__init__(ctx, src.scene.light, src.obj.material, anchor, radius, src.shadow_map)
         self.faces = len(mesh.faces)
@@ -90,6 +114,8 @@ class MesostructurePass(RasterPasses):
         # t = 0, so the arrays go up as they are and texture(T) reads h at T = (u, v).
         self.textures = {
             "u_normals": texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, False)}
+        if tile is not None:
+            self.textures["u_albedo_map"] = gl.albedo_texture(ctx, tile)
         self.uniforms = {"u_tiling": tuple(m.tiling), **uniforms}
         if heights:
             self.textures["u_height"] = texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"),
