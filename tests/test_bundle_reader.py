@@ -3,7 +3,8 @@ specification says it means.
 
 The reader (`SpecReader` and the helpers around it) uses only the standard library, numpy and the
 OpenEXR package. `vdmbake` is imported for two things only: baking the scenes (its CLI, in-process)
-and, in `test_reader_agrees_with_project_unpacking`, the project's own unpacking to compare with.
+and, in `test_reader_agrees_with_project_unpacking` and `test_albedo_lookup_agrees_with_project`, the
+project's own unpacking to compare with.
 
 Where the specification left something open, the tests follow what the bytes contain and say so
 ("found by experiment") next to the check.
@@ -124,6 +125,31 @@ techniques = {{ impostor = {{}} }}
 """
 
 
+TILE = (6, 4)   # the colour tile's picture: width, height
+ALBEDO_SCENE = HEAD + """
+[[objects]]
+name = "wall"
+primitive = "plane"
+params = { size = 2.0, segments = 2 }
+
+[objects.mesostructure]
+height = "bricks"
+albedo = "tile.png"
+size = 8
+tiling = [2, 3]
+
+[objects.techniques]
+displaced = { levels = [0, 1] }
+"""
+
+
+def tile_picture() -> np.ndarray:
+    """The colour tile's pixels (rows top first, as written to tile.png): every texel different."""
+    h, w = TILE[1], TILE[0]
+    r, c = np.mgrid[0:h, 0:w]
+    return np.stack([40 * c + 10, 50 * r + 20, 7 * (r * w + c) + 3], -1).astype(np.uint8)
+
+
 def _bake(tmp: pathlib.Path, name: str, text: str) -> pathlib.Path:
     from click.testing import CliRunner
 
@@ -144,6 +170,15 @@ def meso_bundle(tmp_path_factory) -> pathlib.Path:
 @pytest.fixture(scope="module")
 def shapes_bundle(tmp_path_factory) -> pathlib.Path:
     return _bake(tmp_path_factory.mktemp("shapes"), "shapes", SHAPES_SCENE)
+
+
+@pytest.fixture(scope="module")
+def albedo(tmp_path_factory):
+    from PIL import Image   # writing the scene's input picture only
+
+    tmp = tmp_path_factory.mktemp("albedo")
+    Image.fromarray(tile_picture(), "RGB").save(tmp / "tile.png")
+    return SpecReader(_bake(tmp, "albedo", ALBEDO_SCENE))
 
 
 @pytest.fixture(scope="module")
@@ -1258,3 +1293,64 @@ techniques = { mesh = {}, coarse = { ratios = [0.5] } }
     assert "uvs" in coarse and len(coarse["uvs"]) == len(coarse["vertices"])
     # the quad's UVs are its x, y: the transfer keeps that on the coarse corners
     np.testing.assert_allclose(coarse["uvs"], coarse["vertices"][:, :2], atol=1e-6)
+
+
+# --------------------------------------------------------------------------------------------------
+# The mesostructure's colour tile
+# --------------------------------------------------------------------------------------------------
+
+
+def tile_albedo(linear: np.ndarray, s, t) -> np.ndarray:
+    """The documented lookup of an albedo map (linear, row 0 at v = 0, as SpecReader.albedo_map gives it) at
+    texture coordinates (s, t): texel [i, j] centred at ((j + 0.5) / W, (i + 0.5) / H), bilinear, wrapping."""
+    h, w = linear.shape[:2]
+    x, y = np.asarray(s, float) * w - 0.5, np.asarray(t, float) * h - 0.5
+    j0, i0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = (x - j0)[..., None], (y - i0)[..., None]
+    g = lambda i, j: linear[i % h, j % w]  # noqa: E731
+    return (g(i0, j0) * (1 - fx) * (1 - fy) + g(i0, j0 + 1) * fx * (1 - fy)
+            + g(i0 + 1, j0) * (1 - fx) * fy + g(i0 + 1, j0 + 1) * fx * fy)
+
+
+def test_mesostructure_albedo_part(albedo):
+    """mesostructure_albedo names an albedo-map part holding the scene's picture as it was (top row first:
+    v = 1), width and height in the metadata; the object's other parts are a mesostructure's."""
+    m = albedo.manifest
+    obj = m["objects"]["wall"]
+    rel = obj["mesostructure_albedo"]
+    assert m["parts"][rel]["kind"] == "albedo-map"
+    assert (m["parts"][rel]["width"], m["parts"][rel]["height"]) == TILE
+    c = tile_picture()[::-1] / 255.0
+    np.testing.assert_allclose(albedo.albedo_map(rel), np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4))
+    assert m["scene"]["objects"][0]["mesostructure"]["albedo"] == "tile.png"
+    assert {p["kind"] for p in m["parts"].values()} == {"mesh", "mesostructure", "albedo-map"}
+
+
+def test_displaced_meshes_carry_the_base_texture_coordinates(albedo):
+    """With a mesostructure albedo the displaced meshes carry texture coordinates: level 0 the base mesh's own,
+    level 1 those and each edge's midpoint's."""
+    obj = albedo.manifest["objects"]["wall"]
+    base = albedo.mesh(obj["mesh"])
+    level = {e["level"]: albedo.mesh(e["mesh"]) for e in obj["techniques"]["displaced"]["meshes"]}
+    np.testing.assert_array_equal(level[0]["uvs"], base["uvs"])
+    uv1 = level[1]["uvs"].astype(np.float64)
+    f = base["faces"]
+    want = np.concatenate([base["uvs"], *(0.5 * (base["uvs"][f[:, a]] + base["uvs"][f[:, b]])
+                                          for a, b in ((0, 1), (1, 2), (2, 0)))]).astype(np.float64)
+    assert len(uv1) == len(np.unique(np.round(want, 6), axis=0))
+    _, dist = nearest(uv1, want)
+    assert dist.max() < 1e-6
+
+
+def test_albedo_lookup_agrees_with_project(albedo):
+    """The project's unpacking and lookup (vdmbake.texture.sample, what the reference reads) give the spec's
+    albedo at the displaced vertices' tile coordinates T = uv * tiling."""
+    import vdmbake.parts as parts
+    from vdmbake.bundle import Bundle
+    from vdmbake.texture import sample
+
+    obj = albedo.manifest["objects"]["wall"]
+    T = albedo.mesh(obj["techniques"]["displaced"]["meshes"][1]["mesh"])["uvs"].astype(np.float64) * (2, 3)
+    ours = tile_albedo(albedo.albedo_map(obj["mesostructure_albedo"]), T[:, 0], T[:, 1])
+    theirs = sample(Bundle(albedo.root).read(obj["mesostructure_albedo"], parts.ALBEDO_MAP), T)
+    np.testing.assert_allclose(ours, theirs, atol=1e-12)
