@@ -1,8 +1,13 @@
-"""Renderer of `mesh`: the full mesh, rasterised with the shared shading and a shadow map."""
+"""Renderer of `mesh`: the full mesh, rasterised with the shared shading and a shadow map. Under a mesostructure
+with a colour tile, the base surface textured by it (plain texture mapping: the mesostructure techniques'
+flat baseline)."""
 from __future__ import annotations
 
+from .mesostructure import textured
 from .raster import RasterMesh
 
 
 def build(ctx, src, value):
-    return RasterMesh(ctx, src.bundle.surface(src.entry), src.scene.light, src.obj.material, src.shadow_map)
+    mesh = src.bundle.surface(src.entry)
+    return RasterMesh(ctx, textured(mesh, src) if src.obj.mesostructure else mesh, src.scene.light,
+                      src.obj.material, src.shadow_map)

@@ -25,15 +25,16 @@ def tile_albedo(src):
 
 
 def textured(mesh, src):
-    """A displaced mesh (carrying the base mesh's texture coordinates) with the tile albedo attached, read at
-    the tile coordinate T = uv * tiling as an asset's albedo map is read at its UVs (vdmbake.texture);
-    unchanged where the mesostructure has no albedo."""
+    """A mesh carrying the base mesh's texture coordinates (the base mesh, a displaced one) with the tile
+    albedo as its only colour, read at the tile coordinate T = uv * tiling as an asset's albedo map is read at
+    its UVs (vdmbake.texture); unchanged where the mesostructure has no albedo."""
     tile = tile_albedo(src)
     if tile is not None:
         if mesh.uvs is None:
-            raise InputError(f"{src.bundle.path}: object {src.obj.name!r}: a displaced mesh without texture "
-                             "coordinates under a mesostructure albedo; re-bake with vdmbake --force.")
+            raise InputError(f"{src.bundle.path}: object {src.obj.name!r}: a mesh without texture coordinates "
+                             "under a mesostructure albedo; re-bake with vdmbake --force.")
         mesh.uvs, mesh.texture = mesh.uvs * np.asarray(src.obj.mesostructure.tiling), tile
+        mesh.colors = None           # the tile is the albedo under a mesostructure, as in the reference
     return mesh
 
 
