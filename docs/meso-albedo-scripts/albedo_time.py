@@ -2,7 +2,7 @@
 process (docs/meso-albedo-notes.md). Modes per variant: `plain` (the entry without mesostructure_albedo: the
 material's u_albedo, as before), `srgb8` (the tile as gl.albedo_texture uploads it, GL_SRGB8), `f16` (the same
 tile decoded on the CPU and uploaded as linear RGBA16F: a measurement of llvmpipe's sRGB decode, not in the
-product). Per round every (variant, mode) renders every camera once untimed, once timed (process CPU time and
+product). Per round (the order reversed every other round) every (variant, mode) renders every camera once untimed, once timed (process CPU time and
 wall time, ctx.finish() inside); medians over rounds and cameras, ratios the medians of each
 render's ratio to the same variant's plain render of the same round and camera. Error: mean dLuv against the reference frames
 a vdmrender run of the same bundle cached (reference/OBJECT/NNN.exr).
@@ -61,7 +61,8 @@ cpu = {k: [] for k in renderers}
 wall = {k: [] for k in renderers}
 err = {}
 for rnd in range(rounds):
-    for key, r in renderers.items():
+    order = list(renderers.items())
+    for key, r in (order if rnd % 2 == 0 else order[::-1]):     # alternate the order: no position favoured
         for k, cam in enumerate(cams):
             r.render(cam, target)
             ctx.finish()
@@ -75,6 +76,6 @@ for rnd in range(rounds):
                                                                refs[k])["mean"])
 print(f"{'variant':>10} {'mode':>6} {'CPU ms':>8} {'x plain':>8} {'wall ms':>8} {'x plain':>8} {'mean dLuv':>9}")
 for (label, mode) in renderers:
-    ratio = lambda d: statistics.median(a / b for a, b in zip(d[(label, mode)], d[(label, "plain")]))  # noqa: E731
+    ratio = lambda d: statistics.median([a / b for a, b in zip(d[(label, mode)], d[(label, "plain")])])  # noqa: E731
     print(f"{label:>10} {mode:>6} {statistics.median(cpu[(label, mode)]):8.1f} {ratio(cpu):8.3f} "
           f"{statistics.median(wall[(label, mode)]):8.1f} {ratio(wall):8.3f} {np.mean(err[(label, mode)]):9.3f}")
