@@ -29,40 +29,6 @@ def bunny() -> TriMesh:
     return load_mesh_file(resolve_path(BUNNY, Path(".")))
 
 
-def test_sample_is_the_twin_of_the_gl_lookup(ctx):
-    """texture.sample against an sRGB8 texture read by GL (gl.albedo_texture) at random coordinates, in and
-    out of [0, 1] (wrap-around) and on texel centres and edges, on an odd-sized map (row alignment)."""
-    amap = RNG.integers(0, 256, (5, 7, 3)).astype(np.uint8)
-    uv = np.concatenate([RNG.uniform(-1.5, 2.5, (500, 2)), [[0, 0], [1, 1], [0.5 / 7, 0.5 / 5], [1e-7, 1 - 1e-7]]])
-    tex = gl.albedo_texture(ctx, amap)
-    prog = ctx.program(vertex_shader="""#version 430
-in vec2 in_uv; out vec2 v_uv;
-void main() { v_uv = in_uv; gl_Position = vec4(-1.0 + (float(gl_VertexID % 512) + 0.5) / 256.0,
-                                                  -1.0 + (float(gl_VertexID / 512) + 0.5) / 1.0, 0.0, 1.0);
-              gl_PointSize = 1.0; }""", fragment_shader=gl.expand("""#version 430
-#include "albedo.glsl"
-in vec2 v_uv; out vec4 frag;
-void main() { frag = vec4(albedo_map(v_uv), 1.0); }"""))
-    vbo = ctx.buffer(uv.astype("f4").tobytes())
-    vao = ctx.vertex_array(prog, [(vbo, "2f", "in_uv")])
-    out = ctx.texture((512, 2), 4, dtype="f4")
-    fbo = ctx.framebuffer([out])
-    try:
-        fbo.use()
-        ctx.viewport = (0, 0, 512, 2)
-        fbo.clear()
-        tex.use(gl.ALBEDO_UNIT)
-        prog["u_albedo_map"] = gl.ALBEDO_UNIT
-        import moderngl
-        vao.render(moderngl.POINTS, vertices=len(uv))
-        got = np.frombuffer(out.read(), np.float32).reshape(-1, 4)[:len(uv), :3]
-    finally:
-        gl.release(vao, vbo, fbo, out, tex, prog)
-    want = texture.sample(amap, uv)
-    # measured on llvmpipe: max 0.00117, mean 0.00041 (its filter weights have 8 fractional bits)
-    assert np.abs(got - want).max() < 0.003 and np.abs(got - want).mean() < 0.001
-
-
 def test_sample_conventions():
     """Row 0 is v = 0; texel centres return the texel itself, decoded from sRGB; wrap-around."""
     amap = np.zeros((2, 2, 3), np.uint8)
@@ -139,7 +105,7 @@ def test_raster_matches_the_textured_reference(ctx):
     stored = parts.stored(parts.MESH, m)
     stored.texture = m.texture
     for good, bad in scores(ctx, stored, [m, plain], cameras(m)):
-        # measured at 96 px: 0.119 / 0.202 against the textured reference, 38.2 / 36.0 against the plain one
+        # measured at 96 px: 0.103 / 0.154 against the textured reference, 38.2 / 36.0 against the plain one
         assert good < 0.3 and bad > 20, (good, bad)
 
 
@@ -196,7 +162,7 @@ def test_scene_to_report(tmp_path):
     result, out = bake_and_render(tmp_path, scene, "--no-flip")
     assert result.exit_code == 0, result.output
     rows = {(r["object"], r["label"]): r for r in json.loads(result.stdout)["rows"]}
-    # measured at 64 px with a 512² shadow map: mesh 0.163, coarse@0.5 2.436 (IoU 0.9961); the plain bunny 0.056
+    # measured at 64 px with a 512² shadow map: mesh 0.145, coarse@0.5 2.437 (IoU 0.9961); the plain bunny 0.056
     assert rows["bunny", "mesh"]["mean_dluv"] < 0.3 and rows["bunny", "coarse@0.5"]["mean_dluv"] < 3.2
     from vdmbake.bundle import Bundle
     b = Bundle(tmp_path / "b.bundle")

@@ -13,6 +13,7 @@ import re
 import moderngl
 import numpy as np
 
+from vdmbake import texture
 from vdmbake.errors import InputError
 
 SHADERS = importlib.resources.files("vdmrender") / "shaders"
@@ -205,11 +206,11 @@ ALBEDO_UNIT = 6   # texture unit of the asset's albedo map (shaders/include/albe
 
 
 def albedo_texture(ctx, albedo_map: np.ndarray):
-    """An albedo map (vdmbake.texture: uint8 sRGB, row 0 at v = 0) as an sRGB8 texture read as its numpy twin
-    reads it: linear filtering of decoded texels, wrap-around, no mipmaps."""
+    """An albedo map (vdmbake.texture: uint8 sRGB, row 0 at v = 0) as a texture read as its numpy twin reads
+    it: the texels decoded to linear (half floats), linear filtering, wrap-around, no mipmaps."""
     h, w = albedo_map.shape[:2]
-    tex = ctx.texture((w, h), 3, np.ascontiguousarray(albedo_map, np.uint8).tobytes(), alignment=1,
-                      internal_format=0x8C41)   # GL_SRGB8
+    tex = ctx.texture((w, h), 3, np.ascontiguousarray(texture.linear(albedo_map), np.float16).tobytes(),
+                      dtype="f2", alignment=1)
     tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
     tex.repeat_x = tex.repeat_y = True
     return tex

@@ -1,5 +1,5 @@
-// The asset's albedo map (vdmbake/texture.py, whose `sample` is this lookup's numpy twin): an sRGB8
-// texture, decoded to linear before bilinear filtering, wrapping, without mipmaps (as the reference).
+// The asset's albedo map (vdmbake/texture.py, whose `sample` is this lookup's numpy twin): texels
+// decoded to linear (gl.albedo_texture), filtered bilinearly, wrapping, without mipmaps (as the reference).
 uniform sampler2D u_albedo_map;
 
 vec3 albedo_map(vec2 uv) {
