@@ -15,6 +15,8 @@ the square between four neighbouring samples).
   billboards then overlap by up to a texel instead of leaving cracks between them.
 * depth_pyramid: the min/max pyramid (vdmbake.pyramid, CLAMP mode) of the padded depth over those cells,
   the empty ones marked so that the hierarchical march skips them at every level.
+* albedo_texels: the colour map (assets with colours only) with the same border, extended from the covered
+  texels without extrapolation (a colour does not continue a slope).
 * bordered: all of it as the bundle's `bordered-billboards` part holds it (vdmbake.parts.BorderedMaps).
 """
 from __future__ import annotations
@@ -28,11 +30,13 @@ STEEP = 6.0   # map texels of depth per texel: steeper than any captured face (7
               # side, 5.5 along its diagonal), so only a depth discontinuity or a runaway extrapolation is
 
 
-def pad(values: np.ndarray, valid: np.ndarray, rings: int = PAD) -> np.ndarray:
+def pad(values: np.ndarray, valid: np.ndarray, rings: int = PAD, linear: bool = True) -> np.ndarray:
     """Empty texels within `rings` of covered ones, filled by linear extrapolation from them: each
     covered 8-neighbour n1 with a covered n2 beyond it (same direction) proposes 2 n1 - n2 (n1 alone
     otherwise); the proposals are averaged. Bilinear filtering between a covered texel and an empty one
-    then continues the surface's slope (a steep rim stays steep), instead of bending it to depth 1."""
+    then continues the surface's slope (a steep rim stays steep), instead of bending it to depth 1.
+    linear=False: each proposes n1 (the covered neighbours' mean), for colours: no overshoot, no texture
+    detail amplified, and filtering at a silhouette keeps the edge texels' colour instead of fading to 0."""
     h, w = valid.shape
     big = 2 * rings + 2
     v = values.astype(np.float32).copy()
@@ -49,7 +53,7 @@ def pad(values: np.ndarray, valid: np.ndarray, rings: int = PAD) -> np.ndarray:
                 n2 = vp[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
                 ok1 = op[big + di:big + di + h, big + dj:big + dj + w]
                 ok2 = op[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
-                acc += np.where(ok1[..., None], np.where(ok2[..., None], 2 * n1 - n2, n1), 0.0)
+                acc += np.where(ok1[..., None], np.where(ok2[..., None] & linear, 2 * n1 - n2, n1), 0.0)
                 cnt += ok1
         fill = ~ok & (cnt > 0)
         v[fill] = acc[fill] / cnt[fill, None]
@@ -109,7 +113,22 @@ def depth_pyramid(b, values: np.ndarray, covered: np.ndarray, steep: float | Non
     return pyramid.build(depth, pyramid.CLAMP, empty)
 
 
+def albedo_texels(b) -> np.ndarray | None:
+    """(R+2, R+2, 3) billboard b's colour map with the one-texel border of map_texels, the border and the
+    empty texels near covered ones holding the mean of their covered neighbours (pad, linear=False):
+    the renderers read it bilinearly at the hit, which may lie up to a texel past the covered ones
+    (the improved march's footprint test); None for a billboard without a colour map."""
+    if b.albedo is None:
+        return None
+    covered = np.asarray(b.alpha) > 0.5
+    values = np.zeros((covered.shape[0] + 2, covered.shape[1] + 2, 3), np.float32)
+    values[1:-1, 1:-1] = np.asarray(b.albedo, np.float32)
+    valid = np.pad(covered, 1)
+    return pad(values, valid, linear=False)
+
+
 def bordered(b, traced: bool, steep: float | None = STEEP) -> parts.BorderedMaps:
-    """Billboard b's bordered maps and, if `traced` (the hierarchical march renders it), its pyramid."""
+    """Billboard b's bordered maps, its colour map if it has one and, if `traced` (the hierarchical march
+    renders it), its pyramid."""
     values, covered = map_texels(b)
-    return parts.BorderedMaps(values, depth_pyramid(b, values, covered, steep) if traced else None)
+    return parts.BorderedMaps(values, depth_pyramid(b, values, covered, steep) if traced else None, albedo_texels(b))

@@ -2,8 +2,11 @@
 
 An enhanced billboard (sec. 3.1) is a box looking at part of the model along one view
 direction w: an orthographic R x R projection of the polygons it captured, as a transparency
-map (alpha), a depth map (distance from the box front along w, 0..1 of the box depth) and a
-normal map. The renderer (sec. 3.3) ray-marches the depth map as a height field inside the box.
+map (alpha), a depth map (distance from the box front along w, 0..1 of the box depth), a
+normal map and, for an asset with its own colours (per-vertex colours or an albedo map), the
+colour map (sec. 3.1: "color and normal of projected polygon poly is stored in color map and normal
+map"; here the linear albedo at the texel's surface point, which the renderer shades, sec. 3.3 step 2.3).
+An asset without colours has no colour map: the material's albedo is the colour everywhere. The renderer (sec. 3.3) ray-marches the depth map as a height field inside the box.
 
 Building (sec. 3.2) is greedy set cover over a 36 x 18 array of candidate view directions
 (sec. 4.1): take the direction that projects the most remaining polygons, keep those within
@@ -30,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import geometry
+from . import geometry, texture
 from .embree import RayScene
 from .errors import InputError
 from .meshes import TriMesh, validate
@@ -221,6 +224,11 @@ def _maps(v, mesh: TriMesh, fn, take, w, resolution: int, scale: float) -> Billb
     normal = np.zeros((resolution * resolution, 3))
     normal[hit] = n
     shape = (resolution, resolution)
+    albedo = None
+    if texture.has_albedo(mesh):   # the colour map (sec. 3.2): the asset's albedo at the texel's surface point
+        albedo = np.zeros((resolution * resolution, 3))
+        albedo[hit] = texture.surface_albedo(mesh, take[prim], b, None)
+        albedo = albedo.reshape(shape + (3,)).astype(np.float32)
     return Billboard(origin=lo @ axes, axes=axes, size=size,
                      alpha=hit.reshape(shape).astype(np.float32), depth=depth.reshape(shape).astype(np.float32),
-                     normal=normal.reshape(shape + (3,)).astype(np.float32))
+                     normal=normal.reshape(shape + (3,)).astype(np.float32), albedo=albedo)

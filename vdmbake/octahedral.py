@@ -6,8 +6,10 @@ The object is photographed from N x N directions that lie on the lattice points 
 map of the sphere of directions (or of the upper hemisphere: "hemi-octahedral"), each photograph
 an orthographic R x R view of the object's bounding sphere, all in ONE atlas of N R x N R texels.
 A texel holds the surface's normal (in the view's own frame, octahedrally encoded), its depth along
-the view (0 at the front of the bounding sphere's box, 1 at its back) and coverage (0 or 1). The
-colour is the material's constant albedo, so no colour is stored.
+the view (0 at the front of the bounding sphere's box, 1 at its back), coverage (0 or 1) and, for an
+asset with its own colours (per-vertex colours or an albedo map), the surface's linear albedo there (as
+Brucks' and Amplify's impostors store base colour beside the normal and depth); without them the
+colour is the material's constant albedo and none is stored.
 
 At render time (vdmrender/techniques/octahedral.py, shaders/include/octahedral.glsl) a pixel's
 direction picks the lattice triangle it falls in: its three views and barycentric weights
@@ -49,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import billboard_maps, parts
+from . import billboard_maps, parts, texture
 from .embree import RayScene
 from .errors import InputError
 from .meshes import TriMesh, validate
@@ -77,6 +79,7 @@ class Atlas:
     depth: np.ndarray         # (N R, N R) float32 in [0, 1] along -e_k, 1 where not covered
     coverage: np.ndarray      # (N R, N R) float32, 1 where a surface was hit
     rays: int
+    albedo: np.ndarray | None = None   # (N R, N R, 3) float32 linear RGB albedo, 0 where not covered; None: no colours
 
 
 def _sign(x):
@@ -194,7 +197,8 @@ def capture_half(radius: float, resolution: int) -> float:
 
 def bake(mesh: TriMesh, settings: Settings = Settings(), up=(0.0, 0.0, 1.0), log=lambda msg: None) -> Atlas:
     """Orthographic captures of the mesh from every lattice view into one atlas: one Embree ray per
-    texel centre, from the front of the view's box along -e_k, against the full mesh."""
+    texel centre, from the front of the view's box along -e_k, against the full mesh (and, for an asset
+    with colours, its albedo at the hit: texture.surface_albedo)."""
     _check(settings)
     validate(mesh, "octahedral")
     n, res = settings.views, settings.resolution
@@ -209,8 +213,10 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), up=(0.0, 0.0, 1.0), log
     g = (np.arange(res) + 0.5) / res * 2.0 - 1.0
     gx, gy = np.meshgrid(g * cap, g * cap)                           # [b, a]: texel row b, column a
 
+    coloured = texture.has_albedo(mesh)
+
     def row(j):
-        """The N tiles of view row j: (R, N R) normal code, depth and coverage."""
+        """The N tiles of view row j: (R, N R) normal code, depth, coverage and albedo (or None)."""
         e, u, vv = (f[j] for f in frames)                           # (N, 3) each
         origin = (cap * e[:, None, None] + gx[None, ..., None] * u[:, None, None]
                   + gy[None, ..., None] * vv[:, None, None]).reshape(-1, 3)
@@ -233,7 +239,12 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), up=(0.0, 0.0, 1.0), log
         depth = np.ones(n * res * res)
         depth[hit] = np.clip(hits.t[hit] / (2.0 * cap), 0.0, 1.0)
         tiles = lambda a: a.reshape(n, res, res, -1).transpose(1, 0, 2, 3).reshape(res, n * res, -1)
-        return tiles(code), tiles(depth[:, None])[..., 0], tiles(hit[:, None].astype(np.float64))[..., 0]
+        albedo = None
+        if coloured:
+            albedo = np.zeros((n * res * res, 3))
+            albedo[hit] = texture.surface_albedo(mesh, hits.prim[hit], bary, None)
+            albedo = tiles(albedo)
+        return tiles(code), tiles(depth[:, None])[..., 0], tiles(hit[:, None].astype(np.float64))[..., 0], albedo
 
     with ThreadPoolExecutor(os.cpu_count() or 1) as pool:
         rows = list(pool.map(row, range(n)))
@@ -243,17 +254,20 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), up=(0.0, 0.0, 1.0), log
     return Atlas(settings, centre, float(radius), float(cap), basis,
                  np.concatenate([r[0] for r in rows]).astype(np.float32),
                  np.concatenate([r[1] for r in rows]).astype(np.float32),
-                 np.concatenate([r[2] for r in rows]).astype(np.float32), rays)
+                 np.concatenate([r[2] for r in rows]).astype(np.float32), rays,
+                 np.concatenate([r[3] for r in rows]).astype(np.float32) if coloured else None)
 
 
 def to_part(a: Atlas) -> parts.OctahedralAtlas:
     """The atlas as the bundle stores it and the renderer samples it (linear filtering): the empty
     texels within billboard_maps.PAD rings of covered ones hold normal code and depth linearly
     extrapolated from them (billboard_maps.pad), clamped to their ranges, so that filtering at a
-    silhouette follows the surface instead of bending it to depth 1. The EMPTY rings around every tile
-    keep the extrapolation inside its view."""
+    silhouette follows the surface instead of bending it to depth 1; the albedo there is the covered
+    neighbours' mean (pad, linear=False: a colour does not continue a slope). The EMPTY rings around every
+    tile keep the extrapolation inside its view."""
     covered = a.coverage > 0.5
     values = billboard_maps.pad(np.concatenate([a.normal, a.depth[..., None]], -1), covered)
+    albedo = None if a.albedo is None else billboard_maps.pad(a.albedo, covered, linear=False)
     return parts.OctahedralAtlas(a.settings.views, a.settings.hemi, a.basis, a.centre, a.radius, a.capture,
                                  np.clip(values[..., :2], -1.0, 1.0), np.clip(values[..., 2], 0.0, 1.0),
-                                 a.coverage, a.rays)
+                                 a.coverage, a.rays, albedo)

@@ -271,14 +271,40 @@ class Billboard:
     alpha: np.ndarray    # (R, R) float32 coverage 0/1
     depth: np.ndarray    # (R, R) float32 in [0, 1] along w (0 = box front), 1 where alpha is 0
     normal: np.ndarray   # (R, R, 3) float32 world unit shading normal facing -w, 0 where alpha is 0
+    albedo: np.ndarray | None = None   # (R, R, 3) the colour map (sec. 3.1): linear RGB albedo, 0 where alpha
+                                       # is 0; only for assets with their own colours (texture.has_albedo)
+
+
+def _albedo_channels(albedo: np.ndarray | None) -> dict:
+    """A colour map as EXR channels: linear RGB in HALF, EXR's usual colour type (an 8-bit sRGB texture or
+    vertex colour loses nothing visible there); none at all for an asset without colours."""
+    return {} if albedo is None else {f"albedo.{c}": albedo[..., k].astype(np.float16) for k, c in enumerate("RGB")}
+
+
+def _albedo_meta(values) -> dict:
+    """The manifest's `albedo: true` when the maps carry colour (left out otherwise: uncoloured parts unchanged)."""
+    values = list(values)
+    if any(a is not None for a in values) and any(a is None for a in values):
+        raise ValueError("colour maps for some maps only")
+    return {"albedo": True} if values and values[0] is not None else {}
+
+
+def _unpack_albedo(tables, name: str, meta, shape: tuple, origin: str) -> np.ndarray | None:
+    if not meta.get("albedo"):
+        return None
+    a = np.stack(_need(tables, name, [f"albedo.{c}" for c in "RGB"], origin), -1).astype(np.float32)
+    _shape(origin, f"{name} albedo", a, shape + (3,))
+    _finite(origin, **{f"{name} albedo": a})
+    return a
 
 
 def _pack_billboards(boards: list[Billboard]):
     data = exr.to_bytes({f"bb{i:03d}": {"A": b.alpha, "depth.Z": b.depth,
-                                        **{f"normal.{a}": b.normal[..., k] for k, a in enumerate("XYZ")}}
+                                        **{f"normal.{a}": b.normal[..., k] for k, a in enumerate("XYZ")},
+                                        **_albedo_channels(b.albedo)}
                          for i, b in enumerate(boards)})
     return data, {"boards": [{"origin": b.origin.tolist(), "axes": b.axes.tolist(), "size": b.size.tolist()}
-                             for b in boards]}
+                             for b in boards], **_albedo_meta(b.albedo for b in boards)}
 
 
 def _unpack_billboards(data, meta, origin) -> list[Billboard]:
@@ -291,7 +317,8 @@ def _unpack_billboards(data, meta, origin) -> list[Billboard]:
         if abs(np.linalg.det(axes) - 1) > 1e-3 or (np.asarray(b["size"]) <= 0).any():
             _bad(origin, f"billboard {i}: axes not a right-handed orthonormal frame or a size not positive")
         out.append(Billboard(np.asarray(b["origin"], np.float64), axes,
-                             np.asarray(b["size"], np.float64), a, d, np.stack([nx, ny, nz], -1)))
+                             np.asarray(b["size"], np.float64), a, d, np.stack([nx, ny, nz], -1),
+                             _unpack_albedo(parts, f"bb{i:03d}", meta, a.shape, origin)))
     return out
 
 
@@ -318,6 +345,7 @@ class BoardMeta:
 @dataclass(frozen=True)
 class BillboardsMeta:
     boards: tuple = setting(REQUIRED, Tables(BoardMeta), "each billboard's box")
+    albedo: bool = setting(False, Boolean(), "every billboard has a colour map")
 
 
 BILLBOARDS = PartKind("billboards", ".exr", _pack_billboards, _unpack_billboards, BillboardsMeta)
@@ -327,20 +355,24 @@ BILLBOARDS = PartKind("billboards", ".exr", _pack_billboards, _unpack_billboards
 class BorderedMaps:
     """One billboard's maps as its renderers sample them (vdmbake/billboard_maps.py): normal (xyz) and
     depth (w) with a one-texel border, the border and the empty texels near covered ones extrapolated;
-    and, for the hierarchical march only, the min/max pyramid of its depth surface (empty cells marked)."""
+    and, for the hierarchical march only, the min/max pyramid of its depth surface (empty cells marked);
+    for an asset with colours, its colour map with the same border (the empty texels near covered ones
+    hold their covered neighbours' mean)."""
     maps: np.ndarray                       # (R+2, R+2, 4) float32
     pyramid: pyramid.Pyramid | None = None
+    albedo: np.ndarray | None = None       # (R+2, R+2, 3) float32 linear RGB
 
 
 def _pack_bordered(boards: list[BorderedMaps]):
     tables = {}
     for i, b in enumerate(boards):
-        tables[f"bb{i:03d}"] = {**{f"normal.{a}": b.maps[..., k] for k, a in enumerate("XYZ")}, "depth.Z": b.maps[..., 3]}
+        tables[f"bb{i:03d}"] = {**{f"normal.{a}": b.maps[..., k] for k, a in enumerate("XYZ")}, "depth.Z": b.maps[..., 3],
+                                **_albedo_channels(b.albedo)}
         if b.pyramid is not None:
             tables.update({f"bb{i:03d}.{k}": v for k, v in pyramid.to_parts(b.pyramid).items()})
     traced = [b.pyramid is not None for b in boards]
     return exr.to_bytes(tables), {"boards": len(boards), "pyramids": bool(traced) and all(traced),
-                                  "mode": pyramid.CLAMP}
+                                  "mode": pyramid.CLAMP, **_albedo_meta(b.albedo for b in boards)}
 
 
 def _unpack_bordered(data, meta, origin) -> list[BorderedMaps]:
@@ -355,7 +387,7 @@ def _unpack_bordered(data, meta, origin) -> list[BorderedMaps]:
             _need(sub, "samples", ["depth.Z"], f"{origin} ({name})")
             pyr = pyramid.from_parts(sub, meta["mode"])
         _finite(origin, **{name: maps})
-        out.append(BorderedMaps(maps.astype(np.float32), pyr))
+        out.append(BorderedMaps(maps.astype(np.float32), pyr, _unpack_albedo(tables, name, meta, maps.shape[:2], origin)))
     return out
 
 
@@ -364,6 +396,7 @@ class BorderedMeta:
     boards: int = setting(REQUIRED, COUNT, "billboards")
     pyramids: bool = setting(REQUIRED, Boolean(), "every billboard has its pyramid")
     mode: str = setting(REQUIRED, Choice(*pyramid.MODES), "the pyramids' addressing")
+    albedo: bool = setting(False, Boolean(), "every billboard has a colour map")
 
 
 BORDERED = PartKind("bordered-billboards", ".exr", _pack_bordered, _unpack_bordered, BorderedMeta)
@@ -414,6 +447,8 @@ class OctahedralAtlas:
     depth: np.ndarray      # (N R, N R) float32 in [0, 1] along -e_k over 2 capture, 1 where not covered
     coverage: np.ndarray   # (N R, N R) float32, 1 where a surface was hit, else 0
     rays: int              # rays the bake traced
+    albedo: np.ndarray | None = None   # (N R, N R, 3) float32 linear RGB albedo of the surface, extrapolated as
+                                       # the depth; only for assets with their own colours (texture.has_albedo)
 
     @property
     def resolution(self) -> int:
@@ -423,14 +458,15 @@ class OctahedralAtlas:
 
 def _pack_octahedral(a: OctahedralAtlas):
     data = exr.to_bytes({"atlas": {"normal.U": a.normal[..., 0], "normal.V": a.normal[..., 1],
-                                   "depth.Z": a.depth, "A": a.coverage}})
+                                   "depth.Z": a.depth, "A": a.coverage, **_albedo_channels(a.albedo)}})
     return data, {"views": a.views, "resolution": a.resolution, "hemi": a.hemi, "basis": np.asarray(a.basis).tolist(),
                   "centre": np.asarray(a.centre).tolist(), "radius": float(a.radius), "capture": float(a.capture),
-                  "rays": int(a.rays)}
+                  "rays": int(a.rays), **_albedo_meta([a.albedo])}
 
 
 def _unpack_octahedral(data, meta, origin) -> OctahedralAtlas:
-    nu, nv, d, a = _need(_channels(data, origin), "atlas", ["normal.U", "normal.V", "depth.Z", "A"], origin)
+    tables = _channels(data, origin)
+    nu, nv, d, a = _need(tables, "atlas", ["normal.U", "normal.V", "depth.Z", "A"], origin)
     side = int(meta["views"]) * int(meta["resolution"])
     for name, x in (("normal.U", nu), ("normal.V", nv), ("depth.Z", d), ("A", a)):
         _shape(origin, f"atlas {name} (the manifest says {meta['views']} views of {meta['resolution']}^2)", x,
@@ -440,7 +476,8 @@ def _unpack_octahedral(data, meta, origin) -> OctahedralAtlas:
         _bad(origin, "basis not a right-handed orthonormal frame")
     return OctahedralAtlas(int(meta["views"]), bool(meta["hemi"]), np.asarray(meta["basis"], np.float64),
                            np.asarray(meta["centre"], np.float64), float(meta["radius"]), float(meta["capture"]),
-                           np.stack([nu, nv], -1), d, a, int(meta["rays"]))
+                           np.stack([nu, nv], -1), d, a, int(meta["rays"]),
+                           _unpack_albedo(tables, "atlas", meta, (side, side), origin))
 
 
 @dataclass(frozen=True)
@@ -453,6 +490,7 @@ class OctahedralMeta:
     radius: float = setting(REQUIRED, Number(0.0, open_lo=True), "the bounding sphere's radius")
     capture: float = setting(REQUIRED, Number(0.0, open_lo=True), "half side of every view's square")
     rays: int = setting(REQUIRED, COUNT, "rays the bake traced")
+    albedo: bool = setting(False, Boolean(), "the atlas has the surface's colour")
 
 
 OCTAHEDRAL = PartKind("octahedral", ".exr", _pack_octahedral, _unpack_octahedral, OctahedralMeta)

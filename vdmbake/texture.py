@@ -41,13 +41,19 @@ def sample(albedo_map: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return ((1 - fy) * ((1 - fx) * t[j0, i0] + fx * t[j0, i1]) + fy * ((1 - fx) * t[j1, i0] + fx * t[j1, i1]))
 
 
+def has_albedo(mesh) -> bool:
+    """True if the asset has its own albedo (per-vertex colours or an albedo map): what the techniques that
+    bake their own maps (billboards, octahedral impostors) then store a colour map for."""
+    return mesh.colors is not None or mesh.texture is not None
+
+
 def surface_albedo(mesh, prim: np.ndarray, bary: np.ndarray, default) -> np.ndarray:
     """(N, 3) linear albedo at points of `mesh` given as triangle indices and barycentric weights (N, 3):
     the asset's per-vertex colours interpolated as the rasteriser interpolates them, times its albedo
     map at the interpolated UV; `default` (the material's albedo) where the asset has neither."""
     tri = mesh.faces[prim]
     w = np.asarray(bary, np.float64)[:, :, None]
-    if mesh.colors is None and mesh.texture is None:
+    if not has_albedo(mesh):
         return np.broadcast_to(np.asarray(default, np.float64), (len(prim), 3))
     albedo = (w * mesh.colors[tri]).sum(1) if mesh.colors is not None else np.ones((len(prim), 3))
     if mesh.texture is not None:

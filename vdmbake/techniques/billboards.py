@@ -46,7 +46,8 @@ class Options:
 
 
 def bake(job) -> dict:
-    """Per projection the variants name: the billboards' maps (alpha, depth, world normal), the greedy
+    """Per projection the variants name: the billboards' maps (alpha, depth, world normal, and colour for an
+    asset with its own colours), the greedy
     choice's statistics, the bordered maps the renderers sample and, for hier, the pyramids; the coarse
     mesh if a variant fills holes with it or hier casts its shadows with it."""
     opts, out = job.options, {}
@@ -61,7 +62,8 @@ def bake(job) -> dict:
         rel = job.write(f"billboards-{mode}", parts.BILLBOARDS, res.billboards)
         out[mode] = {"maps": rel, "faces": [len(f) for f in res.faces], "leftover": res.leftover,
                      "candidates": res.candidates, "rays": res.rays}
-        job.log(f"{mode} billboards: {len(res.billboards)} from {res.candidates} candidate directions, "
+        job.log(f"{mode} billboards: {len(res.billboards)} from {res.candidates} candidate directions"
+                + (" with colour maps" if res.billboards[0].albedo is not None else "") + ", "
                 f"{job.writer.parts[rel]['bytes'] / 2**20:.2f} MB; faces left out {res.leftover}")
         traced = any(v.projection == mode and v.method == "hier" for v in opts.variants)
         t0 = time.perf_counter()
