@@ -4,6 +4,7 @@
 // marched from entry to exit (billboard.glsl: THESIS or IMPROVED), then at the hit the normal map, the
 // shared shading model with the shadow map, and the hit's exact depth, so billboards and the coarse
 // mesh depth-test together (sec. 3.4). SHADOW: the light's pass; only the depth is written.
+// ALBEDO_MAPS: the colour at the hit is the billboard's colour map (sec. 3.3 step 2.3), else the material's.
 // A camera inside the box needs nothing special: the ray starts on the near plane (as the reference's).
 #include "billboard.glsl"
 #include "camera.glsl"
@@ -13,7 +14,11 @@ out vec4 frag;         // (march steps, texture fetches, 1, hit), summed over th
 #include "shading.glsl"
 #include "shadow.glsl"
 uniform vec3 u_eye;       // anchor-relative
+#if defined(ALBEDO_MAPS)
+#include "board_albedo.glsl"
+#else
 uniform vec3 u_albedo;
+#endif
 uniform float u_tolerance;     // extra shadow offset, in box depths
 uniform float u_board_texels;  // extra shadow offset, in map texels
 out vec4 frag;
@@ -71,6 +76,11 @@ void main() {
     float R = float(textureSize(u_alpha, 0).x);
     float texel = max(1.0 / length(v_iu), 1.0 / length(v_iv)) / R;
     float lit = shadow_lit(p + N * (u_board_texels * texel + u_tolerance / length(v_iw)), N);
-    frag = vec4(shade(u_albedo, N, normalize(u_eye - p), lit), 1.0);
+#if defined(ALBEDO_MAPS)
+    vec3 albedo = board_albedo(st.xy, v_layer);
+#else
+    vec3 albedo = u_albedo;
+#endif
+    frag = vec4(shade(albedo, N, normalize(u_eye - p), lit), 1.0);
 #endif
 }

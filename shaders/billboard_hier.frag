@@ -12,7 +12,8 @@
 //   COARSE_DEPTH  the coarse mesh's depth pre-pass (pushed back as the frame's coarse pass is) bounds every
 //                 ray: what lies behind it would lose the depth test against the coarse mesh anyway;
 //   SHADOW        the light's pass (orthographic), depth only;
-//   COUNT         instrumented: writes (cell visits, billboards traced, 1, hit) instead of a colour.
+//   COUNT         instrumented: writes (cell visits, billboards traced, 1, hit) instead of a colour;
+//   ALBEDO_MAPS   the colour at the hit is the billboard's colour map (sec. 3.3 step 2.3), else the material's.
 // BOARDS (defined by the caller) is the number of billboards, MAX_ITER the tracer's cap per billboard.
 #define HF_CLAMP
 #define HF_MAX_ITER MAX_ITER
@@ -45,7 +46,11 @@ out vec4 frag;
 #include "shading.glsl"
 #include "shadow.glsl"
 uniform vec3 u_eye;                   // anchor-relative
+#if defined(ALBEDO_MAPS)
+#include "board_albedo.glsl"
+#else
 uniform vec3 u_albedo;
+#endif
 uniform float u_board_texels;         // extra shadow offset, in map texels (as billboard.frag)
 out vec4 frag;
 #endif
@@ -140,6 +145,11 @@ void main() {
     // the shadow lookup moves along the normal by u_board_texels map texels on top of the shadow map's
     // own normal offset (the surface is known to about a texel)
     float lit = shadow_lit(p + N * (u_board_texels * u_texel[hit]), N);
-    frag = vec4(shade(u_albedo, N, normalize(u_eye - p), lit), 1.0);
+#if defined(ALBEDO_MAPS)
+    vec3 albedo = board_albedo(st.xy, u_layer[hit]);
+#else
+    vec3 albedo = u_albedo;
+#endif
+    frag = vec4(shade(albedo, N, normalize(u_eye - p), lit), 1.0);
 #endif
 }

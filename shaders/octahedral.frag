@@ -3,7 +3,8 @@
 // atlas views nearest its direction each intersected with it in their own frame (octahedral.glsl: MARCH,
 // a ray / depth-map search, or VIRTUAL, Amplify's single parallax step), blended; the blended hit's exact
 // depth, and its blended normal shaded with the shared model and the shadow map. SHADOW: the light's pass
-// (the light's direction picks its own views); only the depth is written.
+// (the light's direction picks its own views); only the depth is written. ALBEDO_ATLAS: the colour is the
+// blended albedo of the views (octahedral.glsl), else the material's.
 // COUNT (instrumentation): the frame pass writes its fetches instead (fetch_count.glsl: atlas lookups in blue).
 #include "quadric.glsl"
 #include "octahedral.glsl"
@@ -11,7 +12,9 @@
 #include "shading.glsl"
 #include "shadow.glsl"
 uniform vec3 u_eye;            // anchor-relative
+#if !defined(ALBEDO_ATLAS)
 uniform vec3 u_albedo;
+#endif
 uniform float u_atlas_texels;  // extra shadow offset along the normal, in atlas texels
 out vec4 frag;
 #endif
@@ -21,8 +24,8 @@ void main() {
     vec3 p0, seg;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     float t;
-    vec3 n;
-    if (!impostor_hit(p0, seg, u_radius, t, n)) discard;
+    vec3 n, albedo;
+    if (!impostor_hit(p0, seg, u_radius, t, n, albedo)) discard;
     vec3 p = p0 + seg * t;
     gl_FragDepth = window_depth(u_view_proj, p);
 #if !defined(SHADOW)
@@ -31,7 +34,10 @@ void main() {
     // the shadow lookup moves that far along the normal, on top of the shadow map's own offset.
     float texel = 2.0 * u_capture / (float(textureSize(u_atlas, 0).x) / float(u_views));
     float lit = shadow_lit(p + n * (u_atlas_texels * texel), n);
-    frag = vec4(shade(u_albedo, n, V, lit), 1.0);
+#if !defined(ALBEDO_ATLAS)
+    albedo = u_albedo;
+#endif
+    frag = vec4(shade(albedo, n, V, lit), 1.0);
     COUNT_OUT(frag);
 #endif
 }

@@ -7,9 +7,14 @@
 //            Tile (i, j) holds view (i, j); empty texels next to covered ones carry extrapolated normal
 //            and depth (the bake: vdmbake/octahedral.py to_part), so filtering at a silhouette follows the surface.
 // HEMI: the views cover the upper hemisphere of u_basis (hemi-octahedral map), else the full sphere.
+// ALBEDO_ATLAS: u_albedo_atlas, laid out as u_atlas, holds the surface's linear albedo (an asset with its own
+// colours; the covered neighbours' mean around silhouettes), read at each view's hit and blended as the normal.
 // COUNT (fetch_count.glsl): atlas lookups are counted as kind 2 (depth field).
 #include "fetch_count.glsl"
 uniform sampler2D u_atlas;
+#if defined(ALBEDO_ATLAS)
+uniform sampler2D u_albedo_atlas;   // RGB16F, linear filtering
+#endif
 uniform int u_views;          // N: views per side
 uniform mat3 u_basis;         // world -> map frame (z up)
 uniform float u_capture;      // half side of every view's square (world units)
@@ -196,18 +201,20 @@ float view_hit(vec3 o, vec3 d, float t0, float t1, ivec2 view, out int kind, out
 // its own frame (view_hit). The views that saw the ray (HIT or MISS) vote by weight: covered if the HITs
 // weigh at least half of them, the hit and normal then blended over the HITs. If no view saw it (all
 // UNKNOWN: e.g. a ray into a hole whose rim hides its inside from all three), it counts as a miss.
-// Returns false for no hit; t: the hit, n: the world normal (unit).
-bool impostor_hit(vec3 p0, vec3 seg, float radius, out float t, out vec3 n) {
+// Returns false for no hit; t: the hit, n: the world normal (unit), albedo: the blended albedo of the
+// HITs (ALBEDO_ATLAS; else 1).
+bool impostor_hit(vec3 p0, vec3 seg, float radius, out float t, out vec3 n, out vec3 albedo) {
     float t0, t1;
     t = -1.0;
     n = vec3(0.0);
+    albedo = vec3(1.0);
     if (!sphere_chord(p0, seg, radius, t0, t1)) return false;
     ivec2 view[3];
     vec3 w;
     nearest_views(-normalize(seg), view, w);
     float inv = 0.5 / u_capture;
     float seen = 0.0, hit = 0.0, tsum = 0.0;
-    vec3 nhit = vec3(0.0);
+    vec3 nhit = vec3(0.0), chit = vec3(0.0);
     for (int k = 0; k < 3; k++) {
         vec3 e, u, v;
         view_frame(view[k], e, u, v);
@@ -219,9 +226,15 @@ bool impostor_hit(vec3 p0, vec3 seg, float radius, out float t, out vec3 n) {
         vec3 nk = w[k] * atlas_normal(texel, e, u, v);
         if (kind != UNKNOWN) seen += w[k];
         if (kind == HIT) { hit += w[k]; tsum += w[k] * th; nhit += nk; }
+#if defined(ALBEDO_ATLAS)
+        if (kind == HIT) chit += w[k] * FETCH(3, texture(u_albedo_atlas, (vec2(view[k]) + (o + d * th).xy) / float(u_views)).rgb);
+#endif
     }
     if (seen == 0.0 || hit < 0.5 * seen) return false;
     t = tsum / hit;
+#if defined(ALBEDO_ATLAS)
+    albedo = chit / hit;
+#endif
     float len = length(nhit);
     n = len > 1e-20 ? nhit / len : -normalize(seg);
     return true;

@@ -45,7 +45,7 @@ from vdmbake import parts
 from vdmbake.errors import InputError
 
 from .. import gl
-from .raster import Passes, RasterPasses
+from .raster import MeshInputs, Passes, RasterPasses
 from .shadowmap import ShadowMap, translation
 
 METHODS = ("thesis", "improved")
@@ -72,18 +72,33 @@ def surface_points(b) -> np.ndarray:
     return np.asarray(b.origin, np.float64) + (s * np.asarray(b.size, np.float64)) @ np.asarray(b.axes, np.float64)
 
 
-def coarse_draws(ctx, mesh, anchor) -> tuple[dict, list]:
-    """The coarse mesh (sec. 3.4) uploaded once, anchor-relative, and drawn by mesh.vert two ways:
-    {"depth": (program, vao) writing depth only (depth.frag), "shaded": (program, vao) (mesh.frag)};
-    and the buffers to release."""
-    vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
-                     ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
+def coarse_draws(ctx, mesh, anchor) -> tuple[dict, MeshInputs]:
+    """The coarse mesh (sec. 3.4) uploaded once, anchor-relative, with the asset's colours where it carries
+    them (raster.MeshInputs), and drawn by mesh.vert two ways: {"depth": (program, vao) writing depth only
+    (depth.frag), "shaded": (program, vao) (mesh.frag)}; and its inputs (the shaded pass binds them)."""
+    inputs = MeshInputs(ctx, mesh, anchor)
     draws = {}
-    for kind, frag, attrs in (("depth", "depth.frag", [(vbo, "3f", "in_pos")]),
-                              ("shaded", "mesh.frag", [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")])):
-        prog = gl.program(ctx, "mesh.vert", frag)
-        draws[kind] = (prog, gl.vertex_array(ctx, prog, attrs, ibo))
-    return draws, [vbo, nbo, ibo]
+    for kind, frag, defines, attrs in (("depth", "depth.frag", (), [inputs.position]),
+                                       ("shaded", "mesh.frag", inputs.defines, inputs.attributes)):
+        prog = gl.program(ctx, "mesh.vert", frag, defines)
+        draws[kind] = (prog, gl.vertex_array(ctx, prog, attrs, inputs.index))
+    return draws, inputs
+
+
+ALBEDO_MAPS_UNIT = 5   # texture unit of the billboards' colour maps (shaders/include/board_albedo.glsl)
+
+
+def albedo_maps(ctx, bordered):
+    """The billboards' colour maps (thesis sec. 3.1; vdmbake.billboard_maps.albedo_texels, bordered like
+    their normal and depth maps) as one RGB16F texture array, linear filtering, one layer per billboard;
+    None where the bake stored none (an asset without colours: the material's albedo)."""
+    if not bordered or any(m.albedo is None for m in bordered):
+        return None
+    data = np.stack([np.asarray(m.albedo, np.float16) for m in bordered])
+    tex = ctx.texture_array((data.shape[2], data.shape[1], len(bordered)), 3, data.tobytes(), dtype="f2")
+    tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    tex.repeat_x = tex.repeat_y = False
+    return tex
 
 
 def infinite_far(projection: np.ndarray) -> np.ndarray:
@@ -131,6 +146,7 @@ class Billboards(Passes):
         self.behind = COARSE_BEHIND * radius
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, radius)
         self.objects, self.draws = [], []   # GL objects to release; (pass, program, vao, kind)
+        self.albedo_maps = self.coarse = None
 
         defines = ("THESIS",) if method == "thesis" else ("IMPROVED",)
         self.count_pass = count
@@ -156,15 +172,17 @@ class Billboards(Passes):
                 t.repeat_x = t.repeat_y = False
             cube = ctx.buffer(_CUBE.tobytes())
             ibuf = ctx.buffer(np.ascontiguousarray(inst, np.float32).tobytes())
-            self.objects += [self.maps, self.alpha, cube, ibuf]
-            for stage, extra in (("shadow", ("SHADOW",)), ("frame", ("COUNT",) if count else ())):
+            self.albedo_maps = albedo_maps(ctx, bordered)
+            self.objects += [self.maps, self.alpha, cube, ibuf, self.albedo_maps]
+            shaded = ("COUNT",) if count else ("ALBEDO_MAPS",) if self.albedo_maps is not None else ()
+            for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
                 prog = gl.program(ctx, "billboard.vert", "billboard.frag", defines + extra)
                 vao = gl.vertex_array(ctx, prog, [(cube, "3f", "in_corner"),
                                                   (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
                 self.draws.append((stage, prog, vao, "boards"))
         if coarse is not None:   # sec. 3.4: the coarse mesh, in both passes
-            draws, buffers = coarse_draws(ctx, coarse, self.anchor)
-            self.objects += buffers
+            draws, self.coarse = coarse_draws(ctx, coarse, self.anchor)
+            self.objects.append(self.coarse)
             self.draws += [("shadow", *draws["depth"], "mesh"), ("frame", *draws["shaded"], "mesh")]
 
     def _draw(self, stage: str, view_proj, raster, viewport, push, **uniforms) -> None:
@@ -174,8 +192,9 @@ class Billboards(Passes):
         for name, prog, vao, kind in self.draws:
             if name != stage or (self.count_pass and stage == "frame" and kind == "mesh"):
                 continue
-            if stage == "frame":
-                gl.set_shading(prog, self.light, self.material)
+            if stage == "frame":   # the material's albedo where neither the maps nor the coarse mesh have colour
+                gl.set_shading(prog, self.light, self.material, self.albedo_maps is None if kind == "boards"
+                               else self.coarse.uniform_albedo)
                 # The coarse mesh, known to within `behind` of the surface, looks its shadow up that much further out.
                 offset = NORMAL_OFFSET_TEXELS * self.shadow.texel + (self.behind if kind == "mesh" else 0.0)
                 self.shadow.bind(prog, unit=0, normal_offset=offset)
@@ -187,6 +206,9 @@ class Billboards(Passes):
                 if stage == "frame":   # the frame's shadow lookup offset (billboard.frag)
                     march.update(u_board_texels=BOARD_TEXELS,
                                  u_tolerance=2 * self.hit_range if self.method == "thesis" else 0.0)
+                    if self.albedo_maps is not None and not self.count_pass:
+                        self.albedo_maps.use(ALBEDO_MAPS_UNIT)
+                        march.update(u_albedo_maps=ALBEDO_MAPS_UNIT)
                 gl.set_uniforms(prog, u_maps=1, u_alpha=2, u_raster=raster, **march, u_view_proj=view_proj,
                                 u_inv_view_proj=np.linalg.inv(view_proj),
                                 u_viewport=tuple(float(x) for x in viewport), **uniforms)
@@ -196,6 +218,8 @@ class Billboards(Passes):
                 ctx.cull_face = "back"
                 ctx.disable(moderngl.CULL_FACE)
             else:
+                if stage == "frame":
+                    self.coarse.bind(prog)
                 gl.set_uniforms(prog, u_mvp=view_proj @ push, **uniforms)
                 ctx.polygon_offset = RasterPasses.POLYGON_OFFSET if stage == "shadow" else (0.0, 0.0)
                 vao.render()
@@ -231,13 +255,22 @@ class Billboards(Passes):
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.objects, self.shadow)
 
 
+def coarse_mesh(src):
+    """The billboards' coarse mesh with the asset's albedo map attached where the mesh carries texture
+    coordinates for it (its colours per vertex, if any, are in the part)."""
+    mesh = src.bundle.read(src.part["coarse"], parts.MESH)
+    if mesh.uvs is not None and src.entry.get("albedo_map"):
+        mesh.texture = src.bundle.read(src.entry["albedo_map"], parts.ALBEDO_MAP)
+    return mesh
+
+
 def build(ctx, src, variant):
     """One PROJECTION-METHOD[+coarse] variant (vdmbake.techniques.billboards.Variant)."""
     part = src.part
     projection = part[variant.projection]
     boards = src.bundle.read(projection["maps"], parts.BILLBOARDS)
     bordered = src.bundle.read(projection["bordered"], parts.BORDERED)
-    coarse = src.bundle.read(part["coarse"], parts.MESH) if variant.coarse or variant.method == "hier" else None
+    coarse = coarse_mesh(src) if variant.coarse or variant.method == "hier" else None
     bounds = (np.asarray(src.entry["centre"]), src.entry["radius"])
     if variant.method == "hier":
         from .billboards_hier import HierBillboards

@@ -31,7 +31,8 @@ from vdmbake import pyramid
 from vdmbake.errors import InputError
 
 from .. import gl
-from .billboards import _CORNERS, _CUBE, BOARD_TEXELS, COARSE_BEHIND, NORMAL_OFFSET_TEXELS, coarse_draws, infinite_far
+from .billboards import (_CORNERS, _CUBE, ALBEDO_MAPS_UNIT, BOARD_TEXELS, COARSE_BEHIND, NORMAL_OFFSET_TEXELS, albedo_maps,
+                         coarse_draws, infinite_far)
 from .raster import Passes, RasterPasses
 from .shadowmap import ShadowMap, translation
 
@@ -64,16 +65,18 @@ class HierBillboards(Passes):
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, self.radius)
         self.objects, self.count, self.draws = [], len(boards), {}
         self.depth = self.occupancy = None        # pass 2's and pass 3's targets, made at the first frame's size
+        self.albedo_maps = self.coarse = None
         uploaded = {}                             # a mesh filling holes and casting shadows is uploaded once
         for mesh in (coarse, shadow_mesh):
             if mesh is not None and id(mesh) not in uploaded:
-                uploaded[id(mesh)], buffers = coarse_draws(ctx, mesh, self.anchor)
-                self.objects += buffers
+                uploaded[id(mesh)] = coarse_draws(ctx, mesh, self.anchor)
+                self.objects.append(uploaded[id(mesh)][1])
         if coarse is not None:
-            self.draws["coarse depth"] = uploaded[id(coarse)]["depth"]
-            self.draws["coarse"] = uploaded[id(coarse)]["shaded"]
+            draws, self.coarse = uploaded[id(coarse)]
+            self.draws["coarse depth"] = draws["depth"]
+            self.draws["coarse"] = draws["shaded"]
         if shadow_mesh is not None:
-            self.draws["shadow mesh"] = uploaded[id(shadow_mesh)]["depth"]
+            self.draws["shadow mesh"] = uploaded[id(shadow_mesh)][0]["depth"]
         if not boards:
             return
         res = bordered[0].maps.shape[0] - 2
@@ -114,11 +117,13 @@ class HierBillboards(Passes):
         self.maps.filter = (moderngl.LINEAR, moderngl.LINEAR)
         for t in (self.pyramids, self.maps):
             t.repeat_x = t.repeat_y = False
-        self.objects += [occ_vbo, self.pyramids, self.maps]
+        self.albedo_maps = albedo_maps(ctx, bordered)
+        self.objects += [occ_vbo, self.pyramids, self.maps, self.albedo_maps]
         self.hf = {"u_hf_cells": (res + 1, res + 1), "u_hf_top": bordered[0].pyramid.top}
         defines = (f"BOARDS {len(boards)}", f"MAX_ITER {4 * (res + 1)}", f"HF_START_LEVEL {OCCUPANCY_LEVEL}")
         stages = {"billboards": defines + ("OCCUPANCY",) + (("COUNT",) if count else ())
-                  + (("COARSE_DEPTH",) if coarse is not None else ())}
+                  + (("COARSE_DEPTH",) if coarse is not None else ())
+                  + (("ALBEDO_MAPS",) if self.albedo_maps is not None and not count else ())}
         if shadow_mesh is None:
             stages["shadow billboards"] = defines + ("SHADOW",)
         for stage, d in stages.items():
@@ -223,14 +228,18 @@ class HierBillboards(Passes):
         if self.depth is not None and "u_coarse_depth" in prog:
             self.depth.use(3)
             gl.set_uniforms(prog, u_coarse_depth=3)
-        gl.set_shading(prog, self.light, self.material)
+        gl.set_shading(prog, self.light, self.material, self.albedo_maps is None)
+        if self.albedo_maps is not None and not self.counting:
+            self.albedo_maps.use(ALBEDO_MAPS_UNIT)
+            gl.set_uniforms(prog, u_albedo_maps=ALBEDO_MAPS_UNIT)
         self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
         self._boards("billboards", view_proj, eye, target.size, self._rect(view_proj, target.size), occupancy,
                      u_eye=tuple(eye))
 
     def _coarse(self, mvp, eye) -> None:
         prog, vao = self.draws["coarse"]
-        gl.set_shading(prog, self.light, self.material)
+        gl.set_shading(prog, self.light, self.material, self.coarse.uniform_albedo)
+        self.coarse.bind(prog)
         gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(eye))
         # known to within `behind` of the surface, it looks its shadow up that much further out
         self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel + self.behind)

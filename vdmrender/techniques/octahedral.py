@@ -28,6 +28,9 @@ Texture: one 2-D texture, RGBA16 unorm by default (rg: the normal's octahedral c
 frame, b: depth, a: coverage), linear filtering, no mipmaps; the bake extrapolated the empty texels near
 covered ones from them (vdmbake.octahedral.to_part), so filtering at a silhouette follows the surface. The
 bake leaves EMPTY empty rings around every tile, so nothing crosses from one view into another.
+For an asset with its own colours, a second texture of the same layout holds the surface's linear albedo
+(RGB16F, as the bundle stores it), read at each view's hit and blended like the normal (ALBEDO_ATLAS);
+otherwise the colour is the material's albedo.
 """
 from __future__ import annotations
 
@@ -42,6 +45,7 @@ from .raster import Passes
 from .shadowmap import ShadowMap, translation
 
 METHODS = ("march", "virtual")
+ALBEDO_UNIT = 2              # texture unit of the albedo atlas (unit 0: shadow map, 1: the atlas)
 TEXTURE_DTYPES = {"nu2": 2, "f4": 4}   # RGBA16 unorm (default), RGBA32F: bytes per channel
 NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels (as impostors) ...
 ATLAS_TEXELS = 0.5           # ... plus this many atlas texels (the surface is known to about half a texel)
@@ -81,12 +85,20 @@ class Octahedral(Passes):
         self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.texture.repeat_x = self.texture.repeat_y = False
         self.texture_bytes = side * side * 4 * TEXTURE_DTYPES[dtype]
+        self.albedo = None
+        if atlas.albedo is not None:
+            self.albedo = ctx.texture((side, side), 3, np.asarray(atlas.albedo, np.float16).tobytes(), dtype="f2")
+            self.albedo.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            self.albedo.repeat_x = self.albedo.repeat_y = False
+            self.texture_bytes += side * side * 3 * 2
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, self.radius)
         self.corners = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
         self.defines = (method.upper(),) + (("HEMI",) if atlas.hemi else ())
         self.may_lack = ("u_steps_per_texel",) if method == "virtual" else ()   # the single parallax step
         self.draws = {}
-        for stage, extra in (("shadow", ("SHADOW",)), ("frame", ("COUNT",) if count else ())):
+        shaded = ("COUNT",) if count else ()
+        shaded += ("ALBEDO_ATLAS",) if self.albedo is not None else ()
+        for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
             prog = gl.program(ctx, "octahedral.vert", "octahedral.frag", self.defines + extra, self.may_lack)
             self.draws[stage] = (prog, gl.vertex_array(ctx, prog, [(self.corners, "2f", "in_corner")]))
 
@@ -108,14 +120,17 @@ class Octahedral(Passes):
         def frame():
             target.begin()
             prog = self.draws["frame"][0]
-            gl.set_shading(prog, self.light, self.material)
+            gl.set_shading(prog, self.light, self.material, self.albedo is None)
+            if self.albedo is not None:
+                self.albedo.use(ALBEDO_UNIT)
+                gl.set_uniforms(prog, u_albedo_atlas=ALBEDO_UNIT)
             self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
             self._draw("frame", camera.projection() @ camera.view() @ translation(self.anchor), target.size,
                        u_eye=tuple(camera.eye - self.anchor), u_atlas_texels=ATLAS_TEXELS)
         return [("shadow", shadow), ("frame", frame)]
 
     def release(self) -> None:
-        gl.release(*(vao for _, vao in self.draws.values()), self.texture, self.corners, self.shadow)
+        gl.release(*(vao for _, vao in self.draws.values()), self.texture, self.albedo, self.corners, self.shadow)
 
 
 def shadow_size(resolution: int, scale: float, scene_size: int) -> int:

@@ -84,34 +84,56 @@ class RasterPasses(Passes):
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.buffers, self.shadow)
 
 
-class RasterMesh(RasterPasses):
-    """One triangle mesh with per-vertex normals and the material's albedo, or the asset's own: colours per
-    vertex and an albedo map read at its texture coordinates, where it has them (vdmbake.texture)."""
+class MeshInputs:
+    """What mesh.vert reads of one triangle mesh, uploaded once: anchor-relative positions, normals and,
+    where the asset has them, its colours per vertex (VERTEX_COLOR) and texture coordinates with its albedo
+    map (ALBEDO_MAP, vdmbake.texture); the material's albedo (u_albedo) where it has neither."""
 
-    def __init__(self, ctx, mesh, light, material, shadow_size: int):
-        anchor, radius = mesh.bounding_sphere()
-        super().__init__(ctx, light, material, anchor, radius, shadow_size)
-        self.faces = len(mesh.faces)
-        vbo, nbo, ibo = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
-                         ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
-        buffers, attributes, defines = [vbo, nbo, ibo], [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")], ()
+    def __init__(self, ctx, mesh, anchor):
+        vbo, nbo, self.index = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
+                                ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
+        self.buffers, self.defines = [vbo, nbo, self.index], ()
+        self.position, self.attributes = (vbo, "3f", "in_pos"), [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal")]
         if mesh.colors is not None:
             cbo = ctx.buffer(np.ascontiguousarray(mesh.colors, dtype="f4").tobytes())
-            buffers, attributes, defines = buffers + [cbo], attributes + [(cbo, "3f", "in_color")], ("VERTEX_COLOR",)
-            self.UNIFORM_ALBEDO = False
+            self.buffers.append(cbo)
+            self.attributes.append((cbo, "3f", "in_color"))
+            self.defines += ("VERTEX_COLOR",)
         self.albedo_map = None
         if mesh.texture is not None:
             tbo = ctx.buffer(np.ascontiguousarray(mesh.uvs, dtype="f4").tobytes())
-            buffers, attributes, defines = buffers + [tbo], attributes + [(tbo, "2f", "in_uv")], defines + ("ALBEDO_MAP",)
-            self.albedo_map, self.UNIFORM_ALBEDO = gl.albedo_texture(ctx, mesh.texture), False
-        self.add("mesh.vert", defines, buffers, attributes, [(vbo, "3f", "in_pos")], ibo)
+            self.buffers.append(tbo)
+            self.attributes.append((tbo, "2f", "in_uv"))
+            self.defines += ("ALBEDO_MAP",)
+            self.albedo_map = gl.albedo_texture(ctx, mesh.texture)
+        self.uniform_albedo = not self.defines   # u_albedo only where the asset has no colour of its own
 
-    def bind_frame(self, prog, camera) -> None:
+    def bind(self, prog) -> None:
+        """The albedo map of the shaded pass, if any."""
         if self.albedo_map is not None:
             self.albedo_map.use(gl.ALBEDO_UNIT)
             gl.set_uniforms(prog, u_albedo_map=gl.ALBEDO_UNIT)
 
     def release(self) -> None:
-        super().release()
-        gl.release(self.albedo_map)
+        gl.release(*self.buffers, self.albedo_map)
 
+
+class RasterMesh(RasterPasses):
+    """One triangle mesh with per-vertex normals and the material's albedo, or the asset's own: colours per
+    vertex and an albedo map read at its texture coordinates, where it has them (MeshInputs)."""
+
+    def __init__(self, ctx, mesh, light, material, shadow_size: int):
+        anchor, radius = mesh.bounding_sphere()
+        super().__init__(ctx, light, material, anchor, radius, shadow_size)
+        self.faces = len(mesh.faces)
+        self.inputs = MeshInputs(ctx, mesh, anchor)
+        self.UNIFORM_ALBEDO = self.inputs.uniform_albedo
+        self.add("mesh.vert", self.inputs.defines, [], self.inputs.attributes, [self.inputs.position],
+                 self.inputs.index)
+
+    def bind_frame(self, prog, camera) -> None:
+        self.inputs.bind(prog)
+
+    def release(self) -> None:
+        super().release()
+        self.inputs.release()

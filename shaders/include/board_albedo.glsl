@@ -1,0 +1,12 @@
+// The billboards' colour maps (Vichitvejpaisal 2005, sec. 3.1: "color and normal of projected polygon
+// poly is stored in color map and normal map"; read at the hit, sec. 3.3 step 2.3): one RGB16F layer per
+// billboard of the asset's linear albedo, with the one-texel border of the normal and depth maps (the
+// bake, vdmbake/billboard_maps.py albedo_texels, fills it and the empty texels near covered ones with
+// their covered neighbours' colour), read with linear filtering. Only for assets with colours (ALBEDO_MAPS).
+uniform sampler2DArray u_albedo_maps;
+
+// The albedo at s.xy in [0, 1]^2 of billboard `layer`'s R x R map.
+vec3 board_albedo(vec2 st, int layer) {
+    float R = float(textureSize(u_albedo_maps, 0).x - 2);
+    return texture(u_albedo_maps, vec3((st * R + 1.0) / (R + 2.0), float(layer))).rgb;
+}
