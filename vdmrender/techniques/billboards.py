@@ -19,7 +19,9 @@ The hit is shaded with the shared model (normal map, shadow map) and writes its 
 Texture layout: two texture arrays, one layer per billboard. RGBA32F normal (world, xyz) + depth (w),
 (R+2)^2 with a one-texel border, linear filtering; the border and the empty texels near covered ones are
 linearly extrapolated from them in the bake (vdmbake/billboard_maps.py), so filtering at a map's edge or
-silhouette follows the surface's slope. R8 alpha, R^2, read per texel (texelFetch, textureGather).
+silhouette follows the surface's slope. R8 alpha, R^2, read per texel (texelFetch, textureGather). For an
+asset with its own colours, a third: the colour maps (sec. 3.1), RGB16F linear albedo with the same border
+(albedo_maps), read at the hit (sec. 3.3 step 2.3); otherwise the colour is the material's albedo.
 
 Passes per frame: the shadow map, then the frame. The shadow map holds what the frame draws: the
 billboards ray-marched with the same method from the light's orthographic camera (gl_FragDepth), plus
