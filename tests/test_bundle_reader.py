@@ -150,6 +150,23 @@ def tile_picture() -> np.ndarray:
     return np.stack([40 * c + 10, 50 * r + 20, 7 * (r * w + c) + 3], -1).astype(np.uint8)
 
 
+# A vertex-coloured mesh file (PLY red/green/blue, 8-bit sRGB): an icosphere coloured by its direction, with
+# billboards and an octahedral atlas, whose parts then carry colour maps (spec: only for assets with colours).
+PAINTED = dict(subdivisions=3, resolution=16, views=5, view_resolution=24)
+
+PAINTED_SCENE = HEAD + f"""
+[[objects]]
+name = "painted"
+mesh = "painted.ply"
+techniques = {{ billboards = {{ variants = ["greedy-hier+coarse"], resolution = {PAINTED['resolution']}, coarse_ratio = 0.25 }}, octahedral = {{ variants = ["full-{PAINTED['views']}x{PAINTED['view_resolution']}-march"] }} }}
+"""
+
+
+def painted_rgb8(d: np.ndarray) -> np.ndarray:
+    """The painted sphere's 8-bit sRGB colour in direction d (unit rows)."""
+    return np.round(255 * (0.5 + 0.45 * d)).astype(np.uint8)
+
+
 def _bake(tmp: pathlib.Path, name: str, text: str) -> pathlib.Path:
     from click.testing import CliRunner
 
@@ -179,6 +196,23 @@ def albedo(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("albedo")
     Image.fromarray(tile_picture(), "RGB").save(tmp / "tile.png")
     return SpecReader(_bake(tmp, "albedo", ALBEDO_SCENE))
+
+
+@pytest.fixture(scope="module")
+def painted_bundle(tmp_path_factory) -> pathlib.Path:
+    import trimesh   # writes the input asset only; the reader below does not use it
+
+    tmp = tmp_path_factory.mktemp("painted")
+    sphere = trimesh.creation.icosphere(PAINTED["subdivisions"])
+    rgb = painted_rgb8(unit_rows(np.asarray(sphere.vertices)))
+    sphere.visual = trimesh.visual.ColorVisuals(sphere, vertex_colors=np.concatenate([rgb, np.full((len(rgb), 1), 255, np.uint8)], 1))
+    sphere.export(tmp / "painted.ply")
+    return _bake(tmp, "painted", PAINTED_SCENE)
+
+
+@pytest.fixture(scope="module")
+def painted(painted_bundle):
+    return SpecReader(painted_bundle)
 
 
 @pytest.fixture(scope="module")
@@ -336,6 +370,8 @@ class SpecReader:
         }
         if "texture_u" in v.dtype.names:
             out["uvs"] = np.stack([v["texture_u"], v["texture_v"]], 1)
+        if "red" in v.dtype.names:
+            out["colors"] = np.stack([v[c] for c in ("red", "green", "blue")], 1)
         if "dpdu_x" in v.dtype.names:
             out["dpdu"] = np.stack([v[f"dpdu_{a}"] for a in "xyz"], 1)
             out["dpdv"] = np.stack([v[f"dpdv_{a}"] for a in "xyz"], 1)
@@ -378,6 +414,7 @@ class SpecReader:
     def billboards(self, rel: str) -> list[dict]:
         x = self.exr(rel, "billboards")
         boards = self.manifest["parts"][rel]["boards"]
+        coloured = self.manifest["parts"][rel].get("albedo", False)
         names = [f"bb{i:03d}" for i in range(len(boards))]
         if sorted(x) != names:
             raise BundleError(f"{rel}: EXR parts {sorted(x)}, want {names}")
@@ -389,6 +426,7 @@ class SpecReader:
                 "normal": np.stack([ch[f"normal.{c}"] for c in "XYZ"], -1),
                 "origin": np.array(box["origin"], float), "axes": np.array(box["axes"], float),
                 "size": np.array(box["size"], float),
+                **({"albedo": np.stack([ch[f"albedo.{c}"] for c in "RGB"], -1)} if coloured else {}),
             })
         return out
 
@@ -397,7 +435,8 @@ class SpecReader:
         if sorted(x) != ["atlas"]:
             raise BundleError(f"{rel}: EXR parts {sorted(x)}, want ['atlas']")
         ch, meta = x["atlas"].channels, self.manifest["parts"][rel]
-        return {"A": ch["A"], "depth": ch["depth.Z"], "code": np.stack([ch["normal.U"], ch["normal.V"]], -1),
+        colour = {"albedo": np.stack([ch[f"albedo.{c}"] for c in "RGB"], -1)} if meta.get("albedo", False) else {}
+        return {"A": ch["A"], "depth": ch["depth.Z"], "code": np.stack([ch["normal.U"], ch["normal.V"]], -1), **colour,
                 **{k: meta[k] for k in ("views", "resolution", "hemi", "radius", "capture", "rays")},
                 "basis": np.array(meta["basis"], float), "centre": np.array(meta["centre"], float)}
 
@@ -836,22 +875,29 @@ def _window_size(win):
     return lo, (hi - lo + 1)
 
 
-def test_exr_files_layout(meso, shapes):
-    """Every EXR: the named parts and channels of its kind, FLOAT channels, scanline, zip; each
+def test_exr_files_layout(meso, shapes, painted):
+    """Every EXR: the named parts and channels of its kind, FLOAT channels (colour maps: HALF), scanline, zip;
+    colour channels (albedo.R, .G, .B) exactly where the metadata says `albedo` (the painted mesh file), none
+    for the primitives, which have no colours of their own; each
     part's dataWindow is its own size starting at (0, 0); all parts share one displayWindow, the union
     of the part sizes; arrays are [row, column] of the dataWindow's size."""
     want_parts = {
         "mesostructure": {"height": ["h"], "normal": ["normal.X", "normal.Y", "normal.Z"]},
         "vdm": None, "billboards": None, "octahedral": {"atlas": ["A", "depth.Z", "normal.U", "normal.V"]},
     }
-    seen = set()
-    for r in (meso, shapes):
+    seen, colour = set(), ["albedo.B", "albedo.G", "albedo.R"]
+    for r in (meso, shapes, painted):
         for rel, entry in r.manifest["parts"].items():
             if not rel.endswith(".exr"):
                 continue
             seen.add(entry["kind"])
             x = r.exr(rel)
-            if entry["kind"] in ("mesostructure", "octahedral"):
+            coloured = entry.get("albedo", False)
+            assert coloured == (r is painted) and entry.get("albedo", None) in (None, True)  # the key only when true
+            if entry["kind"] == "octahedral":
+                assert {k: sorted(p.channels) for k, p in x.items()} == {"atlas": sorted(want_parts["octahedral"]["atlas"]
+                                                                                         + colour * coloured)}
+            elif entry["kind"] == "mesostructure":
                 assert {k: sorted(p.channels) for k, p in x.items()} == want_parts[entry["kind"]]
             elif entry["kind"] == "vdm":
                 assert sorted(x) == ["E_mvm", "E_vdm", "W"] + (["W_dequant"] if entry["storage"] == "uint8" else [])
@@ -861,12 +907,12 @@ def test_exr_files_layout(meso, shapes):
             elif entry["kind"] == "billboards":
                 assert sorted(x) == [f"bb{i:03d}" for i in range(len(entry["boards"]))]
                 for p in x.values():
-                    assert sorted(p.channels) == ["A", "depth.Z", "normal.X", "normal.Y", "normal.Z"]
+                    assert sorted(p.channels) == ["A"] + colour * coloured + ["depth.Z", "normal.X", "normal.Y", "normal.Z"]
             else:
                 names = [f"bb{i:03d}" for i in range(entry["boards"])]
                 assert sorted(k for k in x if "." not in k) == names
                 for k, p in x.items():
-                    want = (["depth.Z", "normal.X", "normal.Y", "normal.Z"] if "." not in k else
+                    want = (colour * coloured + ["depth.Z", "normal.X", "normal.Y", "normal.Z"] if "." not in k else
                             ["depth.Z"] if k.endswith(".samples") else ["max.Z", "min.Z"])
                     assert sorted(p.channels) == want, k
                 assert any("." in k for k in x) == entry["pyramids"]
@@ -880,6 +926,8 @@ def test_exr_files_layout(meso, shapes):
                 for c, a in p.channels.items():
                     if entry["kind"] == "vdm" and c.startswith("W.") and entry["storage"] != "float32":
                         assert {"uint8": "UINT", "float16": "HALF"}[entry["storage"]] in p.channel_types[c]
+                    elif c.startswith("albedo."):
+                        assert "HALF" in p.channel_types[c] and a.dtype == np.float16
                     else:
                         assert "FLOAT" in p.channel_types[c] and a.dtype == np.float32
                     assert a.shape == (size[1], size[0])
@@ -1354,3 +1402,118 @@ def test_albedo_lookup_agrees_with_project(albedo):
     ours = tile_albedo(albedo.albedo_map(obj["mesostructure_albedo"]), T[:, 0], T[:, 1])
     theirs = sample(Bundle(albedo.root).read(obj["mesostructure_albedo"], parts.ALBEDO_MAP), T)
     np.testing.assert_allclose(ours, theirs, atol=1e-12)
+
+
+# --------------------------------------------------------------------------------------------------
+# Colour maps (billboards, bordered billboards, octahedral) of an asset with its own colours
+# --------------------------------------------------------------------------------------------------
+
+
+def sphere_albedo(mesh, centre, points):
+    """The spec's albedo at points of a convex mesh around `centre`: the face the ray from the centre
+    through each point meets, its vertex colours interpolated by the point's barycentric weights."""
+    tri = mesh["vertices"][mesh["faces"]] - centre                      # (F, 3 corners, 3)
+    x = np.einsum("nj,fjk->nfk", points - centre, np.linalg.inv(tri))   # points = x @ tri, per face
+    face = np.argmax(x.min(-1), 1)                                      # all weights >= 0 on the face it meets
+    w = x[np.arange(len(points)), face]
+    w /= w.sum(1, keepdims=True)
+    return np.einsum("nk,nkc->nc", w, mesh["colors"].astype(np.float64)[mesh["faces"][face]])
+
+
+def fill_rings(values, covered, rings=2):
+    """The spec's border of a colour map: ring by ring, each empty texel next to covered (or already
+    filled) ones takes the mean of those 8-neighbours; the rest 0."""
+    v = np.where(covered[..., None], values.astype(np.float64), 0.0)
+    ok = covered.copy()
+    for _ in range(rings):
+        vp, op = np.pad(v, ((1, 1), (1, 1), (0, 0))), np.pad(ok, 1)
+        h, w = ok.shape
+        acc, cnt = np.zeros_like(v), np.zeros(ok.shape)
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                if di or dj:
+                    o = op[1 + di:1 + di + h, 1 + dj:1 + dj + w]
+                    acc += o[..., None] * vp[1 + di:1 + di + h, 1 + dj:1 + dj + w]
+                    cnt += o
+        fill = ~ok & (cnt > 0)
+        v[fill] = acc[fill] / cnt[fill, None]
+        ok = ok | fill
+    return v
+
+
+def test_colour_maps_show_the_assets_colours(painted):
+    """The painted sphere (a PLY with 8-bit sRGB vertex colours): its mesh part carries them as linear
+    albedo; each billboard's colour map holds, at every covered texel, the albedo (interpolated vertex
+    colours) of the surface point the spec's formula reprojects it to, 0 where A = 0; the bordered maps
+    hold it at texel [i + 1, j + 1] with the ring-filled border; the octahedral atlas likewise per view.
+    Reading the billboard maps transposed puts colours far off."""
+    obj = painted.manifest["objects"]["painted"]
+    mesh = painted.mesh(obj["mesh"])
+    centre = np.array(obj["centre"])
+    d = unit_rows(mesh["vertices"] - centre)
+    srgb = painted_rgb8(d) / 255.0
+    np.testing.assert_allclose(mesh["colors"], np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4),
+                               atol=1e-6)    # linear albedo (sRGB decoded)
+    bb = obj["techniques"]["billboards"]["greedy"]
+    assert painted.manifest["parts"][bb["maps"]]["albedo"] and painted.manifest["parts"][bb["bordered"]]["albedo"]
+    boards = painted.billboards(bb["maps"])
+    bordered = painted.exr(bb["bordered"], "bordered-billboards")
+    worst, worst_transposed = 0.0, 0.0
+    for k, b in enumerate(boards):
+        a, depth, albedo, axes = b["A"], b["depth"].astype(np.float64), b["albedo"].astype(np.float64), b["axes"]
+        res, cov = a.shape[0], b["A"] == 1
+        assert albedo.shape == (res, res, 3) and (albedo[~cov] == 0).all()
+        i, j = np.nonzero(cov)
+
+        def reproject(ii, jj):
+            return (b["origin"] + ((jj + 0.5) / res * b["size"][0])[:, None] * axes[0]
+                    + ((ii + 0.5) / res * b["size"][1])[:, None] * axes[1] + (depth[i, j] * b["size"][2])[:, None] * axes[2])
+
+        worst = max(worst, np.abs(albedo[i, j] - sphere_albedo(mesh, centre, reproject(i, j))).max())
+        worst_transposed = max(worst_transposed, np.abs(albedo[i, j] - sphere_albedo(mesh, centre, reproject(j, i))).max())
+        ch = bordered[f"bb{k:03d}"].channels
+        border = np.stack([ch[f"albedo.{c}"] for c in "RGB"], -1).astype(np.float64)
+        assert border.shape == (res + 2, res + 2, 3)
+        np.testing.assert_array_equal(border[1:-1, 1:-1][cov], albedo[cov])
+        np.testing.assert_allclose(border, fill_rings(np.pad(albedo, ((1, 1), (1, 1), (0, 0))), np.pad(cov, 1)), atol=1e-3)
+    # measured: 0.00024 (HALF's rounding, at most 2^-12 below 1); transposed 0.71
+    assert worst < 0.001 and worst_transposed > 0.1, (worst, worst_transposed)
+
+    rel = next(iter(obj["techniques"]["octahedral"].values()))
+    x = painted.octahedral(rel)
+    n, res, cap = x["views"], x["resolution"], x["capture"]
+    cov = x["A"] == 1
+    albedo = x["albedo"].astype(np.float64)
+    np.testing.assert_allclose(albedo, fill_rings(albedo, cov), atol=1e-3)      # the ring-filled border, 0 beyond
+    worst = 0.0
+    for jv in range(n):
+        for iv in range(n):
+            e = oct_decode(np.array([-1 + 2 * iv / (n - 1), -1 + 2 * jv / (n - 1)]), False)
+            s = 1.0 if abs(2 * iv - n + 1) + abs(2 * jv - n + 1) <= n - 1 else -1.0
+            q = -1 / (s + e[2])
+            bq = e[0] * e[1] * q
+            u, v = np.array([1 + s * e[0] ** 2 * q, s * bq, -s * e[0]]), np.array([bq, s + e[1] ** 2 * q, -e[1]])
+            e, u, v = e @ x["basis"], u @ x["basis"], v @ x["basis"]
+            tile = np.s_[jv * res:(jv + 1) * res, iv * res:(iv + 1) * res]
+            rb, ra = np.nonzero(cov[tile])
+            p = (x["centre"] + cap * e + (((ra + 0.5) / res * 2 - 1) * cap)[:, None] * u
+                 + (((rb + 0.5) / res * 2 - 1) * cap)[:, None] * v - (x["depth"][tile][rb, ra] * 2.0 * cap)[:, None] * e)
+            worst = max(worst, np.abs(albedo[tile][rb, ra] - sphere_albedo(mesh, centre, p)).max())
+    assert worst < 0.001, worst   # measured: 0.00024 (HALF's rounding)
+
+
+def test_colour_maps_agree_with_project_unpacking(painted):
+    import vdmbake.parts as parts
+    from vdmbake.bundle import Bundle
+
+    obj = painted.manifest["objects"]["painted"]
+    bundle = Bundle(painted.root)
+    np.testing.assert_array_equal(painted.mesh(obj["mesh"])["colors"], bundle.read(obj["mesh"], parts.MESH).colors)
+    bb = obj["techniques"]["billboards"]["greedy"]
+    for ours, theirs in zip(painted.billboards(bb["maps"]), bundle.read(bb["maps"], parts.BILLBOARDS)):
+        np.testing.assert_array_equal(ours["albedo"], theirs.albedo)
+    x = painted.exr(bb["bordered"], "bordered-billboards")
+    for k, theirs in enumerate(bundle.read(bb["bordered"], parts.BORDERED)):
+        np.testing.assert_array_equal(np.stack([x[f"bb{k:03d}"].channels[f"albedo.{c}"] for c in "RGB"], -1), theirs.albedo)
+    rel = next(iter(obj["techniques"]["octahedral"].values()))
+    np.testing.assert_array_equal(painted.octahedral(rel)["albedo"], bundle.read(rel, parts.OCTAHEDRAL).albedo)
