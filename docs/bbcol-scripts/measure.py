@@ -65,7 +65,6 @@ def interleaved(bundle_path: Path, render_dir: Path) -> dict:
     from vdmrender import gl, interleave
     from vdmrender.camera import cameras_for
     from vdmrender.techniques import Source
-    from vdmrender.techniques.billboards import coarse_mesh
     from vdmrender.techniques.billboards_hier import HierBillboards
     from vdmrender.techniques.octahedral import Octahedral, shadow_size
 
@@ -82,7 +81,7 @@ def interleaved(bundle_path: Path, render_dir: Path) -> dict:
         g = src.part["greedy"]
         boards = bundle.read(g["maps"], parts.BILLBOARDS)
         maps = bundle.read(g["bordered"], parts.BORDERED)
-        coarse = coarse_mesh(src)
+        coarse = bundle.surface(entry, src.part["coarse"])
         plain_maps = [replace(m, albedo=None) for m in maps]
         plain_coarse = TriMesh(coarse.vertices, coarse.faces, coarse.normals)
         bounds = (entry["centre"], entry["radius"])

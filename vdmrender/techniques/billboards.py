@@ -257,22 +257,14 @@ class Billboards(Passes):
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.objects, self.shadow)
 
 
-def coarse_mesh(src):
-    """The billboards' coarse mesh with the asset's albedo map attached where the mesh carries texture
-    coordinates for it (its colours per vertex, if any, are in the part)."""
-    mesh = src.bundle.read(src.part["coarse"], parts.MESH)
-    if mesh.uvs is not None and src.entry.get("albedo_map"):
-        mesh.texture = src.bundle.read(src.entry["albedo_map"], parts.ALBEDO_MAP)
-    return mesh
-
-
 def build(ctx, src, variant):
     """One PROJECTION-METHOD[+coarse] variant (vdmbake.techniques.billboards.Variant)."""
     part = src.part
     projection = part[variant.projection]
     boards = src.bundle.read(projection["maps"], parts.BILLBOARDS)
     bordered = src.bundle.read(projection["bordered"], parts.BORDERED)
-    coarse = coarse_mesh(src) if variant.coarse or variant.method == "hier" else None
+    # the coarse mesh with the asset's colours (per vertex in the part; its albedo map where it has UVs)
+    coarse = src.bundle.surface(src.entry, part["coarse"]) if variant.coarse or variant.method == "hier" else None
     bounds = (np.asarray(src.entry["centre"]), src.entry["radius"])
     if variant.method == "hier":
         from .billboards_hier import HierBillboards
