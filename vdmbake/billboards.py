@@ -6,7 +6,8 @@ map (alpha), a depth map (distance from the box front along w, 0..1 of the box d
 normal map and, for an asset with its own colours (per-vertex colours or an albedo map), the
 colour map (sec. 3.1: "color and normal of projected polygon poly is stored in color map and normal
 map"; here the linear albedo at the texel's surface point, which the renderer shades, sec. 3.3 step 2.3).
-An asset without colours has no colour map: the material's albedo is the colour everywhere. The renderer (sec. 3.3) ray-marches the depth map as a height field inside the box.
+An asset without colours has no colour map: the material's albedo is the colour everywhere. The
+renderer (sec. 3.3) ray-marches the depth map as a height field inside the box.
 
 Building (sec. 3.2) is greedy set cover over a 36 x 18 array of candidate view directions
 (sec. 4.1): take the direction that projects the most remaining polygons, keep those within
@@ -225,7 +226,7 @@ def _maps(v, mesh: TriMesh, fn, take, w, resolution: int, scale: float) -> Billb
     normal[hit] = n
     shape = (resolution, resolution)
     albedo = None
-    if texture.has_albedo(mesh):   # the colour map (sec. 3.2): the asset's albedo at the texel's surface point
+    if texture.has_albedo(mesh):   # the colour map (sec. 3.1): the asset's albedo at the texel's surface point
         albedo = np.zeros((resolution * resolution, 3))
         albedo[hit] = texture.surface_albedo(mesh, take[prim], b, None)
         albedo = albedo.reshape(shape + (3,)).astype(np.float32)

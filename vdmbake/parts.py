@@ -447,8 +447,8 @@ class OctahedralAtlas:
     depth: np.ndarray      # (N R, N R) float32 in [0, 1] along -e_k over 2 capture, 1 where not covered
     coverage: np.ndarray   # (N R, N R) float32, 1 where a surface was hit, else 0
     rays: int              # rays the bake traced
-    albedo: np.ndarray | None = None   # (N R, N R, 3) float32 linear RGB albedo of the surface, extrapolated as
-                                       # the depth; only for assets with their own colours (texture.has_albedo)
+    albedo: np.ndarray | None = None   # (N R, N R, 3) float32 linear RGB albedo of the surface (around silhouettes
+                                       # the covered neighbours' mean); only for assets with their own colours
 
     @property
     def resolution(self) -> int:
