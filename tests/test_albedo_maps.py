@@ -66,6 +66,13 @@ def test_obj_and_glb_load_the_same_albedo(tmp_path):
         assert np.abs(got - want).max() < 0.01, np.abs(got - want).max()
 
 
+def test_obj_with_uvs_and_no_material_has_no_map(tmp_path):
+    """trimesh gives an OBJ with UVs but no MTL a grey placeholder image: the material's albedo applies instead."""
+    (tmp_path / "t.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+    m = load_mesh_file(tmp_path / "t.obj")
+    assert m.uvs is not None and m.texture is None
+
+
 def test_bundle_stores_the_map_only_for_textured_assets():
     m = bunny()
     back = parts.stored(parts.ALBEDO_MAP, m.texture)

@@ -257,6 +257,8 @@ def base_colour_map(visual) -> np.ndarray | None:
         factor = np.ones(3) if bcf is None else np.asarray(bcf, np.float64)[:3] / (255.0 if np.asarray(bcf).dtype == np.uint8 else 1.0)
     else:
         image = getattr(material, "image", None)
+        if image is not None and image.format is None and not image.info:
+            image = None   # made by trimesh for an OBJ with UVs and no material (a 2x2 grey), not the asset's
     if image is None:
         return None
     rgb = texture.from_image(image)
