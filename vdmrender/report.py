@@ -36,7 +36,24 @@ def write(folder: Path, report: dict) -> None:
     if "baseline" in report:
         (folder / "baseline.md").write_text(baseline.table(report["baseline"]))
         (folder / "baseline.csv").write_text(baseline.to_csv(report["baseline"]))
+    if "composite" in report:
+        (folder / "composite.md").write_text(composite_table(report))
     plot(folder / "error_vs_time.png", report)
+
+
+def composite_table(report: dict) -> str:
+    """composite.md: per variant set of render.composite its variants, time and error (vdmrender.composite)."""
+    def num(x, digits):
+        return "-" if x is None else f"{x:.{digits}f}"
+
+    lines = [f"Composite frames, {report['resolution'][0]}x{report['resolution'][1]}, {report['device']}: every object "
+             "in one frame, against the reference tracing every object together; frames in composite/frames/SET/, "
+             "heat maps in composite/heatmaps/SET/, the sheet in composite/overview.png.", "",
+             "| set | variants | median ms/frame | mean ΔLuv | p95 ΔLuv | IoU | FLIP |", "|---:|---|---:|---:|---:|---:|---:|"]
+    for r in report["composite"]:
+        lines.append(f"| {r['set']} | {r['label']} | {r['median_ms']:.1f} | {num(r['mean_dluv'], 3)} | "
+                     f"{num(r['p95_dluv'], 2)} | {num(r['iou'], 4)} | {num(r['flip_mean'], 4)} |")
+    return "\n".join(lines) + "\n"
 
 
 PANEL_COLUMNS = 3   # panels per row of error_vs_time.png: any number of objects stays readable
