@@ -28,8 +28,7 @@ MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender ch
 class VariantSets(Type):
     """Composite frames: a list of tables, each naming one variant label (as the report spells it) per
     object; the scene reader checks the names against the objects (check_composite)."""
-    text = ('a list of tables, each naming one variant per object by its report label, e.g. '
-            '[{ bunny = "mesh", villin = "impostor@direct" }]')
+    text = "a non-empty list of tables, each naming one variant per object by its report label"
 
     def parse(self, raw):
         if not isinstance(raw, list) or not raw or not all(
