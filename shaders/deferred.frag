@@ -2,7 +2,8 @@
 // Deferred shading of ray-cast quadrics (de Poel & Bresser 2009, sec. 4): the G-buffer holds
 // the normal and mu (the ray's interpolation factor between the near and far planes) instead
 // of depth; the position is rebuilt from mu (eq. 3-4). Optional Sobel outlines: silhouettes
-// from the depth, creases from the normals, strengths u_silhouette and u_crease.
+// from the depth, creases from the normals, strengths u_silhouette and u_crease. Each hit writes its
+// exact depth, so the pass is depth-tested against whatever else the target holds (composite frames).
 #include "shading.glsl"
 #include "shadow.glsl"
 #include "quadric.glsl"
@@ -23,14 +24,12 @@ float view_depth(ivec2 q) {
 void main() {
     ivec2 q = ivec2(gl_FragCoord.xy);
     vec4 alb = texelFetch(u_albedo_cov, q, 0);
-    if (alb.a == 0.0) {
-        frag = vec4(0.0);
-        return;
-    }
+    if (alb.a == 0.0) discard;   // no quadric here: the target keeps what it holds
     vec4 g = texelFetch(u_normal_mu, q, 0);
     vec3 p0, seg;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     vec3 p = p0 + g.w * seg;
+    gl_FragDepth = window_depth(u_view_proj, p);
     vec3 n = g.xyz;
     vec3 c = shade(alb.rgb, n, normalize(u_eye - p), shadow_lit(p, n));
     if (u_silhouette > 0.0 || u_crease > 0.0) {

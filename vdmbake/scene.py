@@ -26,6 +26,21 @@ MAX_SCENE_BYTES = 64 << 20
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
 
 
+class VariantSets(Type):
+    """Composite frames: a list of tables, each naming one variant label (as the report spells it) per
+    object; the scene reader checks the names against the objects (check_composite)."""
+    text = "a non-empty list of tables, each naming one variant per object by its report label"
+
+    def parse(self, raw):
+        if not isinstance(raw, list) or not raw or not all(
+                isinstance(s, dict) and s and all(isinstance(v, str) for v in s.values()) for s in raw):
+            raise Invalid
+        return tuple(dict(s) for s in raw)
+
+    def dump(self, value):
+        return [dict(s) for s in value]
+
+
 @dataclass(frozen=True)
 class Render:
     resolution: tuple[int, int] = setting((512, 512), Vector(2, 1, MAX_SIDE, integer=True), "[width, height] in pixels")
@@ -34,6 +49,12 @@ class Render:
     repeats: int = setting(5, Integer(1, 1000), "timed renders of each frame; the report gives their median")
     warmup: int = setting(1, Integer(0, 100), "untimed renders of each frame before the timed ones")
     shadow_map: int = setting(2048, Integer(256, 16384), "shadow-map side in texels")
+    composite: tuple = setting((), VariantSets(),
+                               "composite frames: besides each object alone, every object of the scene in one frame "
+                               "(one depth buffer, one shadow map of the whole scene; cameras framing every object), "
+                               "once per variant set; each set names every object and one of its variants, e.g. "
+                               '`[{ bunny = "mesh", torus = "vdm@8" }, { bunny = "coarse@0.1", torus = "pom@32" }]`; '
+                               "the reference traces every object together")
 
 
 @dataclass(frozen=True)
@@ -205,7 +226,36 @@ def parse_scene_dict(data: dict, origin: str) -> Scene:
     for n in names:
         if names.count(n) > 1:
             raise InputError(f"{origin}: two objects are named {n!r}; object names must be unique.")
-    return read(Scene, top, material=material, objects=objs, camera=_cameras(top.table("camera")))
+    render = top.value("render", Table(Render), Render())
+    check_composite(render.composite, objs, origin)
+    return read(Scene, top, render=render, material=material, objects=objs, camera=_cameras(top.table("camera")))
+
+
+def variant_labels(obj: Object) -> list[str]:
+    """The object's variant labels, as the report spells them (coarse@0.1, billboards@greedy-hier+coarse)."""
+    return [REGISTRY[t].label(v) for t, options in obj.techniques.items() for v in REGISTRY[t].values(options)]
+
+
+def check_composite(sets: tuple, objects: tuple, origin: str) -> None:
+    """Every composite set names each object of the scene once, with one of its variant labels."""
+    names = [o.name for o in objects]
+    for i, s in enumerate(sets):
+        where = f"render.composite[{i}]"
+        for key, label in s.items():
+            if key not in names:
+                raise InputError(f"{origin}: key '{where}.{printable(key)}' names no object of the scene; "
+                                 f"its objects: {', '.join(names)}.")
+            labels = variant_labels(next(o for o in objects if o.name == key))
+            if label not in labels:
+                raise InputError(f"{origin}: key '{where}.{key}' has value {label!r}, which is not a variant of "
+                                 f"object {key!r}; its variants: {', '.join(labels)}.")
+        missing = [n for n in names if n not in s]
+        if missing:
+            raise InputError(f"{origin}: [{where}] names no variant for {', '.join(map(repr, missing))}; a "
+                             "composite frame holds every object of the scene, so each set names one variant "
+                             "per object.")
+        if s in sets[:i]:
+            raise InputError(f"{origin}: [{where}] repeats an earlier set.")
 
 
 def _cameras(t: Reader) -> Cameras:

@@ -115,3 +115,14 @@ def cameras_for(scene_camera, centre, radius, width, height) -> list[Camera]:
         eye, target = np.asarray(p.eye, float), np.asarray(p.target, float)
         cams.append(Camera(eye, target, up, p.fov_deg, width, height, *clip_planes(eye, target, centre, radius)))
     return cams
+
+
+def enclosing_sphere(centres, radii) -> tuple[np.ndarray, float]:
+    """A sphere holding every given sphere (a composite frame's objects): centred on the box of the
+    spheres, as large as the farthest sphere's surface from there. Not the smallest such sphere, but
+    within a factor sqrt(3) of it, and one sphere comes back as itself."""
+    c, r = np.atleast_2d(np.asarray(centres, float)), np.asarray(radii, float).ravel()
+    centre = 0.5 * ((c - r[:, None]).min(0) + (c + r[:, None]).max(0))
+    if len(r) == 1:
+        return c[0].copy(), float(r[0])
+    return centre, float((np.linalg.norm(c - centre, axis=1) + r).max())

@@ -73,6 +73,9 @@ def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error
     OUTPUT/reference/OBJECT/NNN.png (.exr)   the reference (cached by content and code hash)
     OUTPUT/heatmaps/OBJECT/VARIANT/NNN.png   per-pixel ΔLuv, 0 to --heat-max
     OUTPUT/overview/OBJECT.png               everything on one sheet
+    OUTPUT/composite/                        with render.composite: every object in one frame per
+                                             variant set (frames/SET/, heatmaps/SET/, reference/,
+                                             overview.png) and OUTPUT/composite.md
     OUTPUT/report.json, report.csv, error_vs_time.png
     OUTPUT/baseline.md, baseline.csv         with --baseline: the change per variant
 

@@ -23,6 +23,14 @@ def _frame(camera, hit: np.ndarray, radiance: np.ndarray) -> np.ndarray:
     return out.reshape(camera.height, camera.width, 4).astype(np.float32)
 
 
+def _depth(camera, hit: np.ndarray, view_depth: np.ndarray) -> np.ndarray:
+    """(H, W) float64 view depth of the hit pixels (inf elsewhere), row 0 at the top: what composite frames
+    compare to find each pixel's nearest object (every reference casts the camera's same pixel rays)."""
+    out = np.full(camera.height * camera.width, np.inf)
+    out[hit] = view_depth
+    return out.reshape(camera.height, camera.width)
+
+
 class MeshReference:
     """Traces one triangle mesh; the Embree scene is built once and reused for every camera."""
 
@@ -31,8 +39,14 @@ class MeshReference:
         self.scene = RayScene(mesh.vertices, mesh.faces)
         self.eps = SHADOW_EPSILON * mesh.bounding_sphere()[1]
 
-    def render(self, camera) -> np.ndarray:
-        """(H, W, 4) float32: linear RGB and coverage, row 0 at the top."""
+    def occluded(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Shadow rays from other objects (composite frames): (N,) True where this mesh blocks them."""
+        return self.scene.occluded(origins, dirs)
+
+    def render(self, camera, others=(), depth: bool = False):
+        """(H, W, 4) float32: linear RGB and coverage, row 0 at the top. others: references whose
+        objects also block this one's shadow rays (composite frames); depth: also return each pixel's view
+        depth (_depth)."""
         eye, d = camera.pixel_rays()
         # Start on the near plane and stop at the far plane, as the rasteriser clips (d has view depth 1).
         hits = self.scene.intersect(eye + d * camera.near, d, camera.far - camera.near)
@@ -49,8 +63,11 @@ class MeshReference:
         to_eye = safe_normalize(camera.eye - p)
         L = np.broadcast_to(np.asarray(self.light.direction), p.shape)
         lit = ~self.scene.occluded(local + ng * self.eps, L, relative=True)
+        for o in others:
+            lit &= ~o.occluded(p + ng * self.eps, L)
         albedo = surface_albedo(self.mesh, hits.prim[hit], w[:, :, 0], self.material.albedo)
-        return _frame(camera, hit, shade(albedo, n, to_eye, lit, self.light, self.material))
+        frame = _frame(camera, hit, shade(albedo, n, to_eye, lit, self.light, self.material))
+        return (frame, _depth(camera, hit, camera.near + hits.t[hit])) if depth else frame
 
 
 _BOX = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
@@ -145,7 +162,14 @@ class QuadricReference:
         self.rgb = np.concatenate([q.sphere_rgb, q.cylinder_rgb]).astype(np.float64)
         self.eps = SHADOW_EPSILON * q.bounding_sphere()[1]
 
-    def render(self, camera) -> np.ndarray:
+    def occluded(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Shadow rays from other objects (composite frames): (N,) True where a quadric blocks them."""
+        t, _, _ = self.tracer.first_hit(np.ascontiguousarray(origins, float), np.ascontiguousarray(dirs, float),
+                                        np.zeros(len(origins)), np.full(len(origins), np.inf), stop_at_any=True)
+        return np.isfinite(t)
+
+    def render(self, camera, others=(), depth: bool = False):
+        """As MeshReference.render."""
         eye, d = camera.pixel_rays()
         scale = np.linalg.norm(d, axis=1)         # d has view depth 1: near/far become distances
         du = d / scale[:, None]
@@ -158,5 +182,27 @@ class QuadricReference:
         ts, _, _ = self.tracer.first_hit(p + n * self.eps, np.ascontiguousarray(L), np.zeros(len(p)),
                                          np.full(len(p), np.inf), stop_at_any=True)
         lit = ~np.isfinite(ts)
-        return _frame(camera, hit, shade(self.rgb[idx[hit]], n, safe_normalize(camera.eye - p), lit,
-                                         self.light, self.material))
+        for o in others:
+            lit &= ~o.occluded(p + n * self.eps, L)
+        frame = _frame(camera, hit, shade(self.rgb[idx[hit]], n, safe_normalize(camera.eye - p), lit,
+                                          self.light, self.material))
+        return (frame, _depth(camera, hit, t[hit] / scale[hit])) if depth else frame
+
+
+class CompositeReference:
+    """Several objects traced together (composite frames): per pixel the nearest of the objects' hits,
+    each shaded with its own material and colours, and every object's shadow rays blocked by every
+    object (as the composite's one shadow map of the whole scene does in GL)."""
+
+    def __init__(self, refs):
+        self.refs = list(refs)
+
+    @property
+    def rays_cast(self) -> int:
+        return sum(r.scene.rays_cast for r in self.refs)
+
+    def render(self, camera) -> np.ndarray:
+        out = [r.render(camera, [o for o in self.refs if o is not r], depth=True) for r in self.refs]
+        depth = np.stack([d for _, d in out])
+        nearest = depth.argmin(0)[None, ..., None]            # ties go to the first object of the scene
+        return np.take_along_axis(np.stack([f for f, _ in out]), nearest, 0)[0]

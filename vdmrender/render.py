@@ -18,7 +18,7 @@ from vdmbake.errors import InputError
 from vdmbake.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, borders, gl, images, progress, reference, report
+from . import baseline, borders, composite, gl, images, progress, reference, report
 from .camera import cameras_for
 from .metrics import compare, flip_values, summarise
 from .techniques import Source, mesostructure, variants
@@ -92,10 +92,8 @@ def _reference_key(geometry: dict, cams, light, material, background, code: str)
     return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
 
 
-def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np.ndarray], list, dict]:
-    """The reference frames (linear RGBA float32) and, for a mesostructure object, each frame's pixel
-    classes (vdmrender.borders; None otherwise), traced or taken from the previous run's cache."""
-    folder = f"reference/{obj.name}"
+def reference_geometry(obj, entry, bundle) -> dict:
+    """What an object's reference depends on in the bundle (part hashes, its mesostructure), for cache keys."""
     part = entry.get("mesh") or entry["quadrics"]
     geometry = {"part": bundle.manifest["parts"][part]["sha256"]}
     for key in ("albedo_map", "mesostructure_albedo"):   # colour textures
@@ -104,38 +102,63 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     if obj.mesostructure:   # the truly displaced geometry: the base mesh, the maps and how they are mapped
         geometry.update(maps=bundle.manifest["parts"][entry["mesostructure"]]["sha256"],
                         mesostructure=asdict(obj.mesostructure))
-    key = _reference_key(geometry, cams, scene.light, obj.material, scene.render.background,
-                         reference_code(obj.mesostructure is not None))
+    return geometry
+
+
+def object_reference(obj, entry, bundle, scene):
+    """The object's reference tracer (vdmrender.reference), and for a mesostructure object the Embree
+    scene of its open border (vdmrender.borders; None otherwise)."""
+    if obj.mesostructure:
+        src = Source(obj, entry, None, bundle, scene, None)
+        return (reference.MeshReference(mesostructure.reference_mesh(src), scene.light, obj.material),
+                mesostructure.skirt_scene(src))
+    if obj.kind == "surface":
+        return reference.MeshReference(bundle.surface(entry), scene.light, obj.material), None
+    return reference.QuadricReference(bundle.read(entry["quadrics"], parts.QUADRICS), scene.light, obj.material), None
+
+
+def cached_reference(out, folder: str, key: str, count: int):
+    """The previous run's reference frames and classes in `folder` if they were made under `key`, else None."""
     prev_key = out.previous(f"{folder}/key.txt")
-    names = [f"{folder}/{k:03d}" for k in range(len(cams))]
-    if prev_key.is_file() and prev_key.read_text().strip() == key and all(
-            out.previous(n + ".exr").is_file() for n in names):
-        cached = [exr.read(out.previous(n + ".exr")) for n in names]
-        frames = [np.stack([p["reference"][c] for c in "RGBA"], -1) for p in cached]
-        classes = [p["classes"]["C"].astype(np.uint8) if "classes" in p else None for p in cached]
+    names = [f"{folder}/{k:03d}" for k in range(count)]
+    if not (prev_key.is_file() and prev_key.read_text().strip() == key
+            and all(out.previous(n + ".exr").is_file() for n in names)):
+        return None
+    cached = [exr.read(out.previous(n + ".exr")) for n in names]
+    return ([np.stack([p["reference"][c] for c in "RGBA"], -1) for p in cached],
+            [p["classes"]["C"].astype(np.uint8) if "classes" in p else None for p in cached])
+
+
+def save_reference(out, folder: str, key: str, frames, classes, background) -> None:
+    """The reference frames as EXR (the cache) and PNG, the pixel classes where there are some, and the key."""
+    for k, (f, c) in enumerate(zip(frames, classes)):
+        n = f"{folder}/{k:03d}"
+        layers = {"reference": {ch: f[..., i] for i, ch in enumerate("RGBA")}}
+        if c is not None:   # which pixels see an open border or the inside (vdmrender.borders), as a mask too
+            layers["classes"] = {"C": c.astype(np.float32)}
+            images.save_rgb(out.file(n + "-classes.png"), np.dstack([borders.COLOURS[c], np.full(c.shape, 255, np.uint8)]))
+        exr.write(out.file(n + ".exr"), layers)
+        images.save_rgb(out.file(n + ".png"), images.encode(f, background))
+    out.file(f"{folder}/key.txt").write_text(key + "\n")
+
+
+def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np.ndarray], list, dict]:
+    """The reference frames (linear RGBA float32) and, for a mesostructure object, each frame's pixel
+    classes (vdmrender.borders; None otherwise), traced or taken from the previous run's cache."""
+    folder = f"reference/{obj.name}"
+    key = _reference_key(reference_geometry(obj, entry, bundle), cams, scene.light, obj.material,
+                         scene.render.background, reference_code(obj.mesostructure is not None))
+    cached = cached_reference(out, folder, key, len(cams))
+    if cached is not None:
+        frames, classes = cached
         info = {"cached": True, "trace_s": 0.0}
     else:
         t0 = time.perf_counter()
-        skirt = None
-        if obj.mesostructure:
-            src = Source(obj, entry, None, bundle, scene, None)
-            ref = reference.MeshReference(mesostructure.reference_mesh(src), scene.light, obj.material)
-            skirt = mesostructure.skirt_scene(src)
-        elif obj.kind == "surface":
-            ref = reference.MeshReference(bundle.surface(entry), scene.light, obj.material)
-        else:
-            ref = reference.QuadricReference(bundle.read(part, parts.QUADRICS), scene.light, obj.material)
+        ref, skirt = object_reference(obj, entry, bundle, scene)
         frames = [ref.render(c) for c in progress.bar(cams, f"{obj.name}: reference")]
         classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
         info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
-    for n, f, k in zip(names, frames, classes):
-        layers = {"reference": {c: f[..., i] for i, c in enumerate("RGBA")}}
-        if k is not None:   # which pixels see an open border or the inside (vdmrender.borders), as a mask too
-            layers["classes"] = {"C": k.astype(np.float32)}
-            images.save_rgb(out.file(n + "-classes.png"), np.dstack([borders.COLOURS[k], np.full(k.shape, 255, np.uint8)]))
-        exr.write(out.file(n + ".exr"), layers)
-        images.save_rgb(out.file(n + ".png"), images.encode(f, scene.render.background))
-    out.file(f"{folder}/key.txt").write_text(key + "\n")
+    save_reference(out, folder, key, frames, classes, scene.render.background)
     log(f"{obj.name}: reference {len(cams)} frames " +
         ("(cached)" if info["cached"] else f"traced in {info['trace_s']:.2f} s, {info['rays']} rays"))
     return frames, classes, info
@@ -187,6 +210,8 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     try:
         rows = _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log)
         report.add_baseline_ratios(rows)
+        composite_rows = composite.render_sets(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts,
+                                               device, log)
         result = {"tool_version": __version__, "bundle": str(bundle.path), "device": device,
                   "resolution": [width, height], "repeats": repeats, "warmup": warmup,
                   "timing": "median wall time per frame over all timed renders, ctx.finish() inside the timed "
@@ -200,6 +225,8 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                   "flip": "NVIDIA FLIP (LDR, 67 pixels per degree) of the sRGB frames, averaged over the same "
                           "pixels as the error (flip_mean pools a variant's frames like mean_dluv)" if opts.flip else "not computed",
                   "heatmap_max_dluv": opts.heat_max, "rows": rows}
+        if composite_rows:   # render.composite: every object in one frame, per variant set (vdmrender.composite)
+            result["composite"] = composite_rows
         if old is not None:
             result["baseline"] = {"report": str(opts.baseline),
                                   **baseline.compare(old, result, opts.max_error_increase, opts.max_slowdown)}
@@ -223,22 +250,31 @@ def _measure(ctx, v, target, cams, ref8, classes, repeats, warmup, out, obj, hea
     samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup, f"{name}: {v.label}")
     faces = getattr(renderer, "faces", None)
     renderer.release()
+    scores, heats, enc = score_frames(frames, ref8, classes, out, f"frames/{name}/{v.label}",
+                                      f"heatmaps/{name}/{v.label}", heat_max, background, flip,
+                                      f"{name}: {v.label} scoring")
+    row = {"object": name, "technique": v.technique, "knob": v.knob, "value": v.value, "label": v.label,
+           "faces": faces, "frames": len(cams), "expect_empty": obj.expect_empty,
+           "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3), **summarise(scores)}
+    return row, enc, heats
+
+
+def score_frames(frames, ref8, classes, out, frame_dir: str, heat_dir: str, heat_max, background, flip, desc: str):
+    """Each frame against its reference: its scores (metrics.compare, with FLIP, coverage and non-finite
+    pixels), and its sRGB frame and heat map, also written as FRAME_DIR/NNN.png and HEAT_DIR/NNN.png."""
     scores, heats, enc = [], [], []
-    for k, (f, r8, cls) in enumerate(progress.bar(list(zip(frames, ref8, classes)), f"{name}: {v.label} scoring")):
+    for k, (f, r8, cls) in enumerate(progress.bar(list(zip(frames, ref8, classes)), desc)):
         f8 = images.encode(f, background)
         c = compare(f8, r8, cls)
         c.update(flip=flip_values(f8, r8, c["scored"]) if flip else np.zeros(0),
                  coverage=float((r8[..., 3] > 0).mean()), nonfinite=int((~np.isfinite(f)).any(-1).sum()))
         heat = images.heatmap(c["dist"], heat_max)
-        images.save_rgb(out.file(f"frames/{name}/{v.label}/{k:03d}.png"), f8)
-        images.save_rgb(out.file(f"heatmaps/{name}/{v.label}/{k:03d}.png"), heat)
+        images.save_rgb(out.file(f"{frame_dir}/{k:03d}.png"), f8)
+        images.save_rgb(out.file(f"{heat_dir}/{k:03d}.png"), heat)
         scores.append(c)
         heats.append(heat)
         enc.append(f8)
-    row = {"object": name, "technique": v.technique, "knob": v.knob, "value": v.value, "label": v.label,
-           "faces": faces, "frames": len(cams), "expect_empty": obj.expect_empty,
-           "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3), **summarise(scores)}
-    return row, enc, heats
+    return scores, heats, enc
 
 
 def _show(x, width: int, digits: int) -> str:

@@ -36,7 +36,24 @@ def write(folder: Path, report: dict) -> None:
     if "baseline" in report:
         (folder / "baseline.md").write_text(baseline.table(report["baseline"]))
         (folder / "baseline.csv").write_text(baseline.to_csv(report["baseline"]))
+    if "composite" in report:
+        (folder / "composite.md").write_text(composite_table(report))
     plot(folder / "error_vs_time.png", report)
+
+
+def composite_table(report: dict) -> str:
+    """composite.md: per variant set of render.composite its variants, time and error (vdmrender.composite)."""
+    def num(x, digits):
+        return "-" if x is None else f"{x:.{digits}f}"
+
+    lines = [f"Composite frames, {report['resolution'][0]}x{report['resolution'][1]}, {report['device']}: every object "
+             "in one frame, against the reference tracing every object together; frames in composite/frames/SET/, "
+             "heat maps in composite/heatmaps/SET/, the sheet in composite/overview.png.", "",
+             "| set | variants | median ms/frame | mean ΔLuv | p95 ΔLuv | IoU | FLIP |", "|---:|---|---:|---:|---:|---:|---:|"]
+    for r in report["composite"]:
+        lines.append(f"| {r['set']} | {r['label']} | {r['median_ms']:.1f} | {num(r['mean_dluv'], 3)} | "
+                     f"{num(r['p95_dluv'], 2)} | {num(r['iou'], 4)} | {num(r['flip_mean'], 4)} |")
+    return "\n".join(lines) + "\n"
 
 
 PANEL_COLUMNS = 3   # panels per row of error_vs_time.png: any number of objects stays readable
@@ -54,16 +71,21 @@ def figure(report: dict):
 
     rows = report["rows"]
     objects = list(dict.fromkeys(r["object"] for r in rows))
-    ncols = min(PANEL_COLUMNS, len(objects))
-    nrows = -(-len(objects) // ncols)
+    sets = report.get("composite", [])
+    panels = len(objects) + bool(sets)
+    ncols = min(PANEL_COLUMNS, panels)
+    nrows = -(-panels // ncols)
     fig, axes = plt.subplots(nrows, ncols, figsize=(5.6 * ncols, 4.4 * nrows), squeeze=False)
-    for ax in axes.ravel()[len(objects):]:
+    for ax in axes.ravel()[panels:]:
         ax.remove()
-    for ax, obj in zip(axes.ravel(), objects):
-        mine = [r for r in rows if r["object"] == obj]
+    groups = [(obj, False, [(r["technique"], r) for r in rows if r["object"] == obj]) for obj in objects]
+    if sets:   # composite frames: one point per variant set (the legend names the sets' variants)
+        groups.append(("composite", True, [(f"{r['set']}: {r['label']}", {**r, "label": f"set {r['set']}"})
+                                           for r in sets]))
+    for ax, (obj, together, mine) in zip(axes.ravel(), groups):
         points = []
-        for tech in dict.fromkeys(r["technique"] for r in mine):
-            pts = [r for r in mine if r["technique"] == tech and r["mean_dluv"] is not None]   # in knob order
+        for tech in dict.fromkeys(t for t, _ in mine):
+            pts = [r for t, r in mine if t == tech and r["mean_dluv"] is not None]   # in knob order
             ax.plot([r["median_ms"] for r in pts], [r["mean_dluv"] for r in pts], "o-", label=tech)
             points += pts
         ax.set_xscale("log")
@@ -77,9 +99,10 @@ def figure(report: dict):
                             xytext=(5 if right else -5, 4), ha="left" if right else "right", fontsize=7)
         ax.set_xlabel("median wall time per frame [ms] (log)")
         ax.set_ylabel("mean ΔL*u*v* against the reference (eq. 2.2)")
-        ax.set_title(f"{obj}  {report['resolution'][0]}x{report['resolution'][1]}", fontsize=10)
+        ax.set_title(f"{obj}  {report['resolution'][0]}x{report['resolution'][1]}"
+                     + (" (every object in one frame)" if together else ""), fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=6 if together else 8)
     fig.suptitle(f"error against time on {report['device']}", fontsize=9)
     fig.tight_layout()
     return fig

@@ -153,15 +153,16 @@ class Billboards(Passes):
         defines = ("THESIS",) if method == "thesis" else ("IMPROVED",)
         self.count_pass = count
         self.count = len(boards)
-        self.shadow_raster = self.shadow.view_proj
+        self.shadow_squeeze = np.eye(4)   # the light's raster matrix is this times the shadow map's
         if boards:
             o = np.array([np.asarray(b.origin, np.float64) - self.anchor for b in boards])
             edges = np.array([np.asarray(b.axes, np.float64) * np.asarray(b.size, np.float64)[:, None]
                               for b in boards])
             inst = np.concatenate([o, edges.reshape(-1, 9)], 1)
-            # The light's raster matrix: the shadow map's, its depth range widened to hold every box corner.
+            # The light's raster matrix: the shadow map's, its depth range widened to hold every box corner
+            # (also in a composite's map of the whole scene, which holds this object's bounding sphere).
             far = max(np.linalg.norm(o[:, None] + _CORNERS[None] @ edges, axis=2).max(), radius)
-            self.shadow_raster = np.diag([1.0, 1.0, min(1.0, radius / far), 1.0]) @ self.shadow.view_proj
+            self.shadow_squeeze = np.diag([1.0, 1.0, min(1.0, radius / far), 1.0])
             res = np.asarray(boards[0].alpha).shape[0]
             maps = np.stack([np.asarray(m.maps, np.float32) for m in bordered])
             covered = [np.asarray(b.alpha) > 0.5 for b in boards]
@@ -236,7 +237,8 @@ class Billboards(Passes):
 
         def shadow():
             self.shadow.begin()
-            self._draw("shadow", self.shadow.view_proj, self.shadow_raster, self.shadow.texture.size,
+            self._draw("shadow", self.shadow.view_proj, self.shadow_squeeze @ self.shadow.view_proj,
+                       self.shadow.texture.size,
                        translation(-np.asarray(self.light.direction, np.float64) * self.behind))
 
         def frame():

@@ -10,6 +10,7 @@ import numpy as np
 from vdmbake import parts
 
 from .. import gl
+from .raster import Passes
 from .shadowmap import ShadowMap, translation
 
 NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels: less gives
@@ -20,7 +21,7 @@ NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in
 DROPS = {"depth": ("in_rgb",), "direct": (), "gbuffer": ()}
 
 
-class Impostors:
+class Impostors(Passes):
     def __init__(self, ctx, q, light, material, shadow_size: int, shading: str, silhouette: float, crease: float):
         self.ctx, self.light, self.material, self.shading = ctx, light, material, shading
         self.silhouette, self.crease = (silhouette, crease) if shading == "outlines" else (0.0, 0.0)
@@ -68,32 +69,46 @@ class Impostors:
             self.gbuffer = (normal_mu, albedo, depth, self.ctx.framebuffer([normal_mu, albedo], depth))
         return self.gbuffer
 
-    def render(self, camera, target) -> None:
+    def passes(self, camera, target) -> list:
+        """The frame's passes in order, as (name, callable): the shadow map, then the shaded quadrics
+        (direct), or the G-buffer and its shading pass (deferred, outlines)."""
         ctx = self.ctx
-        self.shadow.begin()
-        self._draw("depth", self.shadow.view_proj, self.shadow.texture.size)
         view_proj = camera.projection() @ camera.view() @ translation(self.anchor)
         eye = tuple(camera.eye - self.anchor)
-        if self.shading == "direct":
+
+        def shadow():
+            self.shadow.begin()
+            self._draw("depth", self.shadow.view_proj, self.shadow.texture.size)
+
+        def direct():
             target.begin()
             self._draw("direct", view_proj, target.size, u_eye=eye)
-            return
-        normal_mu, albedo, _, fbo = self._gbuffer(target.size)
-        fbo.use()
-        ctx.viewport = (0, 0, *target.size)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        self._draw("gbuffer", view_proj, target.size)
-        target.begin()
-        ctx.disable(moderngl.DEPTH_TEST)
-        p = self.deferred
-        gl.set_shading(p, self.light, self.material, albedo=False)   # albedo from the G-buffer
-        self.shadow.bind(p, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
-        normal_mu.use(1)
-        albedo.use(2)
-        gl.set_uniforms(p, u_normal_mu=1, u_albedo_cov=2, u_eye=eye,
-                        u_inv_view_proj=np.linalg.inv(view_proj), u_viewport=tuple(float(x) for x in target.size),
-                        u_near_far=(camera.near, camera.far), u_silhouette=self.silhouette, u_crease=self.crease)
-        self.fullscreen.render(moderngl.TRIANGLES, vertices=3)
+
+        def gbuffer():
+            _, _, _, fbo = self._gbuffer(target.size)
+            fbo.use()
+            ctx.viewport = (0, 0, *target.size)
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            self._draw("gbuffer", view_proj, target.size)
+
+        def shade():
+            # Depth-tested with the depth of the G-buffer's hits (deferred.frag writes gl_FragDepth), so the
+            # shaded quadrics meet whatever else the target holds (a composite frame) as the direct pass does.
+            normal_mu, albedo, _, _ = self.gbuffer
+            target.begin()
+            p = self.deferred
+            gl.set_shading(p, self.light, self.material, albedo=False)   # albedo from the G-buffer
+            self.shadow.bind(p, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
+            normal_mu.use(1)
+            albedo.use(2)
+            gl.set_uniforms(p, u_normal_mu=1, u_albedo_cov=2, u_eye=eye, u_view_proj=view_proj,
+                            u_inv_view_proj=np.linalg.inv(view_proj), u_viewport=tuple(float(x) for x in target.size),
+                            u_near_far=(camera.near, camera.far), u_silhouette=self.silhouette, u_crease=self.crease)
+            self.fullscreen.render(moderngl.TRIANGLES, vertices=3)
+
+        if self.shading == "direct":
+            return [("shadow", shadow), ("frame", direct)]
+        return [("shadow", shadow), ("gbuffer", gbuffer), ("shade", shade)]
 
     def release(self) -> None:
         gl.release(*(vao for _, _, vao, _ in self.draws), *self.buffers, self.shadow, *(self.gbuffer or ()),

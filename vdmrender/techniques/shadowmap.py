@@ -37,13 +37,14 @@ class ShadowMap:
         self.view_proj = ortho(r, r, 3 * r) @ cam.view()
         self.texel = 2 * r / size   # world size of one texel
 
-    def begin(self) -> None:
-        """Start the light's pass: the map cleared, depth-tested, no face culled."""
+    def begin(self, clear: bool = True) -> None:
+        """Start the light's pass: the map cleared (unless not `clear`), depth-tested, no face culled."""
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.ctx.disable(moderngl.CULL_FACE)
         self.fbo.use()
         self.ctx.viewport = (0, 0, *self.texture.size)
-        self.fbo.clear(depth=1.0)
+        if clear:
+            self.fbo.clear(depth=1.0)
 
     def bind(self, prog, unit: int = 0, normal_offset: float = 0.0) -> None:
         self.texture.use(unit)
@@ -51,3 +52,20 @@ class ShadowMap:
 
     def release(self) -> None:
         gl.release(self.fbo, self.texture)
+
+
+class ShadowView(ShadowMap):
+    """One object's view of a scene-wide shadow map (vdmrender.composite): the scene's texture, in
+    coordinates relative to the object's anchor (`offset`: anchor minus the map's centre). Its light pass
+    draws into the map without clearing it (the composite frame clears it once, before every object's
+    pass), so every object casts shadows on every other; the map belongs to the composite, not to it."""
+
+    def __init__(self, shared: ShadowMap, offset):
+        self.ctx, self.texture, self.fbo, self.texel = shared.ctx, shared.texture, shared.fbo, shared.texel
+        self.view_proj = shared.view_proj @ translation(offset)
+
+    def begin(self, clear: bool = False) -> None:
+        super().begin(clear=False)
+
+    def release(self) -> None:
+        """The composite releases the shared map."""

@@ -1,0 +1,176 @@
+"""Composite frames (scene key `render.composite`): every object of the scene in one frame, each drawn by
+the variant a set names, against a reference that traces every object together.
+
+How the techniques meet (GL):
+* One framebuffer, one depth buffer. The frame's target is cleared once; every technique then draws
+  into it as it draws alone, but through a view of the target whose begin() binds it without clearing
+  (`Kept`). Every technique writes the exact window depth of what it shows (rasterised meshes, and
+  gl_FragDepth: quadric impostors direct and deferred, billboards, octahedral impostors, VDM, POM and
+  relief hits), under the same camera and near/far planes, so the depth test orders opaque surfaces of
+  different techniques exactly as it orders those of one. Passes that work in their own targets (the
+  deferred impostors' G-buffer, the hierarchical billboards' coarse-depth and occupancy passes) are
+  untouched; the deferred shading pass is depth-tested with its hits' depth. Screen-space effects see
+  only their own object: the deferred outlines' Sobel reads the impostors' G-buffer, so an impostor's
+  silhouette against another object is outlined as against the background.
+* One shadow map of the whole scene. It is fitted to the sphere holding every object; each technique's
+  light pass draws into it (`ShadowView`: the same map in the technique's anchor-relative coordinates,
+  not cleared), all light passes before any frame pass, so every object casts what its technique casts
+  alone (billboards hier: its coarse mesh; VDM, POM, relief, bump: the base mesh) onto every other. The
+  map spreads the scene's `shadow_map` texels over the whole scene, so each object gets fewer than alone.
+* The state each technique starts its frame passes with is the one its own light pass leaves (depth
+  test on, no culling, no blending), whatever the technique before it left.
+
+The reference (vdmrender.reference.CompositeReference) traces every object's reference with the same
+pixel rays, keeps per pixel the nearest hit, shaded with that object's material and colours, and blocks
+every shadow ray by every object: the GL frame's shared shadow map and the reference agree on which
+objects shadow which. Open borders of mesostructure surfaces are not scored apart in composites (every
+pixel counts).
+
+Cameras frame the whole scene: the orbit is placed on a sphere holding every object's bounding sphere
+(vdmrender.camera.enclosing_sphere) and the near and far planes hug it.
+"""
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import asdict
+
+import moderngl
+import numpy as np
+
+from . import gl, images, progress, reference
+from .camera import cameras_for, enclosing_sphere
+from .metrics import summarise
+from .techniques import variants
+from .techniques.raster import Passes
+from .techniques.shadowmap import ShadowMap, ShadowView
+
+FOLDER = "composite"   # OUT/composite/: reference/, frames/SET/, heatmaps/SET/, overview.png
+
+
+class Kept:
+    """The frame's target as the techniques of a composite see it: begin() binds it without clearing."""
+
+    def __init__(self, target):
+        self.target, self.size = target, target.size
+
+    def begin(self) -> None:
+        self.target.fbo.use()
+        self.target.ctx.viewport = (0, 0, *self.size)
+
+
+class Composite(Passes):
+    """Several objects' renderers (vdmrender.techniques: each with `anchor`, `shadow` and `passes`) in one
+    frame with one depth buffer and one shadow map of the whole scene (centre, radius)."""
+
+    def __init__(self, ctx, renderers: dict, centre, radius: float, light, shadow_size: int):
+        self.ctx, self.renderers = ctx, dict(renderers)
+        self.centre = np.asarray(centre, np.float64)
+        self.shadow = ShadowMap(ctx, shadow_size, light.direction, radius)
+        self.own = {}                                 # each renderer's own shadow map, given back on release
+        for name, r in self.renderers.items():
+            self.own[name] = r.shadow
+            r.shadow = ShadowView(self.shadow, np.asarray(r.anchor, np.float64) - self.centre)
+        self.faces = sum(getattr(r, "faces", None) or 0 for r in self.renderers.values())
+
+    def passes(self, camera, target) -> list:
+        """Clear the target and the scene's shadow map; every object's light pass; then every object's other
+        passes in scene order, each object's first one from its light pass's GL state."""
+        kept = Kept(target)
+
+        def clear():
+            self.shadow.begin()
+            target.begin()
+
+        light, frame = [], []
+        for name, r in self.renderers.items():
+            first = True
+            for pass_name, run in r.passes(camera, kept):
+                if pass_name == "shadow":
+                    light.append((f"{name} shadow", run))
+                    continue
+                if first:
+                    frame.append((f"{name} state", lambda: self.ctx.enable_only(moderngl.DEPTH_TEST)))
+                    first = False
+                frame.append((f"{name} {pass_name}", run))
+        return [("clear", clear)] + light + frame
+
+    def release(self) -> None:
+        for name, r in self.renderers.items():
+            r.shadow = self.own[name]
+            r.release()
+        self.shadow.release()
+
+
+def set_label(chosen: dict) -> str:
+    """A variant set as reports name it: OBJECT:VARIANT, space-separated, in scene order."""
+    return " ".join(f"{o}:{v}" for o, v in chosen.items())
+
+
+def scene_sphere(bundle, scene) -> tuple[np.ndarray, float]:
+    objs = bundle.manifest["objects"]
+    return enclosing_sphere([objs[o.name]["centre"] for o in scene.objects], [objs[o.name]["radius"] for o in scene.objects])
+
+
+def reference_frames(out, bundle, scene, cams, log):
+    """The composite reference frames (linear RGBA float32), traced or from the previous run's cache."""
+    from .render import _reference_key, cached_reference, object_reference, reference_code, reference_geometry, save_reference
+
+    entries = bundle.manifest["objects"]
+    geometry = {o.name: {**reference_geometry(o, entries[o.name], bundle), "material": asdict(o.material)}
+                for o in scene.objects}
+    key = _reference_key(geometry, cams, scene.light, scene.material, scene.render.background,
+                         reference_code(any(o.mesostructure for o in scene.objects)))
+    folder = f"{FOLDER}/reference"
+    cached = cached_reference(out, folder, key, len(cams))
+    if cached is not None:
+        frames, info = cached[0], {"cached": True, "trace_s": 0.0}
+    else:
+        t0 = time.perf_counter()
+        ref = reference.CompositeReference(object_reference(o, entries[o.name], bundle, scene)[0] for o in scene.objects)
+        frames = [ref.render(c) for c in progress.bar(cams, "composite: reference")]
+        info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.rays_cast}
+    save_reference(out, folder, key, frames, [None] * len(frames), scene.render.background)
+    log(f"composite: reference {len(cams)} frames " +
+        ("(cached)" if info["cached"] else f"traced in {info['trace_s']:.2f} s, {info['rays']} rays"))
+    return frames, info
+
+
+def render_sets(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log) -> list[dict]:
+    """Every variant set of render.composite (those whose techniques --technique keeps): timed, scored against
+    the composite reference, written under OUT/composite/; one report row per set."""
+    from .render import _show, score_frames, time_variant
+
+    sets = [s for s in scene.render.composite if only is None or all(v.split("@")[0] in only for v in s.values())]
+    if not sets:
+        return []
+    centre, radius = scene_sphere(bundle, scene)
+    target = gl.Target(ctx, width, height)
+    cams = cameras_for(scene.camera, centre, radius, width, height)
+    ref_frames, ref_info = reference_frames(out, bundle, scene, cams, log)
+    ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
+    sheet, rows = [("reference", ref8)], []
+    entries = bundle.manifest["objects"]
+    for k, chosen in enumerate(sets, start=1):
+        builds = {}
+        for obj in scene.objects:
+            v = next(v for v in variants(obj, entries[obj.name], bundle, scene) if v.label == chosen[obj.name])
+            builds[obj.name] = v.build(ctx)
+        renderer = Composite(ctx, builds, centre, radius, scene.light, scene.render.shadow_map)
+        label = set_label(chosen)
+        samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup, f"composite {k}")
+        faces = renderer.faces
+        renderer.release()
+        scores, heats, enc = score_frames(frames, ref8, [None] * len(frames), out, f"{FOLDER}/frames/{k}",
+                                          f"{FOLDER}/heatmaps/{k}", opts.heat_max, scene.render.background, opts.flip,
+                                          f"composite {k} scoring")
+        row = {"set": k, "label": label, "variants": dict(chosen), "faces": faces, "frames": len(cams),
+               "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3),
+               **summarise(scores), "device": device, "reference_cached": ref_info["cached"]}
+        rows.append(row)
+        sheet += [(f"{k}: {label}", enc), (f"{k}: error", heats)]
+        log(f"composite {k} ({label}): {row['median_ms']:9.3f} ms/frame  mean dLuv {_show(row['mean_dluv'], 7, 3)}"
+            f"  p95 {_show(row['p95_dluv'], 7, 3)}  IoU {_show(row['iou'], 6, 4)}  FLIP {_show(row['flip_mean'], 6, 4)}")
+    target.release()
+    images.overview(sheet, out.file(f"{FOLDER}/overview.png"))
+    return rows
