@@ -1,7 +1,8 @@
 """Built-in primitives with analytic normals and UVs (pure numpy).
 
 Sphere, cylinder, cone, torus and vase are surfaces of revolution about +Z (vdmbake.geometry.revolve,
-which gives exact normals, UVs and principal curvatures from the profile); the plane is a grid.
+which gives exact normals, UVs and principal curvatures from the profile); the plane is a grid; the
+teapot is the Utah teapot's Bezier patches, tessellated by vdmbake.teapot.
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import numpy as np
 from .geometry import cylinder, disk, flat_frame, grid_faces, revolve
 from .meshes import TriMesh
 from .schema import Integer, Number, setting
+from .teapot import teapot
 
 
 def plane(size: float, segments: int) -> TriMesh:
@@ -108,9 +110,17 @@ class VaseParams:
     rings: int = _count(64, "cells along the profile")
 
 
+@dataclass(frozen=True)
+class TeapotParams:
+    size: float = _length(1.0, "height along Z (bottom at z = 0, spout along +X)")
+    segments: int = setting(8, Integer(2, 512), "cells per side of each of its 32 Bezier patches (8: the "
+                            "4032 triangles of the VDM paper's Fig. 9 teapot)")
+
+
 # name -> (builder, parameters)
 PRIMITIVES = {"plane": (plane, PlaneParams), "sphere": (sphere, SphereParams), "cylinder": (cylinder, CylinderParams),
-              "cone": (cone, ConeParams), "torus": (torus, TorusParams), "vase": (vase, VaseParams)}
+              "cone": (cone, ConeParams), "torus": (torus, TorusParams), "vase": (vase, VaseParams),
+              "teapot": (teapot, TeapotParams)}
 
 
 def build(name: str, params) -> TriMesh:
