@@ -30,17 +30,19 @@ def heatmap(dist: np.ndarray, vmax: float) -> np.ndarray:
 
 
 def overview(rows: list[tuple[str, list[np.ndarray]]], path: Path, tile: int = 192) -> None:
-    """A labelled sheet: one row per (label, images), one column per frame, images scaled to `tile`; the
-    label column as wide as the longest label."""
+    """A labelled sheet: one row per (label, images), one column per frame, images scaled so their shorter
+    side is `tile` (cells keep the frames' aspect); the label column as wide as the longest label."""
     cols = max(len(imgs) for _, imgs in rows)
+    h, w = next(imgs[0].shape[:2] for _, imgs in rows if imgs)
+    tw, th = (round(tile * w / h), tile) if w >= h else (tile, round(tile * h / w))
     measure = ImageDraw.Draw(Image.new("RGB", (1, 1)))
     margin = max(150, 12 + int(np.ceil(max(measure.textlength(label) for label, _ in rows))))
-    sheet = Image.new("RGB", (margin + cols * tile, len(rows) * tile), (24, 24, 28))
+    sheet = Image.new("RGB", (margin + cols * tw, len(rows) * th), (24, 24, 28))
     draw = ImageDraw.Draw(sheet)
     for r, (label, imgs) in enumerate(rows):
-        draw.text((6, r * tile + tile // 2 - 6), label, fill=(235, 235, 235))
+        draw.text((6, r * th + th // 2 - 6), label, fill=(235, 235, 235))
         for c, img in enumerate(imgs):
             im = Image.fromarray(np.ascontiguousarray(img[..., :3]))
-            im.thumbnail((tile, tile))
-            sheet.paste(im, (margin + c * tile, r * tile))
+            im.thumbnail((tw, th))
+            sheet.paste(im, (margin + c * tw, r * th))
     sheet.save(path)
