@@ -166,9 +166,12 @@ def test_uvs_and_their_charts():
     m = primitives.build("teapot", {"size": 3.15, "segments": 8})
     assert np.isfinite(m.uvs).all() and m.uvs.min() >= 0.0 and m.uvs.max() <= 1.0
     f = m.frame
+    pole = np.isclose(m.vertices[:, :2], 0).all(1)
+    # right-handed: (dP/du x dP/dv) . n = sin(angle between them) |dP/du| |dP/dv| > 0 (measured min
+    # sin 0.449, where the tubes' parameter lines meet askew); dP/du vanishes on the collapsed edges
     handed = np.einsum("ij,ij->i", np.cross(f.dpdu, f.dpdv), m.normals)
     scale = np.linalg.norm(f.dpdu, axis=1) * np.linalg.norm(f.dpdv, axis=1)
-    assert (handed >= -1e-12 * scale).all() and (handed > 0.99 * scale).mean() > 0.3
+    assert (handed[~pole] > 0.4 * scale[~pole]).all() and np.allclose(f.dpdu[pole], 0.0)
     # copies of one point: the same v and u, but at the collapsed edges (any u, along the edge), at the
     # seam of each chart's turn (u differs by the chart's u span: 1 for the pot and the lid, the tube's
     # span for the handle and the spout) and where the handle's lower end touches the body, at the
@@ -176,9 +179,9 @@ def test_uvs_and_their_charts():
     spans = {round(sum(teapot.layout()[p][2] for p in patches), 9) for patches, _, _ in
              (chart[0] for chart in teapot.CHARTS.values())}
     assert len(spans) == 3 and 1.0 in spans
-    pole = np.isclose(m.vertices[:, :2], 0).all(1)
     touch = np.isclose(m.vertices, [-2.0, 0.0, 0.9]).all(1)
-    assert touch.any()
+    # the body's copy and the handle's keep their own normals (measured 114 degrees apart)
+    assert touch.sum() == 3 and len(np.unique(m.normals[touch].round(6), axis=0)) == 2
     ids = weld(m.vertices)
     for i in np.flatnonzero(np.bincount(ids) > 1):
         uv = m.uvs[ids == i]
