@@ -145,7 +145,9 @@ def test_unused_programs_are_not_compiled(tmp_path):
 
 
 def test_wheel_ships_the_shaders(tmp_path):
-    """The shaders are found from a built wheel too (vdmrender/shaders is a link to shaders/)."""
+    """The shaders are found from a built wheel too (vdmrender/shaders is a link to shaders/), and the wheel
+    holds every module and data file of both packages (the technique subpackages were missing from
+    `packages`: setuptools shipped them only by a deprecated fallback, with a warning)."""
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation",
                     "-w", str(tmp_path), str(ROOT)], check=True, capture_output=True)
     (wheel,) = tmp_path.glob("*.whl")
@@ -153,3 +155,7 @@ def test_wheel_ships_the_shaders(tmp_path):
     for f in (ROOT / "shaders").rglob("*"):
         if f.is_file():
             assert f"vdmrender/shaders/{f.relative_to(ROOT / 'shaders').as_posix()}" in names
+    for package in ("vdmbake", "vdmrender"):
+        for f in (ROOT / package).rglob("*"):
+            if f.suffix in (".py", ".txt") and "shaders" not in f.parts:
+                assert f.relative_to(ROOT).as_posix() in names, f

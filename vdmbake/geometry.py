@@ -151,7 +151,8 @@ def edge_texels(mesh: TriMesh, size: int, tiling) -> float:
 
 def reference_levels(mesh: TriMesh, size: int, tiling) -> int:
     """Subdivision levels that bring every edge under half a texel (the reference's displaced mesh)."""
-    return max(0, int(np.ceil(np.log2(max(edge_texels(mesh, size, tiling), 1e-9) / 0.5))))
+    # a relative hair below each power of two: an edge of 8 + 4e-14 texels takes 4 levels, not 5 (4x the faces)
+    return max(0, int(np.ceil(np.log2(max(edge_texels(mesh, size, tiling), 1e-9) / 0.5) - 1e-9)))
 
 
 def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: float, tiling, levels: int) -> TriMesh:

@@ -79,6 +79,11 @@ class VDMPass(MesostructurePass):
         super().__init__(ctx, src, "vdm.frag", curvature=True, defines=defines, u_groups=g, u_n_phi=m.phi,
                          u_curv_axis=tuple(float(x) for x in axis),
                          u_shadow_eps=SHADOW_EPS_DEPTH * m.depth + SHADOW_EPS_TEXELS / m.size, **variant)
+        limit = ctx.info["GL_MAX_ARRAY_TEXTURE_LAYERS"]
+        if g * m.phi > limit:   # the driver would leave the texture incomplete and draw garbage, silently
+            raise InputError(f"object {src.obj.name!r}: vdm k = {k} stores {g} groups of 4 eigenfunctions x {m.phi} "
+                             f"view azimuths = {g * m.phi} texture layers, over this GL device's limit of {limit}; "
+                             "lower k (or phi) in the scene.")
         data = np.ascontiguousarray(W if dtype != "f4" else W.astype(np.float32))
         self.textures["u_W"] = texture(ctx.texture_array((m.size, m.size, g * m.phi), 4, data.tobytes(), dtype=dtype),
                                        True, original)
