@@ -128,9 +128,11 @@ def _project(tri: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return b, np.linalg.norm(np.einsum("nk,nkc->nc", c, tri) - p, axis=1)
 
 
-def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, Lineage | None]:
     """The simplified surface: vertices, faces (manifold edges only, no fins), per-vertex colours (or
-    None) and its Lineage: one vertex per point, but where a pinched edge was split."""
+    None) and, for an asset with an albedo map, its Lineage (None otherwise: the replay of the collapses
+    and the face matching are about a third of the time): one vertex per point, but where a pinched edge
+    was split."""
     import fast_simplification
 
     ids = weld(mesh.vertices)
@@ -144,12 +146,14 @@ def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.nda
     v, f, collapses = fast_simplification.simplify(points - centre, faces, target_count=target, return_collapses=True)
     v = np.asarray(v, np.float64) + centre
     f = np.asarray(f, np.int64).reshape(-1, 3)
-    mapping = np.asarray(fast_simplification.replay_simplification(points, faces, collapses)[2])
+    textured = mesh.texture is not None
+    mapping = (np.asarray(fast_simplification.replay_simplification(points, faces, collapses)[2])
+               if textured or mesh.colors is not None else None)
     colors = None if mesh.colors is None else collapsed_colors(points, faces, ids, mesh.colors, mapping, len(v))
-    origin = whole[surviving_faces(faces, f, mapping)]
+    origin = whole[surviving_faces(faces, f, mapping)] if textured else None
     keep = fin_free(f)
     if keep.any():                                     # all fins (a handful of faces): keep them, not nothing
-        f, origin = f[keep], origin[keep]
+        f, origin = f[keep], None if origin is None else origin[keep]
     raw = f
     v, f, used = compact(v, f)
     v, f, source = split_pinches(v, f)
@@ -159,7 +163,7 @@ def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.nda
     sphere_centre, radius = mesh.bounding_sphere()
     reach = np.linalg.norm(v - sphere_centre, axis=1, keepdims=True)
     v = sphere_centre + (v - sphere_centre) * np.minimum(1.0, radius / np.maximum(reach, 1e-300))
-    return v, f, colors, Lineage(origin, raw, mapping, ids)
+    return v, f, colors, Lineage(origin, raw, mapping, ids) if textured else None
 
 
 def surviving_faces(faces: np.ndarray, out: np.ndarray, mapping: np.ndarray) -> np.ndarray:
