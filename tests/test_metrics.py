@@ -14,6 +14,7 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore")  # colour warns once that SciPy is absent; nothing used here needs it
     import colour
 
+from vdmbake.colour import srgb_encode, to_srgb8
 from vdmbake.scene import Light, Material
 from vdmrender import metrics, shading
 
@@ -207,31 +208,31 @@ def test_flip_over_the_union():
 def test_srgb_encode_matches_colour():
     lin = np.concatenate([np.linspace(0, 1, 1001), np.geomspace(1e-7, 1e-2, 200),
                           [0.0031308 * (1 - 1e-9), 0.0031308 * (1 + 1e-9)]])
-    np.testing.assert_allclose(shading.srgb_encode(lin), colour.cctf_encoding(lin, function="sRGB"),
+    np.testing.assert_allclose(srgb_encode(lin), colour.cctf_encoding(lin, function="sRGB"),
                                rtol=0, atol=1e-12)
     # Exactly at the knee the two branches of the standard do not meet (0.0031308 is a rounded
     # constant): 12.92 * 0.0031308 = 0.04044994 vs 1.055 * 0.0031308^(1/2.4) - 0.055 = 0.04044991.
     # colour takes the linear branch there (<=), vdmrender the power branch (<): 2.9e-8 apart,
     # 7e-6 of an 8-bit code, so immaterial; accept either branch but nothing else.
-    knee = shading.srgb_encode(np.array([0.0031308]))[0]
+    knee = srgb_encode(np.array([0.0031308]))[0]
     assert knee == pytest.approx(colour.cctf_encoding(0.0031308, function="sRGB"), abs=3e-8)
     # out of range is clamped (colour does not clamp: compare with clipped input)
     out = np.array([-0.5, -1e-9, 1.0 + 1e-9, 3.0])
-    np.testing.assert_allclose(shading.srgb_encode(out),
+    np.testing.assert_allclose(srgb_encode(out),
                                colour.cctf_encoding(np.clip(out, 0, 1), function="sRGB"), atol=1e-12)
-    np.testing.assert_allclose(shading.srgb_encode(out), [0.0, 0.0, 1.0, 1.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(srgb_encode(out), [0.0, 0.0, 1.0, 1.0], rtol=0, atol=1e-15)
 
 
 def test_to_srgb8_round_trip_and_rounding():
     codes = np.arange(256)
     lin = colour.cctf_decoding(codes / 255.0, function="sRGB")
-    out = shading.to_srgb8(lin)
+    out = to_srgb8(lin)
     assert out.dtype == np.uint8
     np.testing.assert_array_equal(out, codes)
     # round to nearest, not truncate: encodings of 127.4/255 and 127.6/255
     lo, hi = colour.cctf_decoding(np.array([127.4, 127.6]) / 255.0, function="sRGB")
-    assert shading.to_srgb8(np.array([lo, hi])).tolist() == [127, 128]
-    assert shading.to_srgb8(np.array([-1.0, 0.0, 2.0, np.inf])).tolist() == [0, 0, 255, 255]
+    assert to_srgb8(np.array([lo, hi])).tolist() == [127, 128]
+    assert to_srgb8(np.array([-1.0, 0.0, 2.0, np.inf])).tolist() == [0, 0, 255, 255]
     # and the decode used by the metric inverts it
     np.testing.assert_allclose(metrics.srgb8_to_linear(out), lin, atol=1e-12)
 

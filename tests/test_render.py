@@ -84,7 +84,7 @@ def test_far_from_origin_wide_fov_and_camera_inside(tmp_path):
     # silhouette, where both walls' depths meet; that is the frame's measured error above.)
     from vdmbake import exr
     from vdmbake.scene import Light, Material
-    from vdmrender.shading import to_srgb8
+    from vdmbake.colour import to_srgb8
 
     ref = exr.read(out / "reference/far/002.exr")["reference"]
     assert (ref["A"] == 1).all()

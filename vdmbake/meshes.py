@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .colour import srgb8_to_linear
+from .colour import srgb8_to_linear, to_srgb8
 from .errors import InputError
 
 
@@ -254,7 +254,9 @@ def base_colour_map(visual) -> np.ndarray | None:
     factor = np.ones(3)
     if image is not None:
         bcf = getattr(material, "baseColorFactor", None)
-        factor = np.ones(3) if bcf is None else np.asarray(bcf, np.float64)[:3] / (255.0 if np.asarray(bcf).dtype == np.uint8 else 1.0)
+        if bcf is not None:   # trimesh gives it as uint8 (0..255) or as floats (0..1)
+            bcf = np.asarray(bcf)
+            factor = bcf[:3] / (255.0 if bcf.dtype == np.uint8 else 1.0)
     else:
         image = getattr(material, "image", None)
         if image is not None and image.format is None and not image.info:
@@ -263,8 +265,7 @@ def base_colour_map(visual) -> np.ndarray | None:
         return None
     rgb = texture.from_image(image)
     if not np.allclose(factor, 1.0):   # the factor multiplies linear colour: applied once, re-encoded to 8 bits
-        from .colour import srgb8_to_linear, srgb_encode
-        rgb = np.round(srgb_encode(srgb8_to_linear(rgb) * factor) * 255).astype(np.uint8)
+        rgb = to_srgb8(texture.linear(rgb) * factor)
     return rgb
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from . import heightfields, texture
-from .colour import srgb8_to_linear, srgb_encode
+from .colour import srgb8_to_linear, to_srgb8
 from .errors import InputError
 
 # Colour photographs inside the scikit-image wheel (skimage/data/, never downloaded): name -> (file, provenance).
@@ -32,7 +32,7 @@ SKIMAGE_COLOUR = {
 }
 SKIMAGE_NAMES = {**heightfields.SKIMAGE_PHOTOS, **SKIMAGE_COLOUR}
 
-MAX_PIXELS = 8192 * 8192   # the largest albedo picture (an sRGB8 texture of 192 MiB)
+MAX_PIXELS = 8192 * 8192   # the largest albedo picture (384 MiB of half-float texels once uploaded)
 
 # `bricks`: sRGB8 colours of the mortar and of the brick tops at their lowest and highest, per course.
 MORTAR = (186, 180, 168)
@@ -51,7 +51,7 @@ def _bricks(size: int) -> np.ndarray:
     course = (np.floor((np.arange(size) + 0.5) / size * 2.0).astype(int) % 2)[:, None]  # rows are v
     dark, light = (srgb8_to_linear(np.asarray(BRICKS)[course, i]) for i in (0, 1))        # (size, 1, 3)
     lin = (1 - brick) * srgb8_to_linear(MORTAR) + brick * ((1 - relief) * dark + relief * light)
-    return np.round(srgb_encode(lin) * 255).astype(np.uint8)
+    return to_srgb8(lin)
 
 
 _MAKERS = {"bricks": _bricks}

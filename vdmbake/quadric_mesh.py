@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import geometry
-from .colour import srgb_encode
+from .colour import to_srgb8
 from .meshes import TriMesh
 from .ply import elements_from_bytes, elements_to_bytes
 from .quadrics import QuadricSet
@@ -46,7 +46,7 @@ def to_bytes(mesh: TriMesh, rgb: np.ndarray) -> bytes:
     """The standard PLY viewers read (float positions: a viewer's precision)."""
     v = np.zeros(len(mesh.vertices), [(n, "<f4") for n in ("x", "y", "z", "nx", "ny", "nz")]
                  + [(n, "|u1") for n in ("red", "green", "blue")])
-    srgb = np.round(255.0 * srgb_encode(rgb)).astype(np.uint8)
+    srgb = to_srgb8(rgb)
     for k, axis in enumerate("xyz"):
         v[axis], v["n" + axis] = mesh.vertices[:, k], mesh.normals[:, k]
         v[("red", "green", "blue")[k]] = srgb[:, k]

@@ -1,13 +1,12 @@
 """The shared shading model in numpy: the twin of shaders/include/shading.glsl.
 
 Lambert diffuse plus Blinn-Phong specular from one directional light, a constant ambient
-term, ambient only where shadowed, linear radiance encoded to 8-bit sRGB on output.
+term, ambient only where shadowed: linear radiance (encoded to 8-bit sRGB on output by
+vdmbake.colour.to_srgb8).
 """
 from __future__ import annotations
 
 import numpy as np
-
-from vdmbake.colour import srgb_encode
 
 
 def shade(albedo, normals, to_eye, lit, light, material) -> np.ndarray:
@@ -22,11 +21,6 @@ def shade(albedo, normals, to_eye, lit, light, material) -> np.ndarray:
     spec = np.maximum(np.einsum("ij,ij->i", normals, H), 0.0) ** material.shininess
     direct = np.asarray(light.color) * (material.diffuse * ndl[:, None] * albedo + material.specular * spec[:, None])
     return c + np.where(on[:, None], direct, 0.0)
-
-
-def to_srgb8(c: np.ndarray) -> np.ndarray:
-    """Linear radiance to 8-bit sRGB, rounded to nearest as the GL framebuffer conversion does."""
-    return np.round(srgb_encode(c) * 255.0).astype(np.uint8)
 
 
 def safe_normalize(v: np.ndarray) -> np.ndarray:
