@@ -37,8 +37,9 @@ def sample(albedo_map: np.ndarray, uv: np.ndarray) -> np.ndarray:
     fx, fy = (x - x0)[:, None], (y - y0)[:, None]
     i0, j0 = x0.astype(np.int64) % w, y0.astype(np.int64) % h
     i1, j1 = (i0 + 1) % w, (j0 + 1) % h
-    t = linear(albedo_map)
-    return ((1 - fy) * ((1 - fx) * t[j0, i0] + fx * t[j0, i1]) + fy * ((1 - fx) * t[j1, i0] + fx * t[j1, i1]))
+    # only the four texels each point reads are decoded
+    t00, t01, t10, t11 = _LINEAR[albedo_map[np.stack([j0, j0, j1, j1]), np.stack([i0, i1, i0, i1])]]
+    return (1 - fy) * ((1 - fx) * t00 + fx * t01) + fy * ((1 - fx) * t10 + fx * t11)
 
 
 def has_albedo(mesh) -> bool:

@@ -89,8 +89,6 @@ def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = (), may_
         ctx.extra = {}
     key = (vertex, fragment, *defines)
     if key not in ctx.extra:
-        import moderngl
-
         try:
             prog = ctx.program(vertex_shader=_with_defines(source(vertex), defines),
                                fragment_shader=_with_defines(source(fragment), defines))

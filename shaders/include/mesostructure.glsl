@@ -76,7 +76,7 @@ vec3 mesostructure_normal(Frame F, vec2 T) {
 }
 
 // The albedo at tile coordinate T: the mesostructure's colour tile, which repeats with the height field
-// (TILE_ALBEDO: an sRGB8 albedo map, albedo.glsl; the reference reads it at the traced hit's T), or the
+// (TILE_ALBEDO: an albedo map, albedo.glsl; the reference reads it at the traced hit's T), or the
 // material's constant.
 #ifdef TILE_ALBEDO
 #include "albedo.glsl"
