@@ -6,11 +6,10 @@
 // mesh depth-test together (sec. 3.4). SHADOW: the light's pass; only the depth is written.
 // ALBEDO_MAPS: the colour at the hit is the billboard's colour map (sec. 3.3 step 2.3), else the material's.
 // A camera inside the box needs nothing special: the ray starts on the near plane (as the reference's).
+#include "cost_count.glsl"
 #include "billboard.glsl"
 #include "camera.glsl"
-#if defined(COUNT)
-out vec4 frag;         // (march steps, texture fetches, 1, hit), summed over the pixel's box fragments
-#elif !defined(SHADOW)
+#if !defined(SHADOW)
 #include "shading.glsl"
 #include "shadow.glsl"
 uniform vec3 u_eye;       // anchor-relative
@@ -33,6 +32,7 @@ flat in vec3 v_iw;
 flat in int v_layer;
 
 void main() {
+    COUNT_FRAGMENT();
     // The pixel's ray from the near plane (t = 0) to the far plane (t = 1), anchor-relative world.
     vec3 p0, seg;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
@@ -47,14 +47,10 @@ void main() {
     float t1 = min(min(hi.x, hi.y), min(hi.z, 1.0));
     if (t0 >= t1) discard;
     float t = march(o, d, t0, t1, v_layer);
-#if defined(COUNT)
-    frag = vec4(float(g_steps), float(g_fetches), 1.0, t < 0.0 ? 0.0 : 1.0);
-    return;
-#endif
     if (t < 0.0) discard;
     vec3 p = p0 + seg * t;
     gl_FragDepth = window_depth(u_view_proj, p);
-#if !defined(SHADOW) && !defined(COUNT)
+#if !defined(SHADOW)
     vec3 st = o + d * t;
     vec3 N = safe_normalize(map(st.xy, v_layer).xyz);
 #if defined(THESIS)

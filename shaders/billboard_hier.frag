@@ -12,9 +12,10 @@
 //   COARSE_DEPTH  the coarse mesh's depth pre-pass (pushed back as the frame's coarse pass is) bounds every
 //                 ray: what lies behind it would lose the depth test against the coarse mesh anyway;
 //   SHADOW        the light's pass (orthographic), depth only;
-//   COUNT         instrumented: writes (cell visits, billboards traced, 1, hit) instead of a colour;
 //   ALBEDO_MAPS   the colour at the hit is the billboard's colour map (sec. 3.3 step 2.3), else the material's.
 // BOARDS (defined by the caller) is the number of billboards, MAX_ITER the tracer's cap per billboard.
+// Counts (cost_count.glsl): each billboard traced is a search, each of its cell visits a step.
+#include "cost_count.glsl"
 #define HF_CLAMP
 #define HF_MAX_ITER MAX_ITER
 #define HF_FETCH(cell, level) texelFetch(u_pyramids, ivec3((cell) + u_level_origin[level], g_layer), 0)
@@ -40,9 +41,7 @@ uniform sampler2D u_occupancy;        // the occupancy pre-pass: per billboard a
 uniform ivec2 u_tile[BOARDS];         // each billboard's tile
 uniform int u_occ_off[BOARDS];        // 1: no tile (its rays start at its box)
 #endif
-#if defined(COUNT)
-out vec4 frag;
-#elif !defined(SHADOW)
+#if !defined(SHADOW)
 #include "shading.glsl"
 #include "shadow.glsl"
 uniform vec3 u_eye;                   // anchor-relative
@@ -56,12 +55,13 @@ out vec4 frag;
 #endif
 
 void main() {
+    COUNT_FRAGMENT();
     // The pixel's ray from the near plane (t = 0) to the far plane (t = 1), anchor-relative world.
     vec3 p0, seg;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     float best = 1.0;
 #if defined(COARSE_DEPTH)
-    float zc = texelFetch(u_coarse_depth, ivec2(gl_FragCoord.xy), 0).r;
+    float zc = FETCH(texelFetch(u_coarse_depth, ivec2(gl_FragCoord.xy), 0)).r;
     vec2 ndc = gl_FragCoord.xy / u_viewport * 2.0 - 1.0;
     vec4 q = u_inv_view_proj * vec4(ndc, zc * 2.0 - 1.0, 1.0);
     best = zc < 1.0 ? dot(q.xyz / q.w - p0, seg) / dot(seg, seg) : 1.0;
@@ -81,7 +81,7 @@ void main() {
         vec3 ta = -o * inv, tb = (1.0 - o) * inv;
         vec3 lo = min(ta, tb), hi = max(ta, tb);
 #if defined(OCCUPANCY)
-        float occ = u_occ_off[k] != 0 ? 0.0 : texelFetch(u_occupancy, ivec2(gl_FragCoord.xy) + u_tile[k], 0).r;
+        float occ = u_occ_off[k] != 0 ? 0.0 : FETCH(texelFetch(u_occupancy, ivec2(gl_FragCoord.xy) + u_tile[k], 0)).r;
 #else
         float occ = 0.0;
 #endif
@@ -97,16 +97,13 @@ void main() {
         for (int j = 0; j < BOARDS; j++) r += (cost[j] < cost[k] || (cost[j] == cost[k] && j < k)) ? 1 : 0;
         order[r] = k;
     }
-#if !defined(COUNT)
     if (needed == 0) discard;               // no billboard to trace: the whole pixel group may stop here
-#endif
     // The nearest crossing from above (front) and from below (back). Near a billboard's silhouette its
     // surface is known to a texel, so a ray may slip under it and come out just before the true surface,
     // which another billboard holds: a back hit wins only when no front hit lies within BACK_MARGIN of its
     // map texels behind it (an open surface seen from behind, or a closed model from inside: none does).
     float front = best, back = 2.0, margin = 0.0;
     int hit = -1, hit_back = -1;
-    int traced = 0;
     float seg_len = length(seg);
     for (int i = 0; i < needed; i++) {
         int k = order[i];
@@ -115,7 +112,6 @@ void main() {
             vec3 o = (u_to_box[k] * vec4(p0, 1.0)).xyz;
             vec3 d = mat3(u_to_box[k]) * seg;
             g_layer = u_layer[k];
-            traced++;
             // sample coordinates of the bordered map: x = u R + 0.5 (heightfield_trace.glsl)
             float t = hf_trace_two_sided(vec3(o.xy * R + 0.5, o.z), vec3(d.xy * R, d.z), t0[k], min(t1[k], bound));
             if (t >= 0.0 && !hf_from_below) {
@@ -131,16 +127,12 @@ void main() {
     bool from_below = hit_back >= 0 && !(hit >= 0 && front <= back + margin);
     if (from_below) hit = hit_back;
     best = from_below ? back : front;
-#if defined(COUNT)
-    frag = vec4(float(hf_visits), float(traced), 1.0, hit >= 0 ? 1.0 : 0.0);
-    return;
-#endif
     if (hit < 0) discard;
     vec3 p = p0 + seg * best;
     gl_FragDepth = window_depth(u_view_proj, p);
-#if !defined(SHADOW) && !defined(COUNT)
+#if !defined(SHADOW)
     vec3 st = (u_to_box[hit] * vec4(p, 1.0)).xyz;
-    vec3 N = safe_normalize(texture(u_maps, vec3((st.xy * R + 1.0) / (R + 2.0), float(u_layer[hit]))).xyz);
+    vec3 N = safe_normalize(FETCH(texture(u_maps, vec3((st.xy * R + 1.0) / (R + 2.0), float(u_layer[hit])))).xyz);
     if (from_below) N = -N;   // the surface seen from behind: shaded two-sided, as the mesh and the reference are
     // the shadow lookup moves along the normal by u_board_texels map texels on top of the shadow map's
     // own normal offset (the surface is known to about a texel)

@@ -1,5 +1,6 @@
 #version 430
 // Ray/capped cylinder per fragment in parameter space; side normal (x, y, 0), caps (0, 0, +-1).
+#include "cost_count.glsl"
 #include "quadric.glsl"
 #include "impostor_out.glsl"
 flat in mat4 v_to_param;
@@ -7,6 +8,7 @@ flat in mat3 v_frame;
 flat in vec3 v_rgb;
 
 void main() {
+    COUNT_FRAGMENT();
     vec3 p0, seg;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     vec3 o = (v_to_param * vec4(p0, 1.0)).xyz;

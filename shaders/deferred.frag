@@ -4,6 +4,7 @@
 // of depth; the position is rebuilt from mu (eq. 3-4). Optional Sobel outlines: silhouettes
 // from the depth, creases from the normals, strengths u_silhouette and u_crease. Each hit writes its
 // exact depth, so the pass is depth-tested against whatever else the target holds (composite frames).
+#include "cost_count.glsl"
 #include "shading.glsl"
 #include "shadow.glsl"
 #include "quadric.glsl"
@@ -17,15 +18,16 @@ out vec4 frag;
 
 // View depth along the pixel's ray: linear in mu between the near and far planes; far for background.
 float view_depth(ivec2 q) {
-    vec4 g = texelFetch(u_normal_mu, q, 0);
-    return texelFetch(u_albedo_cov, q, 0).a > 0.0 ? mix(u_near_far.x, u_near_far.y, g.w) : u_near_far.y;
+    vec4 g = FETCH(texelFetch(u_normal_mu, q, 0));
+    return FETCH(texelFetch(u_albedo_cov, q, 0)).a > 0.0 ? mix(u_near_far.x, u_near_far.y, g.w) : u_near_far.y;
 }
 
 void main() {
+    COUNT_FRAGMENT();
     ivec2 q = ivec2(gl_FragCoord.xy);
-    vec4 alb = texelFetch(u_albedo_cov, q, 0);
+    vec4 alb = FETCH(texelFetch(u_albedo_cov, q, 0));
     if (alb.a == 0.0) discard;   // no quadric here: the target keeps what it holds
-    vec4 g = texelFetch(u_normal_mu, q, 0);
+    vec4 g = FETCH(texelFetch(u_normal_mu, q, 0));
     vec3 p0, seg;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     vec3 p = p0 + g.w * seg;
@@ -42,7 +44,7 @@ void main() {
                 float wx = float(i) * (j == 0 ? 2.0 : 1.0);   // Sobel kernels
                 float wy = float(j) * (i == 0 ? 2.0 : 1.0);
                 float z = view_depth(k);
-                vec3 nk = texelFetch(u_albedo_cov, k, 0).a > 0.0 ? texelFetch(u_normal_mu, k, 0).xyz : vec3(0.0);
+                vec3 nk = FETCH(texelFetch(u_albedo_cov, k, 0)).a > 0.0 ? FETCH(texelFetch(u_normal_mu, k, 0)).xyz : vec3(0.0);
                 gx += wx * z;  gy += wy * z;
                 nx += wx * nk; ny += wy * nk;
             }

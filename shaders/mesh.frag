@@ -1,4 +1,5 @@
 #version 430
+#include "cost_count.glsl"
 #include "shading.glsl"
 #include "shadow.glsl"
 #ifdef ALBEDO_MAP
@@ -12,6 +13,7 @@ uniform vec3 u_eye;   // anchor-relative
 out vec4 frag;
 
 void main() {
+    COUNT_FRAGMENT();
     vec3 N = safe_normalize(v_normal);
     if (!gl_FrontFacing) N = -N;   // two-sided: the normal faces the viewer (reference: Ng . dir < 0)
     vec3 V = normalize(u_eye - v_pos);

@@ -5,7 +5,7 @@
 // depth, and its blended normal shaded with the shared model and the shadow map. SHADOW: the light's pass
 // (the light's direction picks its own views); only the depth is written. ALBEDO_ATLAS: the colour is the
 // blended albedo of the views (octahedral.glsl), else the material's.
-// COUNT (instrumentation): the frame pass writes its fetches instead (fetch_count.glsl: atlas lookups in blue).
+#include "cost_count.glsl"
 #include "quadric.glsl"
 #include "octahedral.glsl"
 #if !defined(SHADOW)
@@ -21,6 +21,7 @@ out vec4 frag;
 uniform float u_radius;
 
 void main() {
+    COUNT_FRAGMENT();
     vec3 p0, seg;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     float t;
@@ -38,6 +39,5 @@ void main() {
     albedo = u_albedo;
 #endif
     frag = vec4(shade(albedo, n, V, lit), 1.0);
-    COUNT_OUT(frag);
 #endif
 }

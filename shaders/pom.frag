@@ -2,7 +2,9 @@
 // Parallax occlusion mapping (Tatarchuk 2006), the VDM peer: per pixel, a linear search of
 // u_steps equal depth layers along the view ray through the height field, refined by one secant
 // step, then the same search from the hit toward the light for self-shadows. The surface is
-// taken as locally flat: no curvature, no silhouettes.
+// taken as locally flat: no curvature, no silhouettes. Counts (cost_count.glsl): the view and the shadow
+// search are a search each, their layers the steps (the secant step is closed-form, not one).
+#include "cost_count.glsl"
 #include "shading.glsl"
 #include "shadow.glsl"
 #include "mesostructure.glsl"
@@ -11,6 +13,7 @@ uniform int u_steps;
 out vec4 frag;
 
 void main() {
+    COUNT_FRAGMENT();
     vec3 N = safe_normalize(v_normal);
     Frame F = surface_frame(N);
     vec2 T = v_uv * u_tiling;
@@ -24,7 +27,9 @@ void main() {
     float ray = 0.0, prev_gap = -depth_at(T, dx, dy);          // gap = ray depth - surface depth
     vec2 Ti = T;
     float gap = prev_gap;
+    SEARCH();
     for (int i = 1; i <= u_steps && gap < 0.0; ++i) {
+        STEP();
         prev_gap = gap;
         Ti += dT;
         ray += step;
@@ -41,7 +46,9 @@ void main() {
     if (L.z > 0.0) {
         vec2 dL = L.xy / max(L.z, 1e-3) * step;
         vec2 Tl = T1;
+        SEARCH();
         for (float r = depth - step; r > 0.0 && lit > 0.0; r -= step) {
+            STEP();
             Tl += dL;
             if (depth_at(Tl, dx, dy) < r - 0.5 * step) lit = 0.0;
         }
@@ -50,5 +57,4 @@ void main() {
     lit *= shadow_lit(v_pos, N);
     gl_FragDepth = window_depth(u_mvp, P);
     frag = vec4(shade(tile_albedo(T1), n, Vw, lit), 1.0);
-    COUNT_OUT(frag);
 }

@@ -14,9 +14,9 @@
 // normal is turned from the pixel's frame to the frame where the hit lies (turned()).
 // FLAT: straight rays and the pixel's frame (the surface taken as locally flat, as POM does).
 // u_iterations caps the cell visits of each ray; a view ray stopped by the cap takes the point it had
-// reached (above the surface), a stopped shadow ray counts as lit. COUNT: the colour output holds the
-// fetches per fragment by kind (fetch_count.glsl): the view and shadow rays' cell visits (one pyramid
-// fetch each) as height-field fetches, the normal map and the shadow map as the rest.
+// reached (above the surface), a stopped shadow ray counts as lit. Counts (cost_count.glsl): the view and the
+// shadow ray are a search each, their cell visits the steps (heightfield_trace.glsl).
+#include "cost_count.glsl"
 #include "shading.glsl"
 #include "shadow.glsl"
 #include "mesostructure.glsl"
@@ -41,6 +41,7 @@ vec3 turned(vec3 v, vec3 N, Frame F, vec2 dT) {
 }
 
 void main() {
+    COUNT_FRAGMENT();
     vec3 N = safe_normalize(v_normal);
     Frame F = surface_frame(N);
     vec2 T = v_uv * u_tiling;
@@ -85,8 +86,4 @@ void main() {
     lit *= shadow_lit(v_pos, N);
     gl_FragDepth = window_depth(u_mvp, P);
     frag = vec4(shade(tile_albedo(T1), nw, Vw, lit), 1.0);
-#if defined(COUNT)
-    fetches[2] += hf_visits;
-    COUNT_OUT(frag);
-#endif
 }

@@ -1,11 +1,13 @@
 #version 430
 // Ray/sphere per fragment in parameter space (the unit sphere), stable quadratic.
+#include "cost_count.glsl"
 #include "quadric.glsl"
 #include "impostor_out.glsl"
 flat in vec4 v_sphere;
 flat in vec3 v_rgb;
 
 void main() {
+    COUNT_FRAGMENT();
     vec3 p0, seg;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     float len = length(seg);

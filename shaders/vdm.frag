@@ -6,6 +6,9 @@
 // hit and decides the self-shadow on the height field itself (beyond the paper: refine_view,
 // shadow_march); ORIGINAL_LOOKUP: the first implementation's lookup (float weights mip-mapped, phi
 // always interpolated, a uniform loop bound), kept to measure against.
+// Counts (cost_count.glsl): the view ray and the light ray are a search each (a lookup stands for its ray);
+// the steps are REFINE's height-field samples (refine_view's REFINE + 1, shadow_march's REFINE).
+#include "cost_count.glsl"
 #include "shading.glsl"
 #include "shadow.glsl"
 #include "mesostructure.glsl"
@@ -42,10 +45,10 @@ vec2 vdm_lookup(vec2 T, float theta, float phi, float c, vec2 dx, vec2 dy) {
     vec2 r = vec2(0.0);
     for (int g = 0; g < groups; ++g) {
         vec4 keep = vec4(lessThan(ivec4(4 * g) + ivec4(0, 1, 2, 3), ivec4(u_k)));
-        vec4 w = mix(FETCH(0, textureGrad(u_W, vec3(T, g * u_n_phi + i0), dx, dy)),
-                     FETCH(0, textureGrad(u_W, vec3(T, g * u_n_phi + i1), dx, dy)), f) * keep;
-        r.x += dot(w, FETCH(1, texture(u_E_vdm, vec3(tc, g))));
-        r.y += dot(w, FETCH(1, texture(u_E_mvm, vec2(tc.y, (g + 0.5) / float(u_groups)))));
+        vec4 w = mix(FETCH(textureGrad(u_W, vec3(T, g * u_n_phi + i0), dx, dy)),
+                     FETCH(textureGrad(u_W, vec3(T, g * u_n_phi + i1), dx, dy)), f) * keep;
+        r.x += dot(w, FETCH(texture(u_E_vdm, vec3(tc, g))));
+        r.y += dot(w, FETCH(texture(u_E_mvm, vec2(tc.y, (g + 0.5) / float(u_groups)))));
     }
     return r;
 }
@@ -68,14 +71,14 @@ vec2 vdm_lookup(vec2 T, float theta, float phi, float c, vec2 dx, vec2 dy) {
     vec2 r = vec2(0.0);
     for (int g = 0; g < GROUPS; ++g) {
 #if REFINE > 0
-        vec4 w = FETCH(0, texture(u_W, vec3(T, g * u_n_phi + (f < 0.5 ? i0 : i1))));
+        vec4 w = FETCH(texture(u_W, vec3(T, g * u_n_phi + (f < 0.5 ? i0 : i1))));
 #else
-        vec4 w = mix(FETCH(0, texture(u_W, vec3(T, g * u_n_phi + i0))),
-                     FETCH(0, texture(u_W, vec3(T, g * u_n_phi + i1))), f);
+        vec4 w = mix(FETCH(texture(u_W, vec3(T, g * u_n_phi + i0))),
+                     FETCH(texture(u_W, vec3(T, g * u_n_phi + i1))), f);
 #endif
         w = w * u_W_scale[g] + u_W_offset[g];
-        r.x += dot(w, FETCH(1, texture(u_E_vdm, vec3(tc, g))));
-        r.y += dot(w, FETCH(1, texture(u_E_mvm, vec2(tc.y, (g + 0.5) / float(u_groups)))));
+        r.x += dot(w, FETCH(texture(u_E_vdm, vec3(tc, g))));
+        r.y += dot(w, FETCH(texture(u_E_mvm, vec2(tc.y, (g + 0.5) / float(u_groups)))));
     }
     return r;
 }
@@ -84,6 +87,7 @@ vec2 vdm_lookup(vec2 T, float theta, float phi, float c, vec2 dx, vec2 dy) {
 #if REFINE > 0
 // How far below the height field the view ray is at distance t (> 0 inside the mesostructure).
 float gap(vec2 T, vec3 V, float c, float t) {
+    STEP();
     vec2 p = curved_ray(t, 0.0, length(V.xy), -V.z, c);
     return p.y - depth_at_lod0(T - p.x * V.xy);
 }
@@ -116,6 +120,7 @@ float shadow_march(vec2 T1, float h, vec3 L, float c, float u) {
     float st = length(L.xy), step = (u - u_shadow_eps) / float(REFINE);
     float lit = 1.0;
     for (int i = 0; i < REFINE; ++i) {
+        STEP();
         vec2 p = curved_ray(u_shadow_eps + (float(i) + 0.5) * step, h, st, L.z, c);
         if (p.y > depth_at_lod0(T1 + p.x * L.xy)) lit = 0.0;
     }
@@ -124,6 +129,7 @@ float shadow_march(vec2 T1, float h, vec3 L, float c, float u) {
 #endif
 
 void main() {
+    COUNT_FRAGMENT();
     vec3 N = safe_normalize(v_normal);
     Frame F = surface_frame(N);
     vec2 T = v_uv * u_tiling;
@@ -133,6 +139,7 @@ void main() {
     if (V.z <= 0.0) discard;                          // the base surface seen from behind
     float stV = length(V.xy);
     float cV = texture_curvature(F, V);
+    SEARCH();
     vec2 dm = vdm_lookup(T, acos(min(V.z, 1.0)), atan(V.y, V.x), cV, dx, dy);
     // 1. Silhouette determination: beyond the maximal view angle the ray meets no mesostructure.
     bool miss = acos(min(V.z, 1.0)) > dm.y;
@@ -154,6 +161,7 @@ void main() {
     vec3 L = to_texture(F, u_light_dir);
     float lit = L.z > 0.0 ? 1.0 : 0.0;
     if (L.z > 0.0) {
+        SEARCH();
         float cL = texture_curvature(F, L);
 #if REFINE > 0
         lit = shadow_march(T1, h, L, cL, exit_distance(h, length(L.xy), L.z, cL));
@@ -178,5 +186,4 @@ void main() {
     lit *= shadow_lit(v_pos, N);
     gl_FragDepth = window_depth(u_mvp, P);
     frag = vec4(shade(tile_albedo(T1), n, Vw, lit), 1.0);
-    COUNT_OUT(frag);
 }

@@ -206,8 +206,13 @@ def test_iteration_cap():
 
 # ----------------------------------------------------------------------------- GLSL
 
+# The tracer's cell visits per ray: the probe counts its STEP()s per pixel (cost_count.glsl counts them per frame).
 PROBE = """#version 430
 {defines}
+int hf_visits = 0;
+#define STEP() hf_visits++
+#define FETCH(e) (e)
+#define SEARCH()
 #include "heightfield_trace.glsl"
 uniform sampler2D u_o;     // origin, t0
 uniform sampler2D u_d;     // direction, t1
@@ -227,9 +232,10 @@ void main() {{
 def trace_gl(ctx, p: P.Pyramid, rays: np.ndarray, reentry=False, defines=()) -> np.ndarray:
     """Each ray (origin, t0, direction, t1, bend) traced by the include in one pixel: (t, visits, exhausted,
     t_reached)."""
-    defs = ["COUNT"] + (["HF_CLAMP"] if p.mode == P.CLAMP else []) + list(defines)
+    defs = (["HF_CLAMP"] if p.mode == P.CLAMP else []) + list(defines)
     src = PROBE.format(defines="\n".join(f"#define {x}" for x in defs)).replace(
-        '#include "heightfield_trace.glsl"', (gl.SHADERS / "include" / "heightfield_trace.glsl").read_text())
+        '#include "heightfield_trace.glsl"', (gl.SHADERS / "include" / "heightfield_trace.glsl").read_text().replace(
+            '#include "cost_count.glsl"', ""))
     prog = ctx.program(vertex_shader=gl.source("fullscreen.vert"), fragment_shader=src)
     w = len(rays)
     tex_o = ctx.texture((w, 1), 4, np.ascontiguousarray(rays[:, :4], np.float32).tobytes(), dtype="f4")

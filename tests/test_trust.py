@@ -177,7 +177,7 @@ def test_no_dead_shadow_bias():
 # ------------------------------------------------------------------------------------------ baseline
 
 def _report(**rows):
-    return {"device": "d", "resolution": [8, 8], "rows": [
+    return {"device": "d", "resolution": [8, 8], "time": "gpu", "rows": [
         {"object": "o", "label": k, "mean_dluv": v[0], "p95_dluv": v[1], "median_ms": v[2], "flip_mean": 0.1}
         for k, v in rows.items()]}
 

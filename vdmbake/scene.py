@@ -46,8 +46,10 @@ class Render:
     resolution: tuple[int, int] = setting((512, 512), Vector(2, 1, MAX_SIDE, integer=True), "[width, height] in pixels")
     background: tuple[float, float, float] = setting((0.02, 0.022, 0.03), Vector(3, 0.0, 1.0),
                                                      "linear RGB behind the objects")
-    repeats: int = setting(5, Integer(1, 1000), "timed renders of each frame; the report gives their median")
-    warmup: int = setting(1, Integer(0, 100), "untimed renders of each frame before the timed ones")
+    repeats: int = setting(5, Integer(1, 1000), "timed renders of each frame, at least (`--sample-s` asks for time "
+                           "too); the report gives their median GPU time")
+    warmup: int = setting(1, Integer(0, 100), "untimed renders of each frame before timing, at least, then on until "
+                          "the GPU times are steady (`--warmup-s`); 0: no warm-up")
     shadow_map: int = setting(2048, Integer(256, 16384), "shadow-map side in texels")
     composite: tuple = setting((), VariantSets(),
                                "composite frames: besides each object alone, every object of the scene in one frame "

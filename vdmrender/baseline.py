@@ -1,9 +1,12 @@
 """Regression gating against a previous run's report.json (`vdmrender --baseline OLD/report.json`).
 
-Per object and variant: the change in mean ΔLuv, p95 ΔLuv and FLIP (new minus old) and the time
-ratio (new median over old median). Thresholds in the style of OpenImageIO's idiff (`-fail`,
-`-failpercent`): an absolute error increase and a slowdown ratio beyond which the run fails
-(exit 1). Pure data in, data out: no GL, no rendering.
+Per object and variant: the change in mean ΔLuv, p95 ΔLuv and FLIP (new minus old), the time
+ratio (new median over old median) and every cost counter that changed. Thresholds in the style of
+OpenImageIO's idiff (`-fail`, `-failpercent`): an absolute error increase, and a slowdown ratio that
+fails the run (exit 1) only where the slowdown also exceeds the two runs' combined spread (each row's
+within-camera interquartile range), so two runs of the same bundle pass under noise. Times are compared
+only between reports of the same device and time source (GPU timer queries) unless asked; counters
+count work, not time, so any change is reported. Pure data in, data out: no GL, no rendering.
 """
 from __future__ import annotations
 
@@ -16,7 +19,7 @@ from vdmbake.errors import InputError
 
 COLUMNS = ["object", "label", "status", "old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv",
            "new_p95_dluv", "d_p95_dluv", "old_flip", "new_flip", "d_flip", "old_ms", "new_ms", "time_ratio",
-           "exceeds"]
+           "noise_ms", "counters_changed", "exceeds"]
 
 
 def load(path: Path) -> dict:
@@ -41,18 +44,40 @@ def _diff(new, old):
     return None if new is None or old is None else round(new - old, 4)
 
 
-def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown: float | None) -> dict:
+def times_comparable(old: dict, new: dict, across_devices: bool = False) -> str | None:
+    """None if the two reports' times may be compared, else why not."""
+    if old.get("time") != new.get("time"):
+        return (f"times not compared: the baseline's are {old.get('time') or 'wall times (an older vdmrender)'}, "
+                f"this run's {new.get('time')}")
+    if old.get("device") != new.get("device") and not across_devices:
+        return (f"times not compared: the baseline ran on {old.get('device')!r}, this run on {new.get('device')!r} "
+                "(--compare-devices compares them anyway)")
+    return None
+
+
+def _counters_changed(o: dict | None, n: dict | None) -> dict:
+    """{counter: [old, new]} for every counter present in either row that differs."""
+    a, b = (o or {}).get("counters") or {}, (n or {}).get("counters") or {}
+    if not a or not b:
+        return {}
+    return {k: [a.get(k), b.get(k)] for k in dict.fromkeys([*a, *b]) if a.get(k) != b.get(k)}
+
+
+def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown: float | None,
+            across_devices: bool = False) -> dict:
     """The baseline block of the new report: one change row per object and variant in either run,
     and which thresholds each exceeds. status: `compared`; `new` (no old row); `missing` (an old
     row the new run lacks: not a failure, the run may have been filtered with -t)."""
+    why_not = times_comparable(old, new, across_devices)
     old_rows = {(r["object"], r["label"]): r for r in old["rows"]}
     new_rows = {(r["object"], r["label"]): r for r in new["rows"]}
     changes = []
     for key in [*new_rows, *(k for k in old_rows if k not in new_rows)]:
         o, n = old_rows.get(key), new_rows.get(key)
         get = lambda r, k: None if r is None else r.get(k)  # noqa: E731
-        ratio = (round(n["median_ms"] / o["median_ms"], 4) if o and n and o["median_ms"] and n["median_ms"]
-                 else None)
+        timed = why_not is None and o and n and o["median_ms"] and n["median_ms"]
+        ratio = round(n["median_ms"] / o["median_ms"], 4) if timed else None
+        noise = round((o.get("spread_ms") or 0.0) + (n.get("spread_ms") or 0.0), 4) if timed else None
         c = {"object": key[0], "label": key[1], "status": "compared" if o and n else ("new" if n else "missing"),
              "old_mean_dluv": get(o, "mean_dluv"), "new_mean_dluv": get(n, "mean_dluv"),
              "d_mean_dluv": _diff(get(n, "mean_dluv"), get(o, "mean_dluv")),
@@ -60,15 +85,20 @@ def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown
              "d_p95_dluv": _diff(get(n, "p95_dluv"), get(o, "p95_dluv")),
              "old_flip": get(o, "flip_mean"), "new_flip": get(n, "flip_mean"),
              "d_flip": _diff(get(n, "flip_mean"), get(o, "flip_mean")),
-             "old_ms": get(o, "median_ms"), "new_ms": get(n, "median_ms"), "time_ratio": ratio}
+             "old_ms": get(o, "median_ms"), "new_ms": get(n, "median_ms"), "time_ratio": ratio, "noise_ms": noise,
+             "counters_changed": _counters_changed(o, n)}
         exceeds = []
         if max_error_increase is not None and c["d_mean_dluv"] is not None and c["d_mean_dluv"] > max_error_increase:
             exceeds.append("error")
-        if max_slowdown is not None and ratio is not None and ratio > max_slowdown:
+        if (max_slowdown is not None and ratio is not None and ratio > max_slowdown
+                and n["median_ms"] - o["median_ms"] > noise):
             exceeds.append("time")
         changes.append({**c, "exceeds": exceeds})
     notes = [f"baseline {k} {old.get(k)!r} differs from this run's {new.get(k)!r}"
-             for k in ("device", "resolution") if old.get(k) != new.get(k)]
+             for k in ("device", "resolution") if old.get(k) != new.get(k)] + ([why_not] if why_not else [])
+    notes += [f"{c['object']}: {c['label']}: counters changed: "
+              + ", ".join(f"{k} {a} -> {b}" for k, (a, b) in c["counters_changed"].items())
+              for c in changes if c["counters_changed"]]
     return {"thresholds": {"max_error_increase": max_error_increase, "max_slowdown": max_slowdown},
             "notes": notes, "rows": changes, "failed": [f"{c['object']}: {c['label']}" for c in changes if c["exceeds"]]}
 
@@ -82,14 +112,14 @@ def table(block: dict) -> str:
     t = block["thresholds"]
     lines = [f"change against the baseline (max error increase {t['max_error_increase']}, "
              f"max slowdown {t['max_slowdown']})", *(f"note: {n}" for n in block["notes"]), "",
-             "| object | variant | mean ΔLuv old → new | Δ mean | p95 old → new | Δ p95 | FLIP Δ | ms old → new "
-             "| time ratio | exceeds |", "|---|---|---|---:|---|---:|---:|---|---:|---|"]
+             "| object | variant | mean ΔLuv old → new | Δ mean | p95 old → new | Δ p95 | FLIP Δ | GPU ms old → new "
+             "| time ratio | noise ms | exceeds |", "|---|---|---|---:|---|---:|---:|---|---:|---:|---|"]
     for c in block["rows"]:
         lines.append(
             f"| {c['object']} | {c['label']} | {_cell(c['old_mean_dluv'], 3)} → {_cell(c['new_mean_dluv'], 3)} | "
             f"{_signed(c['d_mean_dluv'], 3)} | {_cell(c['old_p95_dluv'], 2)} → {_cell(c['new_p95_dluv'], 2)} | "
-            f"{_signed(c['d_p95_dluv'], 2)} | {_signed(c['d_flip'], 4)} | {_cell(c['old_ms'], 1)} → "
-            f"{_cell(c['new_ms'], 1)} | {_cell(c['time_ratio'], 2)} | "
+            f"{_signed(c['d_p95_dluv'], 2)} | {_signed(c['d_flip'], 4)} | {_cell(c['old_ms'], 2)} → "
+            f"{_cell(c['new_ms'], 2)} | {_cell(c['time_ratio'], 2)} | {_cell(c['noise_ms'], 2)} | "
             f"{', '.join(c['exceeds']) or ('' if c['status'] == 'compared' else c['status'])} |")
     return "\n".join(lines) + "\n"
 
@@ -102,5 +132,7 @@ def to_csv(block: dict) -> str:
     f = io.StringIO()
     w = csv.DictWriter(f, COLUMNS, extrasaction="ignore")
     w.writeheader()
-    w.writerows({**c, "exceeds": " ".join(c["exceeds"])} for c in block["rows"])
+    w.writerows({**c, "exceeds": " ".join(c["exceeds"]),
+                 "counters_changed": ";".join(f"{k}={a}->{b}" for k, (a, b) in c["counters_changed"].items())}
+                for c in block["rows"])
     return f.getvalue()

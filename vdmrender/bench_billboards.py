@@ -11,8 +11,8 @@ Then, on the bunny, in one process (issue 9's closing measurements):
   * interleaved timing: full mesh, coarse mesh, hit0.01+coarse, improved+coarse, hier, hier+coarse,
     ROUNDS rounds of one frame each per resolution, every pass timed (ctx.finish() after each): the
     median frame and its shadow pass share; the ratio to the full mesh of the same round;
-  * march cost, instrumented (COUNT passes): march steps / cell visits and texture fetches per pixel,
-    improved against hier, at 800x600.
+  * march cost, instrumented (vdmrender/counters.py): fragments, texture fetches, march steps (cell visits
+    for hier) and searches per covered pixel, improved against hier, at 800x600.
 
     python -m vdmrender.bench_billboards -o out/bench [--quick]
 """
@@ -25,7 +25,6 @@ import time
 from pathlib import Path
 
 import click
-import numpy as np
 
 from . import progress
 from .bench import measure_scene
@@ -117,49 +116,30 @@ def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> l
 
 
 def march_cost(bundle_path: Path, width: int, height: int) -> dict:
-    """Instrumented (COUNT) frame passes of improved+coarse and hier+coarse on the bench camera: per pixel
-    the improved march's steps and texture fetches over all its box fragments, and the hierarchical
-    march's cell visits (one pyramid fetch each); means over the pixels each runs on, and over the pixels
-    where a billboard is hit. Fetches are the march's (the shading's normal and shadow fetches, the same
-    for both, are left out)."""
-    from vdmbake import parts
+    """improved+coarse and hier+coarse on the bench camera, instrumented (vdmrender/counters.py): per covered
+    pixel, over the frame's passes (all but the shadow map's), the fragments the stages ran (improved: every
+    box fragment and the coarse mesh's; hier: its pre-passes', the screen pass's and the coarse mesh's),
+    texture fetches, march steps (improved: its samples and bisections; hier: cell visits, a pyramid fetch
+    each) and searches (a billboard marched or traced); steps per search is a march's mean length."""
+    from . import counters, gl
 
-    from . import gl
-    from .techniques.billboards import Billboards
-    from .techniques.billboards_hier import HierBillboards
-
-    cam, _, (bundle, scene, obj, entry) = _builders(bundle_path, width, height)
-    part = entry["techniques"]["billboards"]
-    coarse = bundle.read(part["coarse"], parts.MESH)
-    boards = bundle.read(part["greedy"]["maps"], parts.BILLBOARDS)
-    bordered = bundle.read(part["greedy"]["bordered"], parts.BORDERED)
-    bounds = (np.asarray(entry["centre"]), entry["radius"])
-    common = (scene.light, obj.material, scene.render.shadow_map)
+    cam, builds, _ = _builders(bundle_path, width, height)
     ctx = gl.create_context()
     out = {}
     try:
-        for name, build in (
-                ("improved", lambda: Billboards(ctx, boards, bordered, *common, "improved", 0.01, coarse, bounds,
-                                                count=True)),
-                ("hier", lambda: HierBillboards(ctx, boards, bordered, *common, coarse, bounds, shadow_mesh=coarse,
-                                                count=True))):
-            r = build()
+        for name in ("improved", "hier"):
+            with counters.counting(ctx):
+                r = builds[f"billboards@greedy-{name}+coarse"](ctx)
             target = gl.Target(ctx, width, height)
-            r.render(cam, target)
-            a = target.read()
-            target.release()
-            r.release()
-            ran, hit = a[..., 2] > 0, a[..., 3] > 0
-            if name == "improved":   # (steps, fetches, box fragments, hits) summed over box fragments
-                steps, fetches = a[..., 0], a[..., 1]
-                out[name] = {"box_fragments_per_pixel": float(a[..., 2][ran].mean())}
-            else:                    # (cell visits, billboards traced, 1, hit); a visit is one pyramid fetch,
-                steps = a[..., 0]    # plus per pixel the occupancy of every billboard and the coarse depth
-                fetches = steps + len(boards) + 1
-                out[name] = {"billboards_traced_per_pixel": float(a[..., 1][ran].mean())}
-            out[name].update(pixels=int(ran.sum()), hit_pixels=int(hit.sum()),
-                             steps_per_pixel=float(steps[ran].mean()), fetches_per_pixel=float(fetches[ran].mean()),
-                             steps_per_hit_pixel=float(steps[hit].mean()), fetches_per_hit_pixel=float(fetches[hit].mean()))
+            try:
+                c = counters.count_frame(ctx, r, cam, target)
+            finally:
+                target.release()
+                r.release()
+            frame = {k: sum(p[k] for n, p in c["passes"].items() if n != "shadow") for k in counters.COUNTERS}
+            px = max(c["covered"], 1)
+            out[name] = {"covered_pixels": c["covered"], **{f"{k}_per_pixel": round(v / px, 2) for k, v in frame.items()},
+                         "steps_per_search": round(frame["steps"] / max(frame["searches"], 1), 2)}
     finally:
         ctx.release()
     return out
@@ -201,12 +181,13 @@ def _markdown(rows: list[dict], bakes: dict, prof: list[dict], cost: dict, devic
             if len(t) == 3:
                 lines.append(f"| {label} | {t['800x600'] / t['400x300']:.2f} | {t['400x300'] / t['200x150']:.2f} |")
     if cost:
-        lines += ["", f"## March cost, {model} {cost_resolution} (instrumented COUNT passes)", "",
-                  "| march | pixels run | steps or cell visits / pixel | fetches / pixel | per hit pixel: steps, fetches |",
-                  "|---|---:|---:|---:|---|"]
+        lines += ["", f"## March cost, {model} {cost_resolution} (instrumented, vdmrender/counters.py)", "",
+                  "Per covered pixel, over the frame's passes but the shadow map's; hier's steps are cell visits.", "",
+                  "| march (+coarse) | covered pixels | fragments / px | fetches / px | steps / px | searches / px | "
+                  "steps / search |", "|---|---:|---:|---:|---:|---:|---:|"]
         for name, c in cost.items():
-            lines.append(f"| {name} | {c['pixels']} | {c['steps_per_pixel']:.1f} | {c['fetches_per_pixel']:.1f} | "
-                         f"{c['steps_per_hit_pixel']:.1f}, {c['fetches_per_hit_pixel']:.1f} |")
+            lines.append(f"| {name} | {c['covered_pixels']} | {c['fragments_per_pixel']:.1f} | {c['fetches_per_pixel']:.1f} | "
+                         f"{c['steps_per_pixel']:.1f} | {c['searches_per_pixel']:.1f} | {c['steps_per_search']:.1f} |")
     return "\n".join(lines) + "\n"
 
 

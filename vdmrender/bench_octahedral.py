@@ -12,15 +12,15 @@ with 8 N^2 R^2 as close as possible to the billboards' bytes, for N = 5, 9, 13, 
 of them. All variants of a model are timed interleaved (per camera: one render
 each, in turn) after one warm-up render, with ctx.finish() inside the timed region; the shadow map pass
 is part of every frame (billboards: the scene's 1024^2 map of the coarse mesh; octahedral: its own, shadow_scale 2, and one
-row with the scene's 1024^2 map for a like-for-like comparison). Octahedral rows also give the atlas
-lookups per covered pixel (the COUNT variant of the shader, one camera) and the shadow pass's time.
+row with the scene's 1024^2 map for a like-for-like comparison). Octahedral rows also give the frame pass's
+texture fetches (atlas lookups, the albedo atlas's, the shadow map's) and search steps per covered pixel
+(instrumented, vdmrender/counters.py, one camera) and the shadow pass's time.
 
     python -m vdmrender.bench_octahedral -o out/bench [--quick]
 """
 from __future__ import annotations
 
 import json
-import re
 import statistics
 import time
 from pathlib import Path
@@ -34,7 +34,7 @@ from vdmbake.bundle import Bundle
 from vdmbake.scene import load_scene
 from vdmbake.techniques.octahedral import VARIANT as OCT_VARIANT
 
-from . import gl, images, reference, techniques
+from . import counters, gl, images, reference, techniques
 from .camera import cameras_for
 from .metrics import compare
 from .techniques import octahedral
@@ -89,11 +89,6 @@ def _gl_objects(renderer) -> list:
     return found
 
 
-def _texture_bytes(t) -> int:
-    layers = t.layers if type(t).__name__ == "TextureArray" else 1
-    return t.width * t.height * layers * t.components * int(re.sub(r"\D", "", t.dtype))
-
-
 def gpu_bytes(renderer) -> tuple[int, int]:
     """(asset, targets): bytes of the textures and buffers a renderer uploads for its asset (maps, pyramid
     atlases, coverage, the coarse mesh's and the occupancy boxes' buffers, the atlas), and of the textures
@@ -107,9 +102,9 @@ def gpu_bytes(renderer) -> tuple[int, int]:
         name = type(o).__name__
         if name in ("Texture", "TextureArray"):
             if id(o) in drawn:
-                targets += _texture_bytes(o)
+                targets += counters.texture_bytes(o)
             else:
-                asset += _texture_bytes(o)
+                asset += counters.texture_bytes(o)
         elif name == "Buffer":
             asset += o.size
     return asset, targets
@@ -244,7 +239,7 @@ def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[d
                                for lab, p, t, c in zip(labels, per_cam[label], ms[label], cpu[label])}}
             if label in shadow_ms:
                 row["shadow_ms"] = round(statistics.median(shadow_ms[label]), 2)
-                row["lookups_per_pixel"] = _lookups(ctx, r, cams[0], target)
+                row.update(_costs(ctx, builds[label][0], cams[0], target))
             rows.append(row)
         return rows
     finally:
@@ -253,20 +248,16 @@ def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[d
             r.release()
 
 
-def _lookups(ctx, r, cam, target) -> float:
-    """Mean atlas lookups per covered pixel of one frame (the shader's COUNT variant), instrumented."""
-    prog = gl.program(ctx, "octahedral.vert", "octahedral.frag", r.defines + ("COUNT",), r.may_lack)
-    saved = r.draws["frame"]
-    vao = gl.vertex_array(ctx, prog, [(r.corners, "2f", "in_corner")])
-    r.draws["frame"] = (prog, vao)
+def _costs(ctx, build, cam, target) -> dict:
+    """The frame pass's texture fetches and search steps per covered pixel of one frame, instrumented."""
+    with counters.counting(ctx):
+        r = build(ctx)
     try:
-        r.render(cam, target)
-        f = target.read()
+        c = counters.count_frame(ctx, r, cam, target)
     finally:
-        r.draws["frame"] = saved
-        vao.release()
-    covered = f[..., 3] > 0
-    return round(float(f[..., 2][covered].mean()), 1) if covered.any() else 0.0
+        r.release()
+    frame, px = c["passes"]["frame"], max(c["covered"], 1)
+    return {"fetches_per_pixel": round(frame["fetches"] / px, 1), "steps_per_pixel": round(frame["steps"] / px, 1)}
 
 
 CATEGORIES = [("orbit", lambda lab: lab.startswith("orbit")), ("top", lambda lab: lab in ("top-down", "near-top")),
@@ -292,13 +283,15 @@ def _markdown(rows: list[dict], device: str) -> str:
              "asset MB: the textures and buffers a variant uploads (maps, pyramid atlases, coverage, coarse mesh, "
              "occupancy boxes, the octahedral atlas); target MB: what it renders into every frame besides the "
              "frame and its shadow map (the billboards' depth pre-pass and occupancy targets); bake seconds.", "",
-             "| model | resolution | variant | asset MB | target MB | bake s | wall ms | CPU ms | shadow ms | lookups/px | "
+             "| model | resolution | variant | asset MB | target MB | bake s | wall ms | CPU ms | shadow ms | fetches/px | "
+             "steps/px | "
              "mean ΔLuv | p95 | IoU |",
-             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | {r['gpu_bytes'] / 2**20:.2f} | "
                      f"{r['target_bytes'] / 2**20:.2f} | {r['bake_s']:.1f} | {r['median_ms']:.0f} | {r['median_cpu_ms']:.0f} | "
-                     f"{r.get('shadow_ms', '')} | {r.get('lookups_per_pixel', '')} | {r['mean_dluv']:.3f} | "
+                     f"{r.get('shadow_ms', '')} | {r.get('fetches_per_pixel', '')} | {r.get('steps_per_pixel', '')} | "
+                     f"{r['mean_dluv']:.3f} | "
                      f"{r['p95_dluv']:.2f} | {r['iou']:.4f} |")
     lines += ["", "Per camera category: mean ΔLuv / mean IoU / median CPU ms over the cameras of that kind.", "",
               "| model | resolution | variant | " + " | ".join(c for c, _ in cats) + " |",

@@ -8,8 +8,8 @@
    (exact hierarchical tracing) at several iteration caps, bump mapping, displacement mapping at several
    subdivision levels, and the plain base mesh, against the displaced geometry traced by Embree; then,
    interleaved in one process, the first implementation's VDM lookup against today's, 8-bit against
-   float32 weights, the refine settings against POM, relief and displacement, and texture fetches per
-   shaded fragment.
+   float32 weights, the refine settings against POM, relief and displacement, and the frame pass's costs
+   per covered pixel (vdmrender/counters.py: fragments, texture fetches, search steps, searches).
 
     python -m vdmrender.bench_vdm -o out/bench [--quick]
 """
@@ -28,8 +28,6 @@ from vdmbake import heightfields, vdm, vdm_storage
 from . import gl, interleave, progress, report
 from .bench import measure_scene
 from .techniques import Source, variants
-from .techniques.mesostructure import MesostructurePass
-from .techniques.relief import ReliefPass
 from .techniques.vdm import VDMPass
 
 # (name, primitive, params, tiling): tilings keep a tile about as long as it is wide
@@ -111,34 +109,21 @@ def _scene_rows(out: Path, name, primitive, params, tiling, hname, height, w, h,
 
 def _interleaved(out: Path, tag: str, rounds: int) -> dict:
     """INTERLEAVED (the scene's own variants) and EXTRA measured on the scene's bundle against its reference;
-    fetch counts of COUNTED from COUNT builds of their stages."""
+    the costs of COUNTED (interleave.costs: counts summed over the cameras)."""
     bundle, scene, obj, entry, cams = interleave.scene_of(out / "bundles" / f"vdm-{tag}.bundle")
     ref8 = interleave.reference8(out / "renders" / f"vdm-{tag}", obj.name, len(cams), scene.render.background)
-    src = {t: Source(obj, entry, entry["techniques"].get(t), bundle, scene, obj.techniques[t])
-           for t in ("vdm", "pom", "relief")}
+    src = Source(obj, entry, entry["techniques"]["vdm"], bundle, scene, obj.techniques["vdm"])
     scene_builds = {v.label: v.build for v in variants(obj, entry, bundle, scene)}
-    builds = {**{k: scene_builds[k] for k in INTERLEAVED if k in scene_builds},
-              **{k: (lambda ctx, o=o: VDMPass(ctx, src["vdm"], 8, **o)) for k, o in EXTRA.items()}}
-
-    def counted(label):
-        """The stage of `label` built with COUNT: it writes its fetches per fragment instead of a colour."""
-        if label in EXTRA:
-            return lambda ctx: VDMPass(ctx, src["vdm"], 8, defines=("COUNT",), **EXTRA[label])
-        technique, _, value = label.partition("@")
-        if technique == "vdm":
-            k, _, r = value.partition("r")
-            return lambda ctx: VDMPass(ctx, src["vdm"], int(k), int(r or 0), defines=("COUNT",))
-        if technique == "pom":
-            return lambda ctx: MesostructurePass(ctx, src["pom"], "pom.frag", defines=("COUNT",), u_steps=int(value))
-        return lambda ctx: ReliefPass(ctx, src["relief"], int(value), defines=("COUNT",))
+    extra = {k: (lambda ctx, o=o: VDMPass(ctx, src, 8, **o)) for k, o in EXTRA.items()}
+    builds = {**{k: scene_builds[k] for k in INTERLEAVED if k in scene_builds}, **extra}
 
     ctx = gl.create_context()
     try:
         rows = interleave.measure(ctx, builds, cams, ref8, scene.render.background, rounds)
-        counts = {k: interleave.fetches(ctx, counted(k), cams) for k in COUNTED}
+        costs = {k: interleave.costs(ctx, {**scene_builds, **extra}[k], cams) for k in COUNTED}
     finally:
         ctx.release()
-    return {"rows": rows, "fetches": counts}
+    return {"rows": rows, "costs": costs}
 
 
 def _markdown(paper: dict, rows: list[dict], device: str, inter: dict) -> str:
@@ -174,11 +159,14 @@ def _markdown(paper: dict, rows: list[dict], device: str, inter: dict) -> str:
         for k, r in m["rows"].items():
             lines.append(f"| {k} | {r['median_ms']:.1f} | {r['median_cpu_ms']:.1f} | {r['median_cpu_ms'] / base:.2f} | "
                          f"{r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
-        lines += ["", "Texture fetches per shaded fragment (COUNT builds):", "",
-                  "| variant | W | E | height | other | total | max |", "|---|---:|---:|---:|---:|---:|---:|"]
-        for k, c in m["fetches"].items():
-            lines.append(f"| {k} | {c['table_weights']} | {c['eigenfunctions']} | {c['height']} | {c['other']} | "
-                         f"{c['total']} | {c['max']} |")
+        lines += ["", "The frame pass's costs per covered pixel (instrumented builds, vdmrender/counters.py; fragments: "
+                  "every one the stage ran, discarded ones too), and its fetches per fragment:", "",
+                  "| variant | fragments | texture fetches | search steps | searches | fetches / fragment |",
+                  "|---|---:|---:|---:|---:|---:|"]
+        for k, c in m["costs"].items():
+            f, n = c["passes"]["frame"], c["covered"]
+            lines.append(f"| {k} | {f['fragments'] / n:.2f} | {f['fetches'] / n:.2f} | {f['steps'] / n:.2f} | "
+                         f"{f['searches'] / n:.2f} | {f['fetches'] / f['fragments']:.2f} |")
     return "\n".join(lines) + "\n"
 
 

@@ -34,9 +34,15 @@ def _resolution(ctx, param, value):
               help=f"Render only this technique (repeatable; {', '.join(REGISTRY)}); default: every technique "
                    "the scene names.")
 @click.option("--resolution", callback=_resolution, help="WIDTHxHEIGHT, overrides the scene's render.resolution.")
-@click.option("--repeats", type=click.IntRange(1, 1000), help="Timed renders per frame (scene default otherwise).")
-@click.option("--warmup", type=click.IntRange(0, 100), help="Untimed renders per frame before timing.")
-@click.option("--device", help="EGL device index for the GL context (or set VDM_GL_DEVICE).")
+@click.option("--repeats", type=click.IntRange(1, 1000), help="Timed renders per frame, at least (scene default otherwise).")
+@click.option("--warmup", type=click.IntRange(0, 100), help="Untimed renders per frame before timing, at least.")
+@click.option("--warmup-s", type=click.FloatRange(0, 600), metavar="SECONDS",
+              help="Warm up at least this long, then until successive windows of GPU times agree within 5%% "
+                   "(default 0.1; on a GPU give 2: its clocks need about a second of sustained work).")
+@click.option("--sample-s", type=click.FloatRange(0, 600), metavar="SECONDS",
+              help="Time at least this long (and at least --repeats renders per frame; default 0).")
+@click.option("--device", help="The GPU: an EGL device index N, or cuda:N for the GPU CUDA numbers N (NVIDIA, "
+                               "EGL_NV_device_cuda); or set VDM_GL_DEVICE.")
 @click.option("--max-error", type=click.FloatRange(min=0), help="Exit 1 if any technique's mean ΔLuv exceeds this.")
 @click.option("--baseline", type=click.Path(path_type=Path),
               help="An earlier run's report.json: report per object and variant the change in mean ΔLuv, p95, "
@@ -45,8 +51,15 @@ def _resolution(ctx, param, value):
 @click.option("--max-error-increase", type=click.FloatRange(min=0),
               help="With --baseline: exit 1 if a variant's mean ΔLuv grew by more than this (absolute ΔLuv).")
 @click.option("--max-slowdown", type=click.FloatRange(min=0, min_open=True),
-              help="With --baseline: exit 1 if a variant's median time per frame grew by more than this ratio "
-                   "(1.25: 25%% slower).")
+              help="With --baseline: exit 1 if a variant's median GPU time per frame grew by more than this ratio "
+                   "(1.25: 25%% slower) and by more than both runs' spreads together (noise).")
+@click.option("--compare-devices", is_flag=True,
+              help="With --baseline: compare times even when the baseline ran on another GL device (refused "
+                   "otherwise: --max-slowdown exits 2, and the table leaves times out).")
+@click.option("--counters/--no-counters", default=True, show_default=True,
+              help="Count each variant's work per frame, device-independent (fragments shaded, texture fetches, "
+                   "search steps, primitives, draws, instances, GPU bytes held: report.json's counters, "
+                   "per_pixel, counters_per_pass) from one more frame per camera of an instrumented build.")
 @click.option("--flip/--no-flip", default=True, show_default=True,
               help="Also score every frame with NVIDIA FLIP (flip_mean in the report; about 2 s per 512x512 "
                    "frame on 2 CPU cores).")
@@ -55,8 +68,8 @@ def _resolution(ctx, param, value):
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
-def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error, baseline, max_error_increase,
-         max_slowdown, flip, heat_max, as_json, debug):
+def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_s, device, max_error, baseline, max_error_increase,
+         max_slowdown, compare_devices, counters, flip, heat_max, as_json, debug):
     """Render BUNDLE (made by vdmbake) into OUTPUT and report error against run time.
 
     For every object, each technique variant (a technique at one value of its quality
@@ -65,8 +78,11 @@ def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error
     independent reference is traced on the CPU with Embree. Each frame's error is the
     mean CIE-Luv distance to the reference over the union of both coverage masks (the
     enhanced-billboards thesis's eq. 2.2), with NVIDIA FLIP over the same pixels beside
-    it; time is the median wall time per frame. A frame where neither the variant nor the
-    reference covers a pixel is reported as empty (no error), never as a perfect score.
+    it. Time is the GPU's: per frame the sum of its passes' GL timer queries, after a
+    warm-up that lasts until the times are steady, median over every timed frame, with
+    the spread, wall time and CPU submit time beside it (the harness's own clear of the
+    target is timed apart). A frame where neither the variant nor the reference covers a
+    pixel is reported as empty (no error), never as a perfect score.
 
     \b
     OUTPUT/frames/OBJECT/VARIANT/NNN.png     rendered frames
@@ -96,8 +112,10 @@ def main(bundle, out, techniques, resolution, repeats, warmup, device, max_error
                         "report.json with --baseline OLD/report.json."), debug)
     log = (lambda m: None) if as_json else (lambda m: click.echo(m, err=True))
     opts = Options(techniques=techniques or None, resolution=resolution, repeats=repeats, warmup=warmup,
+                   warmup_s=warmup_s, sample_s=sample_s,
                    device=device, heat_max=heat_max, flip=flip, baseline=baseline,
-                   max_error_increase=max_error_increase, max_slowdown=max_slowdown)
+                   max_error_increase=max_error_increase, max_slowdown=max_slowdown, compare_devices=compare_devices,
+                   counters=counters)
     if debug:
         gl.STRICT = True
     result = guarded(lambda: run(bundle, out, opts, log), debug)

@@ -4,7 +4,7 @@ the variant a set names, against a reference that traces every object together.
 How the techniques meet (GL):
 * One framebuffer, one depth buffer. The frame's target is cleared once; every technique then draws
   into it as it draws alone, but through a view of the target whose begin() binds it without clearing
-  (`Kept`). Every technique writes the exact window depth of what it shows (rasterised meshes, and
+  (`gl.Kept`). Every technique writes the exact window depth of what it shows (rasterised meshes, and
   gl_FragDepth: quadric impostors direct and deferred, billboards, octahedral impostors, VDM, POM and
   relief hits), under the same camera and near/far planes, so the depth test orders opaque surfaces of
   different techniques exactly as it orders those of one. Passes that work in their own targets (the
@@ -31,14 +31,13 @@ Cameras frame the whole scene: the orbit is placed on a sphere holding every obj
 """
 from __future__ import annotations
 
-import statistics
 import time
 from dataclasses import asdict
 
 import moderngl
 import numpy as np
 
-from . import gl, images, progress, reference
+from . import images, progress, reference
 from .camera import cameras_for, enclosing_sphere
 from .metrics import summarise
 from .techniques import variants
@@ -46,17 +45,6 @@ from .techniques.raster import Passes
 from .techniques.shadowmap import ShadowMap, ShadowView
 
 FOLDER = "composite"   # OUT/composite/: reference/, frames/SET/, heatmaps/SET/, overview.png
-
-
-class Kept:
-    """The frame's target as the techniques of a composite see it: begin() binds it without clearing."""
-
-    def __init__(self, target):
-        self.target, self.size = target, target.size
-
-    def begin(self) -> None:
-        self.target.fbo.use()
-        self.target.ctx.viewport = (0, 0, *self.size)
 
 
 class Composite(Passes):
@@ -76,7 +64,7 @@ class Composite(Passes):
     def passes(self, camera, target) -> list:
         """Clear the target and the scene's shadow map; every object's light pass; then every object's other
         passes in scene order, each object's first one from its light pass's GL state."""
-        kept = Kept(target)
+        kept = target.kept()
 
         def clear():
             self.shadow.begin()
@@ -136,41 +124,39 @@ def reference_frames(out, bundle, scene, cams, log):
     return frames, info
 
 
-def render_sets(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log) -> list[dict]:
+def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[dict]:
     """Every variant set of render.composite (those whose techniques --technique keeps): timed, scored against
     the composite reference, written under OUT/composite/; one report row per set."""
-    from .render import _show, score_frames, time_variant
+    from .render import _show, score_frames, time_line
 
     sets = [s for s in scene.render.composite if only is None or all(v.split("@")[0] in only for v in s.values())]
     if not sets:
         return []
+    ctx = harness.ctx
     centre, radius = scene_sphere(bundle, scene)
-    target = gl.Target(ctx, width, height)
-    cams = cameras_for(scene.camera, centre, radius, width, height)
+    cams = cameras_for(scene.camera, centre, radius, *harness.target.size)
     ref_frames, ref_info = reference_frames(out, bundle, scene, cams, log)
     ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
     sheet, rows = [("reference", ref8)], []
     entries = bundle.manifest["objects"]
     for k, chosen in enumerate(sets, start=1):
-        builds = {}
-        for obj in scene.objects:
-            v = next(v for v in variants(obj, entries[obj.name], bundle, scene) if v.label == chosen[obj.name])
-            builds[obj.name] = v.build(ctx)
-        renderer = Composite(ctx, builds, centre, radius, scene.light, scene.render.shadow_map)
+        def build(chosen=chosen):
+            builds = {}
+            for obj in scene.objects:
+                v = next(v for v in variants(obj, entries[obj.name], bundle, scene) if v.label == chosen[obj.name])
+                builds[obj.name] = v.build(ctx)
+            return Composite(ctx, builds, centre, radius, scene.light, scene.render.shadow_map)
+
         label = set_label(chosen)
-        samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup, f"composite {k}")
-        faces = renderer.faces
-        renderer.release()
+        cost, frames = harness.measure(build, cams, f"composite {k}")
         scores, heats, enc = score_frames(frames, ref8, [None] * len(frames), out, f"{FOLDER}/frames/{k}",
                                           f"{FOLDER}/heatmaps/{k}", opts.heat_max, scene.render.background, opts.flip,
                                           f"composite {k} scoring")
-        row = {"set": k, "label": label, "variants": dict(chosen), "faces": faces, "frames": len(cams),
-               "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3),
+        row = {"set": k, "label": label, "variants": dict(chosen), "frames": len(cams), **cost,
                **summarise(scores), "device": device, "reference_cached": ref_info["cached"]}
         rows.append(row)
         sheet += [(f"{k}: {label}", enc), (f"{k}: error", heats)]
-        log(f"composite {k} ({label}): {row['median_ms']:9.3f} ms/frame  mean dLuv {_show(row['mean_dluv'], 7, 3)}"
+        log(f"composite {k} ({label}): {time_line(row)}  mean dLuv {_show(row['mean_dluv'], 7, 3)}"
             f"  p95 {_show(row['p95_dluv'], 7, 3)}  IoU {_show(row['iou'], 6, 4)}  FLIP {_show(row['flip_mean'], 6, 4)}")
-    target.release()
     images.overview(sheet, out.file(f"{FOLDER}/overview.png"))
     return rows

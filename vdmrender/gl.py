@@ -34,22 +34,21 @@ def strict() -> bool:
 
 
 def create_context(device: str | None = None):
-    """A standalone OpenGL 4.3+ context through EGL. `device` (or $VDM_GL_DEVICE) picks the EGL device index."""
-    import moderngl
+    """A standalone OpenGL 4.3+ context through EGL. `device` (or $VDM_GL_DEVICE): an EGL device index N, or
+    cuda:N, the GPU CUDA numbers N (vdmrender.device)."""
+    from .device import egl_device_index
 
-    device = device if device not in (None, "") else os.environ.get("VDM_GL_DEVICE", "")
-    kwargs = {}
-    if device != "":
-        if not str(device).isdigit():
-            raise InputError(f"--device / VDM_GL_DEVICE: {device!r} is not an EGL device index (0, 1, ...).")
-        kwargs["device_index"] = int(device)
+    spec = device if device not in (None, "") else os.environ.get("VDM_GL_DEVICE", "")
+    index = egl_device_index(spec)
+    kwargs = {} if index is None else {"device_index": index}
     try:
         return moderngl.create_context(standalone=True, backend="egl", require=430, **kwargs)
     except Exception as e:  # moderngl and glcontext raise plain Exceptions here
         raise InputError(
             f"cannot create an OpenGL 4.3 context through EGL ({e}). On a machine without a GPU, install "
             "Mesa's EGL and llvmpipe (apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1); "
-            "with several GPUs, pick one with --device N or VDM_GL_DEVICE=N.") from None
+            "with several GPUs, pick one with --device N (EGL's order) or --device cuda:N (CUDA's), or "
+            "VDM_GL_DEVICE.") from None
 
 
 def renderer_name(ctx) -> str:
@@ -84,21 +83,24 @@ def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = (), may_
     """Compiled once per context, and only when a technique of the scene asks for it.
     `defines` select a pass variant of a stage (e.g. DIRECT, GBUFFER). `may_lack`: the uniforms and
     vertex attributes this pass variant legitimately compiles away (set_uniforms and vertex_array
-    then skip them even when strict); name them here, next to the defines that drop them."""
+    then skip them even when strict); name them here, next to the defines that drop them.
+    While counting is on for the context (vdmrender.counters.counting), the fragment stage is compiled
+    with COUNT too (shaders/include/cost_count.glsl: the same picture, plus atomics adding to the cost
+    counters; it reads the same uniforms, so strictness holds for it as for the normal build)."""
     if ctx.extra is None:
         ctx.extra = {}
-    key = (vertex, fragment, *defines)
+    fragment_defines = (*defines, *(("COUNT",) if ctx.extra.get("counting") else ()))
+    key = (vertex, fragment, *fragment_defines)
     if key not in ctx.extra:
+        variant = f" [{', '.join(fragment_defines)}]" if fragment_defines else ""
         try:
             prog = ctx.program(vertex_shader=_with_defines(source(vertex), defines),
-                               fragment_shader=_with_defines(source(fragment), defines))
+                               fragment_shader=_with_defines(source(fragment), fragment_defines))
         except moderngl.Error as e:
-            variant = f" [{', '.join(defines)}]" if defines else ""
             raise InputError(f"{vertex} + {fragment}{variant}: the shaders do "
                              f"not compile on {renderer_name(ctx)} (an overridden GL version, e.g. "
                              f"MESA_GL_VERSION_OVERRIDE, or a driver lacking GLSL 4.30?). Compiler log:\n{e}") from None
-        prog.extra = {"name": f"{vertex} + {fragment}" + (f" [{', '.join(defines)}]" if defines else ""),
-                      "may_lack": frozenset(may_lack), "instrumented": "COUNT" in defines}
+        prog.extra = {"name": f"{vertex} + {fragment}{variant}", "may_lack": frozenset(may_lack)}
         ctx.extra[key] = prog
     prog = ctx.extra[key]
     if prog.extra["may_lack"] != frozenset(may_lack):
@@ -117,8 +119,7 @@ def _lacks(prog, name: str, what: str) -> bool:
     if name in prog:
         return False
     info = _info(prog)
-    # an instrumented build (COUNT: it writes counts instead of a colour) may compile anything away
-    if strict() and name not in info["may_lack"] and not info.get("instrumented"):
+    if strict() and name not in info["may_lack"]:
         raise GLError(f"{info['name']}: no active {what} {name!r} (renamed, misspelt, or unused by the "
                       "shader; declare it in gl.program(..., may_lack=...) if a pass variant drops it)")
     return True
@@ -215,7 +216,8 @@ def albedo_texture(ctx, albedo_map: np.ndarray):
 
 
 class Target:
-    """An RGBA32F colour + 32-bit float depth framebuffer of the frame's size."""
+    """An RGBA32F colour + 32-bit float depth framebuffer of the frame's size. begin() binds and clears it
+    (a technique drawing alone); kept() is the same target seen by a harness that clears it itself."""
 
     def __init__(self, ctx, width: int, height: int):
         self.ctx, self.size = ctx, (width, height)
@@ -223,10 +225,18 @@ class Target:
         self.depth = ctx.depth_renderbuffer((width, height))
         self.fbo = ctx.framebuffer([self.color], self.depth)
 
-    def begin(self):
+    def bind(self):
         self.fbo.use()
         self.ctx.viewport = (0, 0, *self.size)
+
+    def clear(self):
+        self.bind()
         self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+
+    begin = clear
+
+    def kept(self) -> "Kept":
+        return Kept(self)
 
     def read(self) -> np.ndarray:
         """(H, W, 4) float32, row 0 at the top: linear RGB and coverage."""
@@ -236,3 +246,24 @@ class Target:
 
     def release(self):
         release(self.fbo, self.color, self.depth)
+
+
+class Kept:
+    """A Target as techniques see it where someone else clears it: begin() binds without clearing. The
+    timing harness clears outside the timed passes (the clear is not a technique's cost); a composite
+    frame clears once and every object draws into it."""
+
+    def __init__(self, target: Target):
+        self.target, self.ctx, self.size, self.fbo = target, target.ctx, target.size, target.fbo
+
+    def begin(self):
+        self.target.bind()
+
+    def clear(self):
+        self.target.clear()
+
+    def kept(self) -> "Kept":
+        return self
+
+    def read(self) -> np.ndarray:
+        return self.target.read()

@@ -2,8 +2,8 @@
 the benchmarks: on a shared machine a sequential run gives each variant different neighbours. Per frame,
 wall time and the process's CPU time (llvmpipe's rasteriser threads are the process's own, so CPU
 time is the work done, much less disturbed by other processes than wall time), and each variant's
-error against the reference frames of a previous vdmrender run. Also texture fetches per shaded
-fragment from a COUNT build of a stage (shaders/include/fetch_count.glsl)."""
+error against the reference frames of a previous vdmrender run. Also each variant's device-independent
+costs (vdmrender/counters.py: fragments, texture fetches, search steps and searches)."""
 from __future__ import annotations
 
 import statistics
@@ -16,7 +16,7 @@ import numpy as np
 from vdmbake import exr
 from vdmbake.bundle import Bundle
 
-from . import gl, images
+from . import counters, gl, images
 from .camera import cameras_for
 from .metrics import compare
 
@@ -77,18 +77,23 @@ def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: in
     return rows
 
 
-def fetches(ctx, build: Callable, cams) -> dict[str, float]:
-    """Mean texture fetches per shaded fragment of a COUNT build, by kind, over every covered pixel."""
+def costs(ctx, build: Callable, cams) -> dict:
+    """build(ctx) built with the cost counters on, one frame per camera: counters.count_frame's counts summed
+    over the cameras, {"covered": pixels, "passes": {name: counts}, "total": counts} (divide by "covered"
+    for figures per covered pixel)."""
     target = gl.Target(ctx, cams[0].width, cams[0].height)
-    r = build(ctx)
-    counts = []
-    for cam in cams:
-        r.render(cam, target)
-        f = target.read()
-        counts.append(f[f[..., 3] > 0])
-    r.release()
-    target.release()
-    c = np.concatenate(counts)
-    return {"table_weights": round(float(c[:, 0].mean()), 2), "eigenfunctions": round(float(c[:, 1].mean()), 2),
-            "height": round(float(c[:, 2].mean()), 2), "other": round(float(c[:, 3].mean()), 2),
-            "total": round(float(c.sum(1).mean()), 2), "max": int(c.sum(1).max())}
+    with counters.counting(ctx):
+        r = build(ctx)
+    out = {"covered": 0, "passes": {}, "total": {}}
+    try:
+        for cam in cams:
+            c = counters.count_frame(ctx, r, cam, target)
+            out["covered"] += c["covered"]
+            for name, counts in [*c["passes"].items(), ("total", c["total"])]:
+                into = out["total"] if name == "total" else out["passes"].setdefault(name, {})
+                for k, v in counts.items():
+                    into[k] = into.get(k, 0) + v
+    finally:
+        r.release()
+        target.release()
+    return out

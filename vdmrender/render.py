@@ -5,7 +5,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import statistics
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -18,7 +17,8 @@ from vdmbake.errors import InputError
 from vdmbake.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, borders, composite, gl, images, progress, reference, report
+from . import baseline, borders, composite, gl, images, measure, progress, reference, report, timing
+from . import device as gpu
 from .camera import cameras_for
 from .metrics import compare, flip_values, summarise
 from .techniques import Source, mesostructure, variants
@@ -55,12 +55,16 @@ class Options:
     resolution: tuple[int, int] | None = None    # override the scene's
     repeats: int | None = None
     warmup: int | None = None
+    warmup_s: float | None = None                # timing.Budget: minimum warm-up time
+    sample_s: float | None = None                # timing.Budget: minimum sampling time
     device: str | None = None
     heat_max: float = 10.0                       # delta-Luv at the top of the heat-map colour scale
     flip: bool = True                            # also score each frame with NVIDIA FLIP
     baseline: Path | None = None                 # an earlier run's report.json to compare with
     max_error_increase: float | None = None      # its thresholds (vdmrender.baseline)
     max_slowdown: float | None = None
+    compare_devices: bool = False                # compare times with a baseline from another device
+    counters: bool = True                        # count each variant's work (vdmrender.counters)
 
 
 def check_memory(width: int, height: int, available: int | None = None, geometry: tuple[int, str] = (0, "")) -> None:
@@ -164,24 +168,6 @@ def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np
     return frames, classes, info
 
 
-def time_variant(ctx, renderer, target, cams, repeats: int, warmup: int,
-                 desc: str = "render") -> tuple[list[float], list[np.ndarray]]:
-    """Per frame: `warmup` untimed renders, then `repeats` timed ones (ctx.finish() inside the timed
-    region); returns every timed sample in ms and each frame's read-back image."""
-    samples, frames = [], []
-    for cam in progress.bar(cams, desc):
-        for _ in range(warmup):
-            renderer.render(cam, target)
-            ctx.finish()
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            renderer.render(cam, target)
-            ctx.finish()
-            samples.append((time.perf_counter() - t0) * 1e3)
-        frames.append(target.read())
-    return samples, frames
-
-
 def _technique_filter(opts: Options, scene) -> set | None:
     if not opts.techniques:
         return None
@@ -195,27 +181,51 @@ def _technique_filter(opts: Options, scene) -> set | None:
     return set(opts.techniques)
 
 
+def budget(opts: Options, scene) -> timing.Budget:
+    """The timing budget: the scene's render.warmup and render.repeats, overridden by the options; warmup = 0
+    and no --warmup-s: no warm-up at all."""
+    d = timing.Budget()
+    warmup = scene.render.warmup if opts.warmup is None else opts.warmup
+    return timing.Budget(warmup=warmup, warmup_s=(d.warmup_s if warmup else 0.0) if opts.warmup_s is None else opts.warmup_s,
+                         warmup_max_s=max(d.warmup_max_s, 3 * (opts.warmup_s or 0)),
+                         repeats=opts.repeats or scene.render.repeats,
+                         sample_s=d.sample_s if opts.sample_s is None else opts.sample_s)
+
+
+TIMING = ("GPU time per frame: the sum of the frame's passes' GL timer queries (GL_TIME_ELAPSED), after a "
+          "warm-up until successive windows' median GPU times agree within the tolerance (warmup_s, warmup_frames, "
+          "steady); median_ms and q1_ms/q3_ms over every timed frame, spread_ms the within-camera interquartile "
+          "range (median over cameras), passes_ms the per-pass medians; wall_ms is the first call to "
+          "ctx.finish() returning, submit_ms the renderer's calls returning (CPU). The target's clear before "
+          "each frame is outside every query, timed apart as clear_ms (after each variant's sampling, median). ratio_to_baseline divides median_ms by "
+          "the baseline row of the same object and run")
+
+
 def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) -> dict:
     bundle = Bundle(bundle_path)
     scene = bundle.scene
     width, height = opts.resolution or scene.render.resolution
-    repeats = opts.repeats or scene.render.repeats
-    warmup = scene.render.warmup if opts.warmup is None else opts.warmup
+    plan = budget(opts, scene)
     only = _technique_filter(opts, scene)
     old = baseline.load(opts.baseline) if opts.baseline else None
     check_memory(width, height, geometry=geometry_bytes(bundle))
     ctx = gl.create_context(opts.device)
     device = gl.renderer_name(ctx)
+    why_not = old and baseline.times_comparable(old, {"time": "gpu", "device": device}, opts.compare_devices)
+    if why_not and opts.max_slowdown is not None:
+        ctx.release()
+        raise InputError(f"--max-slowdown with --baseline {opts.baseline}: {why_not}.")
+    device_info, nvml = gpu.describe(ctx), gpu.nvml_clocks()
     out = StagedDir(out_path, "report.json", "vdmrender output folder")
+    harness = measure.Harness(ctx, gl.Target(ctx, width, height), plan, opts.counters)
     try:
-        rows = _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log)
+        rows = _render_all(harness, out, bundle, scene, only, opts, device, log)
         report.add_baseline_ratios(rows)
-        composite_rows = composite.render_sets(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts,
-                                               device, log)
+        composite_rows = composite.render_sets(harness, out, bundle, scene, only, opts, device, log)
         result = {"tool_version": __version__, "bundle": str(bundle.path), "device": device,
-                  "resolution": [width, height], "repeats": repeats, "warmup": warmup,
-                  "timing": "median wall time per frame over all timed renders, ctx.finish() inside the timed "
-                            "region; ratio_to_baseline divides by the baseline row of the same object and run",
+                  "gl": device_info, "nvml": nvml, "resolution": [width, height], "budget": asdict(plan),
+                  "time": "gpu", "timing": TIMING,
+                  "clear_ms": harness.clear_ms(),
                   "error": "delta-L*u*v* (CIE 1976, sRGB/D65) against the reference over the union of both "
                            "coverage masks (thesis eq. 2.2); a frame where neither covers a pixel is empty: no "
                            "error, flagged, counted in empty_frames and left out of the averages; for a "
@@ -229,33 +239,31 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
             result["composite"] = composite_rows
         if old is not None:
             result["baseline"] = {"report": str(opts.baseline),
-                                  **baseline.compare(old, result, opts.max_error_increase, opts.max_slowdown)}
+                                  **baseline.compare(old, result, opts.max_error_increase, opts.max_slowdown,
+                                                     opts.compare_devices)}
         report.write(out.tmp, result)
         out.commit()
     except BaseException:
         out.abort()
         raise
     finally:
+        harness.release()
         ctx.release()
     return result
 
 
-def _measure(ctx, v, target, cams, ref8, classes, repeats, warmup, out, obj, heat_max, background, flip):
+def _measure(harness, v, cams, ref8, classes, out, obj, opts, background):
     """One variant: time it, read its frames back, compare each with the reference, write its
     frames and heat maps. Returns its report row and the frames and heat maps for the overview.
     A frame with no pixel to score has no data: it is flagged `empty`, has no error, counts in
     `empty_frames` and stays out of the row's averages (metrics.summarise)."""
     name = obj.name
-    renderer = v.build(ctx)
-    samples, frames = time_variant(ctx, renderer, target, cams, repeats, warmup, f"{name}: {v.label}")
-    faces = getattr(renderer, "faces", None)
-    renderer.release()
+    cost, frames = harness.measure(lambda: v.build(harness.ctx), cams, f"{name}: {v.label}")
     scores, heats, enc = score_frames(frames, ref8, classes, out, f"frames/{name}/{v.label}",
-                                      f"heatmaps/{name}/{v.label}", heat_max, background, flip,
+                                      f"heatmaps/{name}/{v.label}", opts.heat_max, background, opts.flip,
                                       f"{name}: {v.label} scoring")
     row = {"object": name, "technique": v.technique, "knob": v.knob, "value": v.value, "label": v.label,
-           "faces": faces, "frames": len(cams), "expect_empty": obj.expect_empty,
-           "median_ms": round(statistics.median(samples), 3), "min_ms": round(min(samples), 3), **summarise(scores)}
+           "frames": len(cams), "expect_empty": obj.expect_empty, **cost, **summarise(scores)}
     return row, enc, heats
 
 
@@ -281,8 +289,18 @@ def _show(x, width: int, digits: int) -> str:
     return f"{'-':>{width}}" if x is None else f"{x:{width}.{digits}f}"
 
 
-def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, opts, device, log) -> list[dict]:
-    target = gl.Target(ctx, width, height)
+def time_line(row: dict) -> str:
+    """A row's time as the log shows it: GPU median, spread, wall time, and a flag when not steady or noisy."""
+    flags = [f for f, bad in (("not steady", row["steady"] is False), ("noisy", row["spread_warning"])) if bad]
+    px = row.get("per_pixel")
+    return (f"{row['median_ms']:9.3f} ms/frame GPU (±{row['spread_ms']:.3f}, wall {row['wall_ms']:.3f})"
+            + (f" [{', '.join(flags)}]" if flags else "")
+            + (f"  per px: {px['fragments']:.2f} frag {px['fetches']:.1f} fetch {px['steps']:.1f} step"
+               if px and px["fragments"] is not None else ""))
+
+
+def _render_all(harness, out, bundle, scene, only, opts, device, log) -> list[dict]:
+    width, height = harness.target.size
     rows = []
     for obj in scene.objects:
         entry = bundle.manifest["objects"][obj.name]
@@ -294,14 +312,12 @@ def _render_all(ctx, out, bundle, scene, width, height, repeats, warmup, only, o
         ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
         sheet = [("reference", ref8)]
         for v in chosen:
-            row, enc, heats = _measure(ctx, v, target, cams, ref8, ref_classes, repeats, warmup, out, obj,
-                                       opts.heat_max, scene.render.background, opts.flip)
+            row, enc, heats = _measure(harness, v, cams, ref8, ref_classes, out, obj, opts, scene.render.background)
             rows.append({**row, "device": device, "reference_cached": ref_info["cached"]})
             sheet += [(v.label, enc), (f"{v.label} error", heats)]
-            log(f"{obj.name}: {v.label:>14}  {row['median_ms']:9.3f} ms/frame  mean dLuv {_show(row['mean_dluv'], 7, 3)}"
+            log(f"{obj.name}: {v.label:>14}  {time_line(row)}  mean dLuv {_show(row['mean_dluv'], 7, 3)}"
                 f"  p95 {_show(row['p95_dluv'], 7, 3)}  IoU {_show(row['iou'], 6, 4)}  FLIP {_show(row['flip_mean'], 6, 4)}"
                 + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")
                 + (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
         images.overview(sheet, out.file(f"overview/{obj.name}.png"))
-    target.release()
     return rows

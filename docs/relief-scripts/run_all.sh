@@ -11,7 +11,6 @@ for s in torus-bricks vase-bricks torus-gravel vase-gravel; do
     > out/m/timing2-$s.log
   .venv/bin/python docs/relief-scripts/error_split.py out/m/r-$s $s
 done
-.venv/bin/python docs/relief-scripts/count_fetches.py out/m/{torus,vase}-{bricks,gravel}.bundle
 .venv/bin/python docs/relief-scripts/ablations.py torus-bricks vase-bricks torus-gravel vase-gravel
 .venv/bin/python docs/relief-scripts/bench_formats.py bricks
 .venv/bin/python docs/relief-scripts/make_figures.py

@@ -1,7 +1,8 @@
 // The asset's albedo map (vdmbake/texture.py, whose `sample` is this lookup's numpy twin): texels
 // decoded to linear (gl.albedo_texture), filtered bilinearly, wrapping, without mipmaps (as the reference).
+#include "cost_count.glsl"
 uniform sampler2D u_albedo_map;
 
 vec3 albedo_map(vec2 uv) {
-    return texture(u_albedo_map, uv).rgb;
+    return FETCH(texture(u_albedo_map, uv)).rgb;
 }

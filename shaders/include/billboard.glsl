@@ -14,25 +14,21 @@
 // lets the ray go on). THESIS tests the sample's own texel; IMPROVED accepts a hit if any texel of its
 // bilinear footprint is covered, so neighbouring billboards overlap by up to a texel instead of leaving
 // cracks between them.
+// Counts (cost_count.glsl): march() is one search; a step is one of its samples (THESIS: up to the first
+// past the box exit; IMPROVED: each of the n, and each bisection).
+#include "cost_count.glsl"
 uniform sampler2DArray u_maps;
 uniform sampler2DArray u_alpha;
 uniform float u_hit_range;   // THESIS: e (0.01 in sec. 4.1, 0.02 to fill holes, sec. 3.4)
 uniform float u_steps_per_texel;   // IMPROVED: steps per texel crossed (1 by default)
 
 const int MIN_STEPS = 4;
-#if defined(COUNT)
-int g_steps = 0;      // instrumented (COUNT): march steps and texture fetches of this fragment
-int g_fetches = 0;
-#endif
 const int REFINE = 5;        // bisection steps before the secant step
 
 // u_maps has a one-texel border around the R x R map (extrapolated on upload).
 vec4 map(vec2 st, int layer) {
-#if defined(COUNT)
-    g_fetches++;
-#endif
     float R = float(textureSize(u_alpha, 0).x);
-    return texture(u_maps, vec3((st * R + 1.0) / (R + 2.0), float(layer)));
+    return FETCH(texture(u_maps, vec3((st * R + 1.0) / (R + 2.0), float(layer))));
 }
 
 float map_depth(vec2 st, int layer) {
@@ -41,35 +37,28 @@ float map_depth(vec2 st, int layer) {
 
 #if defined(THESIS)
 bool covered(vec2 st, int layer) {   // the texel's own coverage
-#if defined(COUNT)
-    g_fetches++;
-#endif
     ivec2 size = textureSize(u_alpha, 0).xy;
     ivec2 texel = clamp(ivec2(floor(st * vec2(size))), ivec2(0), size - 1);
-    return texelFetch(u_alpha, ivec3(texel, layer), 0).r > 0.5;
+    return FETCH(texelFetch(u_alpha, ivec3(texel, layer), 0)).r > 0.5;
 }
 #else
 bool covered(vec2 st, int layer) {   // any texel of the bilinear footprint covered
-#if defined(COUNT)
-    g_fetches++;
-#endif
-    return any(greaterThan(textureGather(u_alpha, vec3(st, float(layer)), 0), vec4(0.5)));
+    return any(greaterThan(FETCH(textureGather(u_alpha, vec3(st, float(layer)), 0)), vec4(0.5)));
 }
 #endif
 
 // The ray s(t) = o + d t (texture space) inside the box for t in [t0, t1]: the hit's t, or -1.
 #if defined(THESIS)
 float march(vec3 o, vec3 d, float t0, float t1, int layer) {
+    SEARCH();
     float len = length(d);
     vec3 dir = d / len;
     float reach = (t1 - t0) * len;           // the ray's length inside the box, texture units
-    const float STEP = sqrt(2.0) / 100.0;
+    const float STRIDE = sqrt(2.0) / 100.0;
     vec3 s0 = o + d * t0;
     for (int k = 0; k < 100; k++) {
-        float x = float(k) * STEP;
-#if defined(COUNT)
-        g_steps++;
-#endif
+        float x = float(k) * STRIDE;
+        STEP();
         if (x > reach) break;                // past the box: transparent (sec. 3.3 step 2.2)
         vec3 s = s0 + dir * x;
         if (abs(s.z - map_depth(s.xy, layer)) < u_hit_range && covered(s.xy, layer)) return t0 + x / len;
@@ -78,6 +67,7 @@ float march(vec3 o, vec3 d, float t0, float t1, int layer) {
 }
 #else
 float march(vec3 o, vec3 d, float t0, float t1, int layer) {
+    SEARCH();
     float R = float(textureSize(u_alpha, 0).x);
     vec2 across = d.xy * (t1 - t0) * R;      // texels crossed by the ray's projection onto the map
     int n = int(clamp(ceil(length(across) * u_steps_per_texel), float(MIN_STEPS), 2.0 * R));
@@ -87,14 +77,13 @@ float march(vec3 o, vec3 d, float t0, float t1, int layer) {
     float fp = s.z - map_depth(s.xy, layer);  // < 0: the ray is in front of the map
     for (int k = 1; k <= n; k++) {
         float tc = t0 + dt * float(k);
-#if defined(COUNT)
-        g_steps++;
-#endif
+        STEP();
         s = o + d * tc;
         float fc = s.z - map_depth(s.xy, layer);
         if (fp < 0.0 && fc >= 0.0) {
             float lo = tp, hi = tc, flo = fp, fhi = fc;
             for (int i = 0; i < REFINE; i++) {
+                STEP();
                 float mid = 0.5 * (lo + hi);
                 vec3 m = o + d * mid;
                 float fm = m.z - map_depth(m.xy, layer);

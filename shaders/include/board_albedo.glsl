@@ -3,10 +3,11 @@
 // billboard of the asset's linear albedo, with the one-texel border of the normal and depth maps (the
 // bake, vdmbake/billboard_maps.py albedo_texels, fills it and the empty texels near covered ones with
 // their covered neighbours' colour), read with linear filtering. Only for assets with colours (ALBEDO_MAPS).
+#include "cost_count.glsl"
 uniform sampler2DArray u_albedo_maps;
 
 // The albedo at s.xy in [0, 1]^2 of billboard `layer`'s R x R map.
 vec3 board_albedo(vec2 st, int layer) {
     float R = float(textureSize(u_albedo_maps, 0).x - 2);
-    return texture(u_albedo_maps, vec3((st * R + 1.0) / (R + 2.0), float(layer))).rgb;
+    return FETCH(texture(u_albedo_maps, vec3((st * R + 1.0) / (R + 2.0), float(layer)))).rgb;
 }

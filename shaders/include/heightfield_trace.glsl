@@ -20,8 +20,8 @@
 //       surface seen from behind, or from inside a closed model).
 //   After any call: hf_exhausted is true if HF_MAX_ITER cell visits ran out (the result is then -1.0);
 //   hf_t_reached is the t the traversal had reached (the hit, t1, or where the cap stopped it; the ray is
-//   above the surface there). With COUNT defined, hf_visits counts cell visits over all calls; each visit
-//   is one texelFetch of the pyramid, so it is also the tracer's fetch count.
+//   above the surface there). Counts (cost_count.glsl): every call is a search, every cell visit a step and
+//   one fetch of the pyramid.
 //
 // COORDINATES. (x, y) are sample coordinates: sample (i, j) (row i, column j) of the H x W depth field
 // lies at (j, i), i.e. x = s W - 0.5, y = t H - 0.5 for GL texture coordinates (s, t) of the field. z is
@@ -49,7 +49,7 @@
 //
 // OPTIONS (#define before the include): HF_CLAMP; HF_MAX_ITER (cell visits per call, a constant or a
 // uniform; default 256); HF_START_LEVEL (the level the descent starts from, capped at the top; default the
-// top: the whole field); COUNT.
+// top: the whole field).
 //
 // THE TRAVERSAL (one pyramid fetch per loop iteration). At the current cell of level L, the ray's segment
 // [t, te] inside it (te: where it leaves through a cell side, or t1) is tested against the cell's depth
@@ -69,6 +69,7 @@
 // solved in cell-local coordinates from the cell's entry point. A hit that rounding pushes just past a
 // cell's exit is caught at the next cell's entry (f >= 0 there and the ray not inside).
 
+#include "cost_count.glsl"
 #ifndef HF_MAX_ITER
 #define HF_MAX_ITER 256
 #endif
@@ -85,9 +86,6 @@ uniform int u_hf_top;
 bool hf_exhausted = false;
 bool hf_from_below = false;
 float hf_t_reached = 0.0;
-#if defined(COUNT)
-int hf_visits = 0;
-#endif
 
 const float HF_HUGE = 1e30;
 
@@ -113,6 +111,7 @@ float hf_first_root(float A, float B, float C) {
 }
 
 float hf_run(vec3 o, vec3 d, float k, float t0, float t1, bool reentry, bool two_sided) {
+    SEARCH();
     bool inside = reentry || two_sided;    // below the surface, or on an unknown side
     bool outside = true;                   // above, or unknown: false only when known below (two-sided)
     hf_from_below = false;
@@ -148,15 +147,13 @@ float hf_run(vec3 o, vec3 d, float k, float t0, float t1, bool reentry, bool two
     idx = clamp(idx, ivec2(0), ((n - 1) >> level));
     float tv0 = k != 0.0 ? -0.5 * d.z / k : t0;    // where a bent ray's depth turns (its parabola's vertex)
     for (int it = 0; it < HF_MAX_ITER; ++it) {
-#if defined(COUNT)
-        hf_visits++;
-#endif
+        STEP();
         int size = 1 << level;
         ivec2 lo_edge = idx * size;
         ivec2 bound = hf_select(lo_edge, min(lo_edge + size, n), not(back));
         vec2 ex = mix(vec2(HF_HUGE), (vec2(tile * n + bound) - o.xy) * inv, moving);
         float te = min(min(ex.x, ex.y), t1);
-        vec4 c = HF_FETCH(idx, level);
+        vec4 c = FETCH(HF_FETCH(idx, level));
         float zmin = min(min(c.x, c.y), min(c.z, c.w));
         // a cell holding empty cells (pyramid.py level_texels: (min, HUGE, min, max) above level 0, HUGE
         // corners at level 0) has holes; w keeps the max of its non-empty cells above level 0

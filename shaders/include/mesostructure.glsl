@@ -2,7 +2,7 @@
 #include "camera.glsl"
 // A tile spans 1 x 1 texture units; the mesostructure lies u_depth (texture units) below the
 // reference surface. Near the pixel, texture space maps to world space by M = [J | s_n N].
-#include "fetch_count.glsl"
+#include "cost_count.glsl"
 uniform vec2 u_tiling;          // tiles over the UV square
 uniform float u_depth;          // mesostructure depth, texture units
 uniform sampler2D u_height;     // heights in [0, 1] (1 = reference surface), repeat, mip-mapped
@@ -72,7 +72,7 @@ vec3 world_normal(Frame F, vec3 n) {
 // shades the displaced mesh with these normals at its vertices, unfiltered (mip-mapped normals blur
 // the shading against it: torus, bricks, 512^2, pom@16 1.353 -> 1.042 dLuv).
 vec3 mesostructure_normal(Frame F, vec2 T) {
-    return world_normal(F, FETCH(3, textureLod(u_normals, T, 0.0)).xyz);
+    return world_normal(F, FETCH(textureLod(u_normals, T, 0.0)).xyz);
 }
 
 // The albedo at tile coordinate T: the mesostructure's colour tile, which repeats with the height field
@@ -81,7 +81,7 @@ vec3 mesostructure_normal(Frame F, vec2 T) {
 #ifdef TILE_ALBEDO
 #include "albedo.glsl"
 vec3 tile_albedo(vec2 T) {
-    return FETCH(3, albedo_map(T));
+    return albedo_map(T);
 }
 #else
 uniform vec3 u_albedo;
@@ -92,10 +92,10 @@ vec3 tile_albedo(vec2 T) {
 
 // Depth below the reference surface at tile coordinate T, texture units.
 float depth_at(vec2 T, vec2 dx, vec2 dy) {
-    return u_depth * (1.0 - FETCH(2, textureGrad(u_height, T, dx, dy)).r);
+    return u_depth * (1.0 - FETCH(textureGrad(u_height, T, dx, dy)).r);
 }
 
 // The same at the height field's finest level: the surface the reference traces.
 float depth_at_lod0(vec2 T) {
-    return u_depth * (1.0 - FETCH(2, textureLod(u_height, T, 0.0)).r);
+    return u_depth * (1.0 - FETCH(textureLod(u_height, T, 0.0)).r);
 }

@@ -9,8 +9,9 @@
 // HEMI: the views cover the upper hemisphere of u_basis (hemi-octahedral map), else the full sphere.
 // ALBEDO_ATLAS: u_albedo_atlas, laid out as u_atlas, holds the surface's linear albedo (an asset with its own
 // colours; the covered neighbours' mean around silhouettes), read at each view's hit and blended as the normal.
-// COUNT (fetch_count.glsl): atlas lookups are counted as kind 2 (depth field).
-#include "fetch_count.glsl"
+// Counts (cost_count.glsl): each view searched is a search; MARCH's steps are its samples and bisections,
+// VIRTUAL's one parallax step is one.
+#include "cost_count.glsl"
 uniform sampler2D u_atlas;
 #if defined(ALBEDO_ATLAS)
 uniform sampler2D u_albedo_atlas;   // RGB16F, linear filtering
@@ -101,7 +102,7 @@ void view_frame(ivec2 view, out vec3 e, out vec3 u, out vec3 v) {
 
 // One texel lookup in view (i, j) at s.xy in [0, 1]^2 of its square.
 vec4 atlas(vec2 st, ivec2 view) {
-    return FETCH(2, texture(u_atlas, (vec2(view) + st) / float(u_views)));
+    return FETCH(texture(u_atlas, (vec2(view) + st) / float(u_views)));
 }
 
 // The world normal of a lookup: the view-frame code decoded, then taken to world.
@@ -143,6 +144,7 @@ const int MISS = 0, HIT = 1, UNKNOWN = 2;
 // u_steps_per_texel; the nearest views look almost along the ray, so the projection is short), then for
 // a HIT bisection and a secant step.
 float view_hit(vec3 o, vec3 d, float t0, float t1, ivec2 view, out int kind, out vec4 texel) {
+    SEARCH();
     float R = float(textureSize(u_atlas, 0).x) / float(u_views);
     float across = length(d.xy) * (t1 - t0) * R;
     int n = int(clamp(ceil(across * u_steps_per_texel), float(MIN_STEPS), 4.0 * R));
@@ -155,6 +157,7 @@ float view_hit(vec3 o, vec3 d, float t0, float t1, ivec2 view, out int kind, out
     float tp = t0, tc = t0, fc = fp;
     float step_xy = max(length(d.xy) * dt, 1e-6);
     for (int k = 1; k <= n && kind == MISS; k++) {
+        STEP();
         tc = t0 + dt * float(k);
         s = o + d * tc;
         texel = atlas(s.xy, view);
@@ -173,6 +176,7 @@ float view_hit(vec3 o, vec3 d, float t0, float t1, ivec2 view, out int kind, out
     if (kind == UNKNOWN) return tc;
     float lo = tp, hi = tc, flo = fp, fhi = fc;
     for (int i = 0; i < REFINE; i++) {
+        STEP();
         float mid = 0.5 * (lo + hi);
         vec3 m = o + d * mid;
         float fm = m.z - atlas(m.xy, view).b;
@@ -188,6 +192,8 @@ float view_hit(vec3 o, vec3 d, float t0, float t1, ivec2 view, out int kind, out
 // the depth read there is taken for the surface's, the ray moves to that depth and is read again.
 // A HIT where that lookup is covered (no UNKNOWN: one step cannot tell).
 float view_hit(vec3 o, vec3 d, float t0, float t1, ivec2 view, out int kind, out vec4 texel) {
+    SEARCH();
+    STEP();
     float t = clamp((0.5 - o.z) / d.z, t0, t1);   // d.z > 0: the view looks along the ray, within a cell
     texel = atlas((o + d * t).xy, view);
     t = clamp((texel.b - o.z) / d.z, t0, t1);
@@ -227,7 +233,7 @@ bool impostor_hit(vec3 p0, vec3 seg, float radius, out float t, out vec3 n, out 
         if (kind != UNKNOWN) seen += w[k];
         if (kind == HIT) { hit += w[k]; tsum += w[k] * th; nhit += nk; }
 #if defined(ALBEDO_ATLAS)
-        if (kind == HIT) chit += w[k] * FETCH(3, texture(u_albedo_atlas, (vec2(view[k]) + (o + d * th).xy) / float(u_views)).rgb);
+        if (kind == HIT) chit += w[k] * FETCH(texture(u_albedo_atlas, (vec2(view[k]) + (o + d * th).xy) / float(u_views))).rgb;
 #endif
     }
     if (seen == 0.0 || hit < 0.5 * seen) return false;

@@ -113,14 +113,12 @@ def infinite_far(projection: np.ndarray) -> np.ndarray:
 
 class Billboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, method: str = "improved",
-                 hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0,
-                 count: bool = False):
+                 hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0):
         """boards: vdmbake.parts.Billboard (origin, axes, size, alpha, depth, normal maps); bordered: their
         vdmbake.parts.BorderedMaps; coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of
         the model, which fits the shadow map (default: the box of the covered texels' points, and of the
         coarse mesh); steps_per_texel: the improved march's step density (its cost and quality knob; 1: a
-        step per texel); count: the instrumented frame pass (COUNT: per pixel the march steps and texture
-        fetches of all its box fragments, summed, instead of a colour; the profile's)."""
+        step per texel)."""
         if method not in METHODS:
             raise InputError(f"billboards: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
         if not hit_range > 0:
@@ -151,7 +149,6 @@ class Billboards(Passes):
         self.albedo_maps = self.coarse = None
 
         defines = ("THESIS",) if method == "thesis" else ("IMPROVED",)
-        self.count_pass = count
         self.count = len(boards)
         self.shadow_squeeze = np.eye(4)   # the light's raster matrix is this times the shadow map's
         if boards:
@@ -177,7 +174,7 @@ class Billboards(Passes):
             ibuf = ctx.buffer(np.ascontiguousarray(inst, np.float32).tobytes())
             self.albedo_maps = albedo_maps(ctx, bordered)
             self.objects += [self.maps, self.alpha, cube, ibuf, self.albedo_maps]
-            shaded = ("COUNT",) if count else ("ALBEDO_MAPS",) if self.albedo_maps is not None else ()
+            shaded = ("ALBEDO_MAPS",) if self.albedo_maps is not None else ()
             for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
                 prog = gl.program(ctx, "billboard.vert", "billboard.frag", defines + extra)
                 vao = gl.vertex_array(ctx, prog, [(cube, "3f", "in_corner"),
@@ -193,7 +190,7 @@ class Billboards(Passes):
         mesh's depth push (a scaling about the eye, or a shift away from the light: same pixels, farther)."""
         ctx = self.ctx
         for name, prog, vao, kind in self.draws:
-            if name != stage or (self.count_pass and stage == "frame" and kind == "mesh"):
+            if name != stage:
                 continue
             if stage == "frame":   # the material's albedo where neither the maps nor the coarse mesh have colour
                 gl.set_shading(prog, self.light, self.material, self.albedo_maps is None if kind == "boards"
@@ -209,7 +206,7 @@ class Billboards(Passes):
                 if stage == "frame":   # the frame's shadow lookup offset (billboard.frag)
                     march.update(u_board_texels=BOARD_TEXELS,
                                  u_tolerance=2 * self.hit_range if self.method == "thesis" else 0.0)
-                    if self.albedo_maps is not None and not self.count_pass:
+                    if self.albedo_maps is not None:
                         self.albedo_maps.use(ALBEDO_MAPS_UNIT)
                         march.update(u_albedo_maps=ALBEDO_MAPS_UNIT)
                 gl.set_uniforms(prog, u_maps=1, u_alpha=2, u_raster=raster, **march, u_view_proj=view_proj,
@@ -243,16 +240,8 @@ class Billboards(Passes):
 
         def frame():
             target.begin()
-            if self.count_pass:          # COUNT: every box fragment's counts summed, none hidden by depth
-                self.ctx.disable(moderngl.DEPTH_TEST)
-                self.ctx.enable(moderngl.BLEND)
-                self.ctx.blend_func = moderngl.ONE, moderngl.ONE
             self._draw("frame", camera.projection() @ to_anchor, infinite_far(camera.projection()) @ to_anchor,
                        target.size, push, u_eye=tuple(eye))
-            if self.count_pass:
-                self.ctx.disable(moderngl.BLEND)
-                self.ctx.blend_func = moderngl.DEFAULT_BLENDING
-                self.ctx.enable(moderngl.DEPTH_TEST)
         return [("shadow", shadow), ("frame", frame)]
 
     def release(self) -> None:

@@ -43,11 +43,11 @@ LEVELS = 16           # pyramid levels the shader's origin table holds (maps up 
 
 class HierBillboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, coarse=None, bounds=None,
-                 shadow_mesh=None, count: bool = False):
+                 shadow_mesh=None):
         """boards: vdmbake.parts.Billboard (their boxes: origin, axes, size); bordered: their
         vdmbake.parts.BorderedMaps with pyramids; coarse: an optional TriMesh that fills holes (sec. 3.4);
         shadow_mesh: the TriMesh that casts the shadows (None: the billboards do); bounds: (centre, radius)
-        of the model; count: the instrumented pass 4 (COUNT: cell visits per pixel instead of a colour)."""
+        of the model."""
         boards, bordered = list(boards), list(bordered)
         if not boards and coarse is None:
             raise InputError("billboards: nothing to draw (no billboard and no coarse mesh).")
@@ -58,7 +58,7 @@ class HierBillboards(Passes):
         if boards and bordered[0].pyramid.top >= LEVELS:
             raise InputError(f"billboards: maps of {bordered[0].maps.shape[0] - 2} texels have more pyramid levels "
                              f"than the {LEVELS} the renderer holds.")
-        self.ctx, self.light, self.material, self.counting = ctx, light, material, count
+        self.ctx, self.light, self.material = ctx, light, material
         self.faces = len(coarse.faces) if coarse is not None else 0
         self.anchor, self.radius = np.asarray(bounds[0], np.float64), float(bounds[1])
         self.behind = COARSE_BEHIND * self.radius
@@ -121,9 +121,8 @@ class HierBillboards(Passes):
         self.objects += [occ_vbo, self.pyramids, self.maps, self.albedo_maps]
         self.hf = {"u_hf_cells": (res + 1, res + 1), "u_hf_top": bordered[0].pyramid.top}
         defines = (f"BOARDS {len(boards)}", f"MAX_ITER {4 * (res + 1)}", f"HF_START_LEVEL {OCCUPANCY_LEVEL}")
-        stages = {"billboards": defines + ("OCCUPANCY",) + (("COUNT",) if count else ())
-                  + (("COARSE_DEPTH",) if coarse is not None else ())
-                  + (("ALBEDO_MAPS",) if self.albedo_maps is not None and not count else ())}
+        stages = {"billboards": defines + ("OCCUPANCY",) + (("COARSE_DEPTH",) if coarse is not None else ())
+                  + (("ALBEDO_MAPS",) if self.albedo_maps is not None else ())}
         if shadow_mesh is None:
             stages["shadow billboards"] = defines + ("SHADOW",)
         for stage, d in stages.items():
@@ -151,7 +150,7 @@ class HierBillboards(Passes):
             out.append(("billboards", lambda: self._frame(view_proj, eye, target, state["occupancy"])))
         else:
             out.append(("clear", target.begin))
-        if "coarse" in self.draws and not self.counting:
+        if "coarse" in self.draws:
             out.append(("coarse", lambda: self._coarse(view_proj @ push, eye)))
         return out
 
@@ -229,7 +228,7 @@ class HierBillboards(Passes):
             self.depth.use(3)
             gl.set_uniforms(prog, u_coarse_depth=3)
         gl.set_shading(prog, self.light, self.material, self.albedo_maps is None)
-        if self.albedo_maps is not None and not self.counting:
+        if self.albedo_maps is not None:
             self.albedo_maps.use(ALBEDO_MAPS_UNIT)
             gl.set_uniforms(prog, u_albedo_maps=ALBEDO_MAPS_UNIT)
         self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)

@@ -89,7 +89,7 @@ class MesostructurePass(RasterPasses):
         stage, and the others compile those attributes away. cull: the stage discards the base surface
         seen from behind, so the frame pass lets the rasteriser cull those faces (back_faces: on llvmpipe
         a discard at the top of a stage still costs about the whole stage). defines: of the stage, e.g.
-        ("COUNT",) for an instrumented build. The albedo is the material's (u_albedo), or the tile albedo read
+        ("FLAT",) for relief's straight rays. The albedo is the material's (u_albedo), or the tile albedo read
         at the hit's tile coordinate where the mesostructure has one (TILE_ALBEDO, mesostructure.glsl)."""
         mesh = src.bundle.read(src.entry["mesh"], parts.MESH)
         tile = tile_albedo(src)

@@ -62,10 +62,10 @@ def atlas_texels(a) -> np.ndarray:
 
 class Octahedral(Passes):
     def __init__(self, ctx, atlas, light, material, shadow_size: int, method: str = "march",
-                 steps_per_texel: float = 1.0, dtype: str = "nu2", count: bool = False):
+                 steps_per_texel: float = 1.0, dtype: str = "nu2"):
         """atlas: vdmbake.parts.OctahedralAtlas; method: "march" or "virtual"; steps_per_texel: the
         march's step density; dtype: the atlas texture's channel type ("nu2": 16-bit unorm, "f4":
-        float32); count: the frame pass writes atlas lookups per pixel (instrumentation) instead of colour."""
+        float32)."""
         if method not in METHODS:
             raise InputError(f"octahedral: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
         if dtype not in TEXTURE_DTYPES:
@@ -93,13 +93,12 @@ class Octahedral(Passes):
             self.texture_bytes += side * side * 3 * 2
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, self.radius)
         self.corners = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
-        self.defines = (method.upper(),) + (("HEMI",) if atlas.hemi else ())
-        self.may_lack = ("u_steps_per_texel",) if method == "virtual" else ()   # the single parallax step
+        defines = (method.upper(),) + (("HEMI",) if atlas.hemi else ())
+        may_lack = ("u_steps_per_texel",) if method == "virtual" else ()   # the single parallax step
         self.draws = {}
-        shaded = ("COUNT",) if count else ()
-        shaded += ("ALBEDO_ATLAS",) if self.albedo is not None else ()
+        shaded = ("ALBEDO_ATLAS",) if self.albedo is not None else ()
         for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
-            prog = gl.program(ctx, "octahedral.vert", "octahedral.frag", self.defines + extra, self.may_lack)
+            prog = gl.program(ctx, "octahedral.vert", "octahedral.frag", defines + extra, may_lack)
             self.draws[stage] = (prog, gl.vertex_array(ctx, prog, [(self.corners, "2f", "in_corner")]))
 
     def _draw(self, stage: str, view_proj, viewport, **uniforms) -> None:

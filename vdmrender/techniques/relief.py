@@ -9,8 +9,7 @@ from .mesostructure import MesostructurePass
 
 
 class ReliefPass(MesostructurePass):
-    """defines: e.g. ("COUNT",) for the instrumented stage, which writes the tracer's cell visits per pixel
-    instead of a colour; ("FLAT",) for straight rays in the pixel's frame, as POM takes them."""
+    """defines: e.g. ("FLAT",) for straight rays in the pixel's frame, as POM takes them."""
 
     def __init__(self, ctx, src, iterations: int, defines: tuple = ()):
         p = src.bundle.read(src.part["pyramid"], parts.PYRAMID)

@@ -42,8 +42,7 @@ class VDMPass(MesostructurePass):
     (float weights, mip-mapped, k as a uniform), kept to measure the gain; as_float: the weights dequantised
     on upload (to measure what their storage costs)."""
 
-    def __init__(self, ctx, src, k, refine: int = 0, original: bool = False, as_float: bool = False,
-                 defines: tuple = ()):
+    def __init__(self, ctx, src, k, refine: int = 0, original: bool = False, as_float: bool = False):
         m, part = src.obj.mesostructure, src.part
         t = src.bundle.read(part["tables"], parts.VDM)
         n_c = len(part["curvatures"])
@@ -69,7 +68,7 @@ class VDMPass(MesostructurePass):
         axis = (cs[0], (n_c - 1) / (cs[-1] - cs[0]) if n_c > 1 else 0.0, n_c)
         g = W.shape[0]
         half_bin = 0.25 * np.pi / m.theta                                 # theta samples are bin centres
-        defines = (f"K {k}", f"REFINE {refine}", *(("ORIGINAL_LOOKUP",) if original else ()), *defines)
+        defines = (f"K {k}", f"REFINE {refine}", *(("ORIGINAL_LOOKUP",) if original else ()))
         # each variant of the stage sets only what it reads: k is compiled in (but in the original lookup),
         # the weights' scale and offset only for stored weights, the refinement window only when refining
         # the paper's shadow lookup only without refinement (the light's angle clamped to the sampled ones)

@@ -1,0 +1,185 @@
+"""GPU time by timer queries (vdmrender.timing): the warm-up's steady-state rule, the within-camera spread,
+the harness's clear kept out of every technique's time, and --baseline that knows noise: the same bundle
+twice passes, a doubled pass (the test-only knob VDM_TEST_DOUBLE_PASS) is caught."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from scenes import TINY_HEAD, bake_and_render
+from vdmrender import baseline, gl, timing
+from vdmrender.cli import main as render_main
+
+
+class Scripted:
+    """A stand-in FrameTimer whose frames take the scripted GPU times, in order."""
+
+    def __init__(self, times):
+        self.times, self.k = list(times), 0
+
+    def frame(self, renderer, camera, index=0):
+        t = self.times[min(self.k, len(self.times) - 1)]
+        self.k += 1
+        return timing.Sample(index, t, t, 0.0, {"frame": t})
+
+
+def test_warm_up_waits_for_clocks_to_settle():
+    """A GPU ramping up its clock (times falling, then flat): the warm-up ends only once two successive
+    windows agree, not after a fixed number of frames."""
+    ramp = [8.0, 6.0, 4.5, 3.5, 2.8, 2.3, 2.0, 1.9] + [1.8] * 20
+    t = Scripted(ramp)
+    warm = timing.warm_up(t, None, [0, 1], timing.Budget(warmup=1, warmup_s=0.0, tolerance=0.05))
+    # windows of 4 frames (2 rounds of 2 cameras): after 14 frames [2.0, 1.9, 1.8, 1.8] against [1.8] * 4
+    assert warm["steady"] is True and warm["warmup_frames"] == 14 and warm["windows_ms"] == [1.85, 1.8]
+
+
+def test_warm_up_gives_up_and_says_so():
+    t = Scripted([10.0, 1.0] * 50)    # never settles: successive windows' medians are 10 and 1
+    warm = timing.warm_up(t, None, [0], timing.Budget(warmup=1, warmup_s=0.0, warmup_max_s=0.0, tolerance=0.01))
+    assert warm["steady"] is False and warm["warmup_frames"] == 6 and warm["windows_ms"] == [10.0, 1.0]
+
+
+def test_no_warm_up_when_none_is_asked_for():
+    t = Scripted([1.0])
+    assert timing.warm_up(t, None, [0], timing.Budget(warmup=0, warmup_s=0.0))["warmup_frames"] == 0
+    assert t.k == 0
+
+
+def test_spread_is_within_a_camera_not_between_cameras():
+    """Two views of different cost (10 and 20 ms) each repeating within ±0.1 ms: the spread is the
+    repetition's (0.1 ms), not the views' difference (10 ms), though the quartiles span both."""
+    rng = np.random.default_rng(1)
+    samples = [timing.Sample(c, base + rng.uniform(-0.1, 0.1), 0.0, 0.0, {"frame": base})
+               for _ in range(20) for c, base in ((0, 10.0), (1, 20.0))]
+    s = timing.summarise(samples, {"warmup_s": 0.0, "warmup_frames": 0, "steady": None, "windows_ms": None}, 0.0)
+    assert s["spread_ms"] < 0.2 and s["q3_ms"] - s["q1_ms"] > 9.0
+    assert not s["spread_warning"] and s["samples"] == 40 and s["passes_ms"] == {"frame": 15.0}
+
+
+class Probe:
+    """A renderer of one pass that records what it finds in the target before it draws."""
+
+    def __init__(self, target):
+        self.target, self.seen, self.views = target, [], []
+
+    def passes(self, camera, view):
+        def run():
+            self.views.append(view)
+            view.begin()
+            self.seen.append(float(view.read()[..., 3].max()))
+            view.ctx.clear(1.0, 1.0, 1.0, 1.0)      # leave coverage behind for the next frame to find
+        return [("frame", run)]
+
+
+def test_the_harness_clears_outside_the_passes():
+    """Every frame starts from a cleared target, cleared by the harness before the first pass (a technique's
+    begin() on the view binds without clearing), and the clear is timed apart."""
+    ctx = gl.create_context()
+    target = gl.Target(ctx, 16, 16)
+    try:
+        timer, probe = timing.FrameTimer(ctx, target), Probe(target)
+        for k in range(3):
+            s = timer.frame(probe, None, k)
+            assert set(s.passes) == {"frame"} and s.gpu_ms >= 0 and s.wall_ms >= s.submit_ms >= 0
+        assert probe.seen == [0.0, 0.0, 0.0]
+        assert all(isinstance(v, gl.Kept) for v in probe.views)
+        assert timer.clear_ms() >= 0
+    finally:
+        target.release()
+        ctx.release()
+
+
+def test_double_pass_knob_runs_the_pass_twice(monkeypatch):
+    ctx = gl.create_context()
+    target = gl.Target(ctx, 16, 16)
+    monkeypatch.setenv(timing.DOUBLE_PASS, "frame")
+    try:
+        probe = Probe(target)
+        timing.FrameTimer(ctx, target).frame(probe, None)
+        assert len(probe.views) == 2
+    finally:
+        target.release()
+        ctx.release()
+
+
+# ------------------------------------------------------------------------------ baseline under noise
+
+def _row(label, ms, spread, **extra):
+    return {"object": "o", "label": label, "mean_dluv": 0.1, "p95_dluv": 0.2, "flip_mean": 0.01,
+            "median_ms": ms, "spread_ms": spread, **extra}
+
+
+def _report(device="gpu A", **rows):
+    return {"device": device, "resolution": [8, 8], "time": "gpu", "rows": [_row(k, *v) for k, v in rows.items()]}
+
+
+def test_slowdown_fails_only_beyond_noise_and_threshold():
+    old = _report(a=(1.0, 0.05), b=(1.0, 0.5), c=(1.0, 0.05))
+    new = _report(a=(1.5, 0.05), b=(1.5, 0.5), c=(1.1, 0.01))
+    by = {c["label"]: c for c in baseline.compare(old, new, None, 1.25)["rows"]}
+    assert by["a"]["exceeds"] == ["time"]       # 50% slower, noise 0.1 ms
+    assert by["b"]["exceeds"] == []             # 50% slower, but within the runs' spread (1.0 ms)
+    assert by["c"]["exceeds"] == []             # beyond the noise, under the threshold
+    assert by["b"]["noise_ms"] == 1.0
+
+
+def test_counters_compared_exactly():
+    old = _report(a=(1.0, 0.1))
+    new = _report(a=(1.0, 0.1))
+    old["rows"][0]["counters"] = {"fragments": 100, "fetches": 300}
+    new["rows"][0]["counters"] = {"fragments": 100, "fetches": 301}
+    b = baseline.compare(old, new, None, None)
+    assert b["rows"][0]["counters_changed"] == {"fetches": [300, 301]}
+    assert any("fetches 300 -> 301" in n for n in b["notes"])
+    assert "fetches=300->301" in baseline.to_csv(b)
+
+
+def test_times_across_devices_are_refused_unless_asked():
+    old, new = _report("gpu A", a=(1.0, 0.0)), _report("gpu B", a=(3.0, 0.0))
+    b = baseline.compare(old, new, None, 1.25)
+    assert b["rows"][0]["time_ratio"] is None and b["failed"] == [] and any("--compare-devices" in n for n in b["notes"])
+    assert baseline.compare(old, new, None, 1.25, across_devices=True)["failed"] == ["o: a"]
+    wall = {**old, "device": "gpu B"}
+    del wall["time"]
+    assert "wall times" in baseline.times_comparable(wall, new)
+
+
+SCENE = TINY_HEAD.replace("resolution = [32, 32]", "resolution = [96, 96]").replace("repeats = 1", "repeats = 15") + """
+[[objects]]
+name = "plane"
+primitive = "plane"
+[objects.mesostructure]
+height = "bricks"
+depth = 0.08
+[objects.techniques]
+pom = { steps = [64] }
+"""
+
+
+def test_baseline_passes_under_noise_and_catches_a_doubled_pass(tmp_path, monkeypatch):
+    """Two runs of the same bundle: exit 0; a third with its frame pass run twice: exit 1 on time."""
+    r, out = bake_and_render(tmp_path, SCENE, "--no-flip")
+    assert r.exit_code == 0, r.output
+    args = [str(tmp_path / "b.bundle"), "--no-flip", "--baseline", str(out / "report.json"), "--max-slowdown", "1.4"]
+    r = CliRunner().invoke(render_main, [*args, "-o", str(tmp_path / "same")])
+    assert r.exit_code == 0, r.output
+    monkeypatch.setenv(timing.DOUBLE_PASS, "frame")
+    r = CliRunner().invoke(render_main, [*args, "-o", str(tmp_path / "doubled")])
+    block = json.loads((tmp_path / "doubled" / "report.json").read_text())["baseline"]
+    assert r.exit_code == 1, (r.output, block)
+    assert block["rows"][0]["exceeds"] == ["time"] and block["rows"][0]["time_ratio"] > 1.4
+
+
+def test_max_slowdown_refuses_another_device(tmp_path):
+    r, out = bake_and_render(tmp_path, SCENE.replace("repeats = 15", "repeats = 1"), "--no-flip")
+    report = json.loads((out / "report.json").read_text())
+    report["device"] = "another GPU"
+    (tmp_path / "other.json").write_text(json.dumps(report))
+    args = [str(tmp_path / "b.bundle"), "--no-flip", "--baseline", str(tmp_path / "other.json"), "-o", str(tmp_path / "n")]
+    r = CliRunner().invoke(render_main, [*args, "--max-slowdown", "1.5"])
+    assert r.exit_code == 2 and "--compare-devices" in r.stderr
+    r = CliRunner().invoke(render_main, [*args, "--max-slowdown", "1000", "--compare-devices"])
+    assert r.exit_code == 0, r.output

@@ -1,0 +1,162 @@
+"""Time per frame that holds on any device: GL timer queries per pass, after a warm-up that reaches a
+steady state, sampled until both a count and a time budget are met.
+
+On a real GPU, wall time around ctx.finish() adds driver latency, and clocks idle low until about a
+second of sustained work (docs/timing.md). So a frame's time is the sum of its passes' GL_TIME_ELAPSED
+queries; wall time (first call to finish) and CPU submit time (the renderer's calls returning) are kept
+beside it. The harness clears the target before every frame, outside every query, and times that clear
+once apart: it is the harness's cost, not the technique's.
+"""
+from __future__ import annotations
+
+import math
+import os
+import statistics
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import progress
+
+# Test-only knob: VDM_TEST_DOUBLE_PASS=NAME runs every pass of that name twice (a regression a --baseline
+# comparison must catch: tests/test_timing.py).
+DOUBLE_PASS = "VDM_TEST_DOUBLE_PASS"
+SPREAD_WARNING = 0.10   # a row whose within-camera spread exceeds this share of its median is flagged
+
+
+@dataclass(frozen=True)
+class Budget:
+    """How long to warm up and how much to sample. The defaults keep llvmpipe runs short; on a GPU, ask
+    for seconds (--warmup-s, --sample-s): its clocks need about one second of sustained work."""
+    warmup: int = 1             # untimed renders per camera, at least
+    warmup_s: float = 0.1       # warm-up time, at least
+    warmup_max_s: float = 2.0   # then stop waiting for agreement (the row says steady: false)
+    tolerance: float = 0.05     # successive warm-up windows' median GPU times agree within this ratio
+    repeats: int = 5            # timed renders per camera, at least
+    sample_s: float = 0.0       # sampling time, at least
+
+
+@dataclass
+class Sample:
+    camera: int
+    gpu_ms: float               # sum of the passes' timer queries
+    wall_ms: float              # first call to ctx.finish() returning
+    submit_ms: float            # the renderer's calls returning (CPU time to issue the frame)
+    passes: dict                # pass name -> GPU ms (a pass run twice sums)
+
+
+class FrameTimer:
+    """Times renderers' frames (vdmrender.techniques: `passes(camera, target)` -> [(name, run)]): each pass
+    inside its own timer query, into the target's kept view after the harness's clear. One per run: its
+    queries are reused (moderngl frees them with the context)."""
+
+    def __init__(self, ctx, target):
+        self.ctx, self.target, self.view = ctx, target, target.kept()
+        self.queries = []
+        self.double = os.environ.get(DOUBLE_PASS, "")
+
+    def _query(self, k: int):
+        while len(self.queries) <= k:
+            self.queries.append(self.ctx.query(time=True))
+        return self.queries[k]
+
+    def frame(self, renderer, camera, index: int = 0) -> Sample:
+        self.target.clear()
+        self.ctx.finish()
+        timed = []
+        t0 = time.perf_counter()
+        for name, run in renderer.passes(camera, self.view):
+            for _ in range(2 if name == self.double else 1):
+                q = self._query(len(timed))
+                with q:
+                    run()
+                timed.append((name, q))
+        t1 = time.perf_counter()
+        self.ctx.finish()
+        t2 = time.perf_counter()
+        passes = {}
+        for name, q in timed:
+            passes[name] = passes.get(name, 0.0) + q.elapsed * 1e-6
+        return Sample(index, sum(passes.values()), (t2 - t0) * 1e3, (t1 - t0) * 1e3, passes)
+
+    def clear_ms(self, count: int = 5) -> float:
+        """The harness's own clear of the target, timed apart (median GPU ms of `count`)."""
+        q, out = self._query(0), []
+        for _ in range(count):
+            self.ctx.finish()
+            with q:
+                self.target.clear()
+            out.append(q.elapsed * 1e-6)
+        return statistics.median(out)
+
+
+
+def _window(cameras: int) -> int:
+    """Frames per warm-up window: whole rounds over the cameras, at least 3 frames."""
+    return cameras * math.ceil(3 / cameras)
+
+
+def warm_up(timer: FrameTimer, renderer, cams, budget: Budget) -> dict:
+    """Render round after round over the cameras until at least `warmup` rounds and `warmup_s` have passed
+    and the median GPU time of the last window agrees with the window before within `tolerance`; stop
+    waiting at `warmup_max_s` (steady: false). Nothing when no warm-up is asked for."""
+    if budget.warmup == 0 and budget.warmup_s == 0:
+        return {"warmup_s": 0.0, "warmup_frames": 0, "steady": None, "windows_ms": None}
+    n, w = len(cams), _window(len(cams))
+    gpu, t0 = [], time.perf_counter()
+    while True:
+        for k, cam in enumerate(cams):
+            gpu.append(timer.frame(renderer, cam, k).gpu_ms)
+        elapsed = time.perf_counter() - t0
+        if len(gpu) < max(budget.warmup * n, 2 * w) or elapsed < budget.warmup_s:
+            continue
+        a, b = statistics.median(gpu[-2 * w:-w]), statistics.median(gpu[-w:])
+        steady = abs(b - a) <= budget.tolerance * max(a, b)
+        if steady or elapsed >= budget.warmup_max_s:
+            return {"warmup_s": round(elapsed, 3), "warmup_frames": len(gpu), "steady": steady,
+                    "windows_ms": [round(a, 4), round(b, 4)]}
+
+
+def sample(timer: FrameTimer, renderer, cams, budget: Budget, desc: str) -> list[Sample]:
+    """Rounds over the cameras until at least `repeats` rounds and `sample_s` have passed."""
+    out, t0 = [], time.perf_counter()
+    for _ in progress.bar(range(budget.repeats), desc, unit="round"):
+        out += [timer.frame(renderer, cam, k) for k, cam in enumerate(cams)]
+    while time.perf_counter() - t0 < budget.sample_s:
+        out += [timer.frame(renderer, cam, k) for k, cam in enumerate(cams)]
+    return out
+
+
+def summarise(samples: list[Sample], warm: dict, sample_s: float) -> dict:
+    """A row's timing: the GPU median and quartiles over every sample, each camera's median, the within-camera
+    spread (the median over cameras of each camera's interquartile range: what repeating a frame varies by;
+    the cameras' differences are the scene, not noise), wall and submit medians, per-pass medians."""
+    gpu = np.array([s.gpu_ms for s in samples])
+    q1, med, q3 = np.percentile(gpu, [25, 50, 75])
+    cams = sorted({s.camera for s in samples})
+    per = [[s.gpu_ms for s in samples if s.camera == c] for c in cams]
+    spread = statistics.median(float(np.subtract(*np.percentile(p, [75, 25]))) for p in per)
+    names = list(dict.fromkeys(n for s in samples for n in s.passes))
+    return {"median_ms": round(float(med), 4), "min_ms": round(float(gpu.min()), 4),
+            "q1_ms": round(float(q1), 4), "q3_ms": round(float(q3), 4), "spread_ms": round(spread, 4),
+            "camera_ms": [round(statistics.median(p), 4) for p in per],
+            "spread_warning": bool(med > 0 and spread > SPREAD_WARNING * med),
+            "wall_ms": round(statistics.median(s.wall_ms for s in samples), 4),
+            "submit_ms": round(statistics.median(s.submit_ms for s in samples), 4),
+            "samples": len(samples), "sample_s": round(sample_s, 3), **warm,
+            "passes_ms": {n: round(statistics.median(s.passes.get(n, 0.0) for s in samples), 4) for n in names}}
+
+
+def time_variant(timer: FrameTimer, renderer, cams, budget: Budget, desc: str = "render") -> tuple[dict, list]:
+    """One renderer: warm up, sample, and read back each camera's frame (rendered once more, untimed).
+    Returns the timing summary (summarise) and the frames (linear RGBA float32)."""
+    warm = warm_up(timer, renderer, cams, budget)
+    t0 = time.perf_counter()
+    samples = sample(timer, renderer, cams, budget, desc)
+    stats = summarise(samples, warm, time.perf_counter() - t0)
+    frames = []
+    for k, cam in enumerate(cams):
+        timer.frame(renderer, cam, k)
+        frames.append(timer.target.read())
+    return stats, frames
