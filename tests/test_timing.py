@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from scenes import TINY_HEAD, bake_and_render
-from vdmrender import baseline, gl, timing
+from vdmrender import baseline, gl, measure, timing
 from vdmrender.cli import main as render_main
 
 
@@ -95,11 +95,37 @@ def test_the_harness_clears_outside_the_passes():
 def test_double_pass_knob_runs_the_pass_twice(monkeypatch):
     ctx = gl.create_context()
     target = gl.Target(ctx, 16, 16)
-    monkeypatch.setenv(timing.DOUBLE_PASS, "frame")
+    monkeypatch.setenv(measure.DOUBLE_PASS, "frame")
     try:
-        probe = Probe(target)
-        timing.FrameTimer(ctx, target).frame(probe, None)
-        assert len(probe.views) == 2
+        probe = measure.built(lambda: Probe(target))
+        s = timing.FrameTimer(ctx, target).frame(probe, None)
+        assert len(probe.views) == 2 and list(s.passes) == ["frame"]
+    finally:
+        target.release()
+        ctx.release()
+
+
+def test_a_saturated_query_falls_back_to_wall_time(monkeypatch):
+    """moderngl reads 32-bit query results: a pass over 4.29 s reads 2^32 - 1 ns. That frame is timed by its
+    wall time, the saturated pass by the rest of it, and the sample says so."""
+    class Saturated:
+        elapsed = timing.SATURATED_NS
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+    ctx = gl.create_context()
+    target = gl.Target(ctx, 8, 8)
+    try:
+        timer = timing.FrameTimer(ctx, target)
+        monkeypatch.setattr(timer, "_query", lambda k: Saturated())
+        s = timer.frame(Probe(target), None)
+        assert s.saturated and s.gpu_ms == s.wall_ms and s.passes["frame"] <= s.wall_ms
+        assert timing.summarise([s], {"warmup_s": 0.0, "warmup_frames": 0, "steady": None, "windows_ms": None},
+                                0.0)["saturated"] == 1
     finally:
         target.release()
         ctx.release()
@@ -160,17 +186,23 @@ pom = { steps = [64] }
 
 
 def test_baseline_passes_under_noise_and_catches_a_doubled_pass(tmp_path, monkeypatch):
-    """Two runs of the same bundle: exit 0; a third with its frame pass run twice: exit 1 on time."""
-    r, out = bake_and_render(tmp_path, SCENE, "--no-flip")
+    """Two runs of the same bundle: exit 0; a third with its frame pass run twice: exit 1 on time, and its
+    counters show the extra work exactly."""
+    r, out = bake_and_render(tmp_path, SCENE, "--no-flip", "--sample-s", "0.5")   # samples spread over bursts
     assert r.exit_code == 0, r.output
-    args = [str(tmp_path / "b.bundle"), "--no-flip", "--baseline", str(out / "report.json"), "--max-slowdown", "1.4"]
+    args = [str(tmp_path / "b.bundle"), "--no-flip", "--sample-s", "0.5", "--baseline", str(out / "report.json"),
+            "--max-slowdown", "1.4"]
     r = CliRunner().invoke(render_main, [*args, "-o", str(tmp_path / "same")])
     assert r.exit_code == 0, r.output
-    monkeypatch.setenv(timing.DOUBLE_PASS, "frame")
+    monkeypatch.setenv(measure.DOUBLE_PASS, "frame")
     r = CliRunner().invoke(render_main, [*args, "-o", str(tmp_path / "doubled")])
     block = json.loads((tmp_path / "doubled" / "report.json").read_text())["baseline"]
     assert r.exit_code == 1, (r.output, block)
-    assert block["rows"][0]["exceeds"] == ["time"] and block["rows"][0]["time_ratio"] > 1.4
+    row = block["rows"][0]
+    assert row["exceeds"] == ["time"] and row["time_ratio"] > 1.4
+    (old_fragments, new_fragments), (old_fetches, new_fetches) = (row["counters_changed"][k] for k in
+                                                                    ("fragments", "fetches"))
+    assert new_fragments > old_fragments and new_fetches > old_fetches     # exact: no noise in work
 
 
 def test_max_slowdown_refuses_another_device(tmp_path):

@@ -196,7 +196,8 @@ TIMING = ("GPU time per frame: the sum of the frame's passes' GL timer queries (
           "warm-up until successive windows' median GPU times agree within the tolerance (warmup_s, warmup_frames, "
           "steady); median_ms and q1_ms/q3_ms over every timed frame, spread_ms the within-camera interquartile "
           "range (median over cameras), passes_ms the per-pass medians; wall_ms is the first call to "
-          "ctx.finish() returning, submit_ms the renderer's calls returning (CPU). The target's clear before "
+          "ctx.finish() returning, submit_ms the renderer's calls returning (CPU); a frame with a pass over 4.29 s "
+          "saturates its 32-bit query and is timed by wall time (counted in saturated). The target's clear before "
           "each frame is outside every query, timed apart as clear_ms (after each variant's sampling, median). ratio_to_baseline divides median_ms by "
           "the baseline row of the same object and run")
 
@@ -291,7 +292,8 @@ def _show(x, width: int, digits: int) -> str:
 
 def time_line(row: dict) -> str:
     """A row's time as the log shows it: GPU median, spread, wall time, and a flag when not steady or noisy."""
-    flags = [f for f, bad in (("not steady", row["steady"] is False), ("noisy", row["spread_warning"])) if bad]
+    flags = [f for f, bad in (("not steady", row["steady"] is False), ("noisy", row["spread_warning"]),
+                              ("wall time: query saturated", row["saturated"])) if bad]
     px = row.get("per_pixel")
     return (f"{row['median_ms']:9.3f} ms/frame GPU (±{row['spread_ms']:.3f}, wall {row['wall_ms']:.3f})"
             + (f" [{', '.join(flags)}]" if flags else "")
