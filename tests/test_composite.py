@@ -82,7 +82,7 @@ def test_depth_order_between_techniques(tmp_path):
     from vdmrender.composite import scene_sphere
     from vdmrender import images, metrics, reference
     from vdmrender.camera import cameras_for
-    from vdmrender.render import object_reference
+    from vdmrender.refcache import object_reference
 
     bundle = Bundle(tmp_path / "b.bundle")
     scene = bundle.scene

@@ -57,3 +57,45 @@ def test_every_technique_has_its_renderer():
         module = importlib.import_module(f"vdmrender.techniques.{name}")
         assert callable(module.build), name
         assert t.kinds and set(t.kinds) <= {"surface", "quadrics"}
+
+
+def _graph(package) -> dict[str, set[str]]:
+    """Module -> the package's modules it imports, at module level or inside functions, relative imports
+    resolved (`from . import gl`, `from ..techniques import x`)."""
+    root = Path(package.__file__).parent
+    name = package.__name__
+    modules = {}
+    for path in root.rglob("*.py"):
+        parts_ = [name, *path.relative_to(root).with_suffix("").parts]
+        is_init = parts_[-1] == "__init__"
+        modules[".".join(parts_[:-1] if is_init else parts_)] = (path, is_init)
+    graph = {}
+    for mod, (path, is_init) in modules.items():
+        here = mod.split(".") if is_init else mod.split(".")[:-1]
+        out = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                out |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = ".".join(here[:len(here) - node.level + 1]) if node.level else ""
+                target = ".".join(p for p in (base, node.module or "") if p)
+                out.add(target)
+                out |= {f"{target}.{a.name}" for a in node.names}
+        graph[mod] = {m for m in out if m in modules and m != mod}
+    return graph
+
+
+def test_no_import_cycles():
+    """No module of either package reaches itself through imports (a cycle makes each module's meaning
+    depend on import order, and hides where a piece belongs)."""
+    for package in (vdmbake, vdmrender):
+        graph = _graph(package)
+        for start in graph:
+            stack, seen = [(start, [start])], set()
+            while stack:
+                node, path = stack.pop()
+                for nxt in graph[node]:
+                    assert nxt != start, f"import cycle: {' -> '.join(path + [nxt])}"
+                    if nxt not in seen:
+                        seen.add(nxt)
+                        stack.append((nxt, path + [nxt]))

@@ -13,8 +13,7 @@ from click.testing import CliRunner
 import vdmbake
 import vdmbake.bake as bake_mod
 from vdmbake.cli import main as bake_main
-from vdmrender import baseline, gl, progress
-from vdmrender import render as render_mod
+from vdmrender import baseline, gl, progress, refcache
 from vdmrender.cli import main as render_main
 
 from scenes import TINY_HEAD, bake_and_render, rows_by_label
@@ -62,7 +61,7 @@ def test_reference_code_covers_what_the_reference_runs():
     assert "vdmrender.gl" not in mods                 # GL code does not invalidate the cached reference
     meso = vdmbake.imported_closure(["vdmrender.techniques.mesostructure"])
     assert "vdmrender.techniques.mesostructure" in meso
-    assert render_mod.reference_code(True) != render_mod.reference_code(False)
+    assert refcache.reference_code(True) != refcache.reference_code(False)
 
 
 def test_other_bake_code_rebakes_with_the_reason_logged(tmp_path, monkeypatch):
@@ -87,7 +86,7 @@ def test_other_reference_code_retraces(tmp_path, monkeypatch):
     r1, out = bake_and_render(tmp_path, BALL)
     r2 = CliRunner().invoke(render_main, [str(tmp_path / "b.bundle"), "-o", str(out), "--json", "--no-flip"])
     assert rows_by_label(r2)["mesh"]["reference_cached"] is True
-    monkeypatch.setattr(render_mod, "reference_code", lambda mesostructure: "e" * 64)
+    monkeypatch.setattr(refcache, "reference_code", lambda mesostructure: "e" * 64)
     r3 = CliRunner().invoke(render_main, [str(tmp_path / "b.bundle"), "-o", str(out), "--json", "--no-flip"])
     assert rows_by_label(r3)["mesh"]["reference_cached"] is False
 

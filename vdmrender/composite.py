@@ -31,13 +31,12 @@ Cameras frame the whole scene: the orbit is placed on a sphere holding every obj
 """
 from __future__ import annotations
 
-import time
 from dataclasses import asdict
 
 import moderngl
 import numpy as np
 
-from . import images, progress, reference
+from . import images, refcache, reference, scoring
 from .camera import cameras_for, enclosing_sphere
 from .metrics import summarise
 from .techniques import variants
@@ -102,33 +101,26 @@ def scene_sphere(bundle, scene) -> tuple[np.ndarray, float]:
 
 def reference_frames(out, bundle, scene, cams, log):
     """The composite reference frames (linear RGBA float32), traced or from the previous run's cache."""
-    from .render import _reference_key, cached_reference, object_reference, reference_code, reference_geometry, save_reference
-
     entries = bundle.manifest["objects"]
-    geometry = {o.name: {**reference_geometry(o, entries[o.name], bundle), "material": asdict(o.material)}
+    geometry = {o.name: {**refcache.reference_geometry(o, entries[o.name], bundle), "material": asdict(o.material)}
                 for o in scene.objects}
-    key = _reference_key(geometry, cams, scene.light, scene.material, scene.render.background,
-                         reference_code(any(o.mesostructure for o in scene.objects)))
-    folder = f"{FOLDER}/reference"
-    cached = cached_reference(out, folder, key, len(cams))
-    if cached is not None:
-        frames, info = cached[0], {"cached": True, "trace_s": 0.0}
-    else:
-        t0 = time.perf_counter()
-        ref = reference.CompositeReference(object_reference(o, entries[o.name], bundle, scene)[0] for o in scene.objects)
-        frames = [ref.render(c) for c in progress.bar(cams, "composite: reference")]
-        info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.rays_cast}
-    save_reference(out, folder, key, frames, [None] * len(frames), scene.render.background)
-    log(f"composite: reference {len(cams)} frames " +
-        ("(cached)" if info["cached"] else f"traced in {info['trace_s']:.2f} s, {info['rays']} rays"))
+    key = refcache.reference_key(geometry, cams, scene.light, scene.material, scene.render.background,
+                                 refcache.reference_code(any(o.mesostructure for o in scene.objects)))
+
+    def trace(cams):
+        ref = reference.CompositeReference(refcache.object_reference(o, entries[o.name], bundle, scene)[0]
+                                           for o in scene.objects)
+        frames = [ref.render(c) for c in cams]
+        return frames, [None] * len(frames), ref.rays_cast
+
+    frames, _, info = refcache.load_or_trace(out, f"{FOLDER}/reference", key, cams, trace, scene.render.background,
+                                             "composite", log)
     return frames, info
 
 
 def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[dict]:
     """Every variant set of render.composite (those whose techniques --technique keeps): timed, scored against
     the composite reference, written under OUT/composite/; one report row per set."""
-    from .render import _show, score_frames, time_line
-
     sets = [s for s in scene.render.composite if only is None or all(v.split("@")[0] in only for v in s.values())]
     if not sets:
         return []
@@ -149,14 +141,13 @@ def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[di
 
         label = set_label(chosen)
         cost, frames = harness.measure(build, cams, f"composite {k}")
-        scores, heats, enc = score_frames(frames, ref8, [None] * len(frames), out, f"{FOLDER}/frames/{k}",
+        scores, heats, enc = scoring.score_frames(frames, ref8, [None] * len(frames), out, f"{FOLDER}/frames/{k}",
                                           f"{FOLDER}/heatmaps/{k}", opts.heat_max, scene.render.background, opts.flip,
                                           f"composite {k} scoring")
         row = {"set": k, "label": label, "variants": dict(chosen), "frames": len(cams), **cost,
                **summarise(scores), "device": device, "reference_cached": ref_info["cached"]}
         rows.append(row)
         sheet += [(f"{k}: {label}", enc), (f"{k}: error", heats)]
-        log(f"composite {k} ({label}): {time_line(row)}  mean dLuv {_show(row['mean_dluv'], 7, 3)}"
-            f"  p95 {_show(row['p95_dluv'], 7, 3)}  IoU {_show(row['iou'], 6, 4)}  FLIP {_show(row['flip_mean'], 6, 4)}")
+        log(f"composite {k} ({label}): {scoring.row_line(row)}")
     images.overview(sheet, out.file(f"{FOLDER}/overview.png"))
     return rows

@@ -2,26 +2,21 @@
 the error of each frame, the time per frame, and the report."""
 from __future__ import annotations
 
-import hashlib
-import json
 import os
-import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-import numpy as np
-
-from vdmbake import __version__, code_fingerprint, exr, imported_closure, parts
+from vdmbake import __version__
 from vdmbake.bundle import Bundle
 from vdmbake.errors import InputError
 from vdmbake.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, borders, composite, gl, images, measure, progress, reference, report, timing
+from . import baseline, composite, gl, images, measure, refcache, report, scoring, timing
 from . import device as gpu
 from .camera import cameras_for
-from .metrics import compare, flip_values, summarise
-from .techniques import Source, mesostructure, variants
+from .metrics import summarise
+from .techniques import variants
 
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
 # (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
@@ -78,94 +73,6 @@ def check_memory(width: int, height: int, available: int | None = None, geometry
                          + (f" and the geometry of {geometry[1]} (about {geometry[0] / 2**30:.1f} GiB)" if geometry[0] else "")
                          + f" need more than 80% of the {available / 2**30:.1f} GiB available; lower render.resolution "
                          "or --resolution, or bake fewer or simpler objects.")
-
-
-def reference_code(mesostructure: bool) -> str:
-    """The fingerprint of the code a reference runs: the tracers, the cameras' pixel rays and what
-    they import (for a mesostructure, also the displaced mesh it traces), as installed."""
-    roots = ["vdmrender.reference", "vdmrender.camera"] + (["vdmrender.techniques.mesostructure"] if mesostructure
-                                                           else [])
-    return code_fingerprint(imported_closure(roots))
-
-
-def _reference_key(geometry: dict, cams, light, material, background, code: str) -> str:
-    blob = {"code": code, "geometry": geometry, "light": asdict(light), "material": asdict(material),
-            "background": list(background),
-            "cameras": [[c.eye.tolist(), c.target.tolist(), c.up.tolist(), c.fov_deg, c.width, c.height,
-                         c.near, c.far] for c in cams]}
-    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
-
-
-def reference_geometry(obj, entry, bundle) -> dict:
-    """What an object's reference depends on in the bundle (part hashes, its mesostructure), for cache keys."""
-    part = entry.get("mesh") or entry["quadrics"]
-    geometry = {"part": bundle.manifest["parts"][part]["sha256"]}
-    for key in ("albedo_map", "mesostructure_albedo"):   # colour textures
-        if entry.get(key):
-            geometry[key] = bundle.manifest["parts"][entry[key]]["sha256"]
-    if obj.mesostructure:   # the truly displaced geometry: the base mesh, the maps and how they are mapped
-        geometry.update(maps=bundle.manifest["parts"][entry["mesostructure"]]["sha256"],
-                        mesostructure=asdict(obj.mesostructure))
-    return geometry
-
-
-def object_reference(obj, entry, bundle, scene):
-    """The object's reference tracer (vdmrender.reference), and for a mesostructure object the Embree
-    scene of its open border (vdmrender.borders; None otherwise)."""
-    if obj.mesostructure:
-        src = Source(obj, entry, None, bundle, scene, None)
-        return (reference.MeshReference(mesostructure.reference_mesh(src), scene.light, obj.material),
-                mesostructure.skirt_scene(src))
-    if obj.kind == "surface":
-        return reference.MeshReference(bundle.surface(entry), scene.light, obj.material), None
-    return reference.QuadricReference(bundle.read(entry["quadrics"], parts.QUADRICS), scene.light, obj.material), None
-
-
-def cached_reference(out, folder: str, key: str, count: int):
-    """The previous run's reference frames and classes in `folder` if they were made under `key`, else None."""
-    prev_key = out.previous(f"{folder}/key.txt")
-    names = [f"{folder}/{k:03d}" for k in range(count)]
-    if not (prev_key.is_file() and prev_key.read_text().strip() == key
-            and all(out.previous(n + ".exr").is_file() for n in names)):
-        return None
-    cached = [exr.read(out.previous(n + ".exr")) for n in names]
-    return ([np.stack([p["reference"][c] for c in "RGBA"], -1) for p in cached],
-            [p["classes"]["C"].astype(np.uint8) if "classes" in p else None for p in cached])
-
-
-def save_reference(out, folder: str, key: str, frames, classes, background) -> None:
-    """The reference frames as EXR (the cache) and PNG, the pixel classes where there are some, and the key."""
-    for k, (f, c) in enumerate(zip(frames, classes)):
-        n = f"{folder}/{k:03d}"
-        layers = {"reference": {ch: f[..., i] for i, ch in enumerate("RGBA")}}
-        if c is not None:   # which pixels see an open border or the inside (vdmrender.borders), as a mask too
-            layers["classes"] = {"C": c.astype(np.float32)}
-            images.save_rgb(out.file(n + "-classes.png"), np.dstack([borders.COLOURS[c], np.full(c.shape, 255, np.uint8)]))
-        exr.write(out.file(n + ".exr"), layers)
-        images.save_rgb(out.file(n + ".png"), images.encode(f, background))
-    out.file(f"{folder}/key.txt").write_text(key + "\n")
-
-
-def reference_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list[np.ndarray], list, dict]:
-    """The reference frames (linear RGBA float32) and, for a mesostructure object, each frame's pixel
-    classes (vdmrender.borders; None otherwise), traced or taken from the previous run's cache."""
-    folder = f"reference/{obj.name}"
-    key = _reference_key(reference_geometry(obj, entry, bundle), cams, scene.light, obj.material,
-                         scene.render.background, reference_code(obj.mesostructure is not None))
-    cached = cached_reference(out, folder, key, len(cams))
-    if cached is not None:
-        frames, classes = cached
-        info = {"cached": True, "trace_s": 0.0}
-    else:
-        t0 = time.perf_counter()
-        ref, skirt = object_reference(obj, entry, bundle, scene)
-        frames = [ref.render(c) for c in progress.bar(cams, f"{obj.name}: reference")]
-        classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
-        info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": ref.scene.rays_cast}
-    save_reference(out, folder, key, frames, classes, scene.render.background)
-    log(f"{obj.name}: reference {len(cams)} frames " +
-        ("(cached)" if info["cached"] else f"traced in {info['trace_s']:.2f} s, {info['rays']} rays"))
-    return frames, classes, info
 
 
 def _technique_filter(opts: Options, scene) -> set | None:
@@ -260,45 +167,12 @@ def _measure(harness, v, cams, ref8, classes, out, obj, opts, background):
     `empty_frames` and stays out of the row's averages (metrics.summarise)."""
     name = obj.name
     cost, frames = harness.measure(lambda: v.build(harness.ctx), cams, f"{name}: {v.label}")
-    scores, heats, enc = score_frames(frames, ref8, classes, out, f"frames/{name}/{v.label}",
+    scores, heats, enc = scoring.score_frames(frames, ref8, classes, out, f"frames/{name}/{v.label}",
                                       f"heatmaps/{name}/{v.label}", opts.heat_max, background, opts.flip,
                                       f"{name}: {v.label} scoring")
     row = {"object": name, "technique": v.technique, "knob": v.knob, "value": v.value, "label": v.label,
            "frames": len(cams), "expect_empty": obj.expect_empty, **cost, **summarise(scores)}
     return row, enc, heats
-
-
-def score_frames(frames, ref8, classes, out, frame_dir: str, heat_dir: str, heat_max, background, flip, desc: str):
-    """Each frame against its reference: its scores (metrics.compare, with FLIP, coverage and non-finite
-    pixels), and its sRGB frame and heat map, also written as FRAME_DIR/NNN.png and HEAT_DIR/NNN.png."""
-    scores, heats, enc = [], [], []
-    for k, (f, r8, cls) in enumerate(progress.bar(list(zip(frames, ref8, classes)), desc)):
-        f8 = images.encode(f, background)
-        c = compare(f8, r8, cls)
-        c.update(flip=flip_values(f8, r8, c["scored"]) if flip else np.zeros(0),
-                 coverage=float((r8[..., 3] > 0).mean()), nonfinite=int((~np.isfinite(f)).any(-1).sum()))
-        heat = images.heatmap(c["dist"], heat_max)
-        images.save_rgb(out.file(f"{frame_dir}/{k:03d}.png"), f8)
-        images.save_rgb(out.file(f"{heat_dir}/{k:03d}.png"), heat)
-        scores.append(c)
-        heats.append(heat)
-        enc.append(f8)
-    return scores, heats, enc
-
-
-def _show(x, width: int, digits: int) -> str:
-    return f"{'-':>{width}}" if x is None else f"{x:{width}.{digits}f}"
-
-
-def time_line(row: dict) -> str:
-    """A row's time as the log shows it: GPU median, spread, wall time, and a flag when not steady or noisy."""
-    flags = [f for f, bad in (("not steady", row["steady"] is False), ("noisy", row["spread_warning"]),
-                              ("wall time: query saturated", row["saturated"])) if bad]
-    px = row.get("per_pixel")
-    return (f"{row['median_ms']:9.3f} ms/frame GPU (±{row['spread_ms']:.3f}, wall {row['wall_ms']:.3f})"
-            + (f" [{', '.join(flags)}]" if flags else "")
-            + (f"  per px: {px['fragments']:.2f} frag {px['fetches']:.1f} fetch {px['steps']:.1f} step"
-               if px and px["fragments"] is not None else ""))
 
 
 def _render_all(harness, out, bundle, scene, only, opts, device, log) -> list[dict]:
@@ -310,15 +184,14 @@ def _render_all(harness, out, bundle, scene, only, opts, device, log) -> list[di
         chosen = variants(obj, entry, bundle, scene, only)
         if not chosen:
             continue
-        ref_frames, ref_classes, ref_info = reference_frames(out, obj, entry, bundle, scene, cams, log)
+        ref_frames, ref_classes, ref_info = refcache.object_frames(out, obj, entry, bundle, scene, cams, log)
         ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
         sheet = [("reference", ref8)]
         for v in chosen:
             row, enc, heats = _measure(harness, v, cams, ref8, ref_classes, out, obj, opts, scene.render.background)
             rows.append({**row, "device": device, "reference_cached": ref_info["cached"]})
             sheet += [(v.label, enc), (f"{v.label} error", heats)]
-            log(f"{obj.name}: {v.label:>14}  {time_line(row)}  mean dLuv {_show(row['mean_dluv'], 7, 3)}"
-                f"  p95 {_show(row['p95_dluv'], 7, 3)}  IoU {_show(row['iou'], 6, 4)}  FLIP {_show(row['flip_mean'], 6, 4)}"
+            log(f"{obj.name}: {v.label:>14}  {scoring.row_line(row)}"
                 + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")
                 + (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
         images.overview(sheet, out.file(f"overview/{obj.name}.png"))

@@ -31,8 +31,8 @@ from vdmbake import pyramid
 from vdmbake.errors import InputError
 
 from .. import gl
-from .billboards import (_CORNERS, _CUBE, ALBEDO_MAPS_UNIT, BOARD_TEXELS, COARSE_BEHIND, NORMAL_OFFSET_TEXELS, albedo_maps,
-                         coarse_draws, infinite_far)
+from .boards import (ALBEDO_MAPS_UNIT, BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS, albedo_maps,
+                     coarse_draws, infinite_far)
 from .raster import Passes, RasterPasses
 from .shadowmap import ShadowMap, translation
 
@@ -82,7 +82,7 @@ class HierBillboards(Passes):
         res = bordered[0].maps.shape[0] - 2
         origin = np.array([np.asarray(b.origin, np.float64) - self.anchor for b in boards])
         edges = np.array([np.asarray(b.axes, np.float64) * np.asarray(b.size, np.float64)[:, None] for b in boards])
-        self.corners = origin[:, None] + _CORNERS[None] @ edges          # (boards, 8, 3) box corners
+        self.corners = origin[:, None] + CORNERS[None] @ edges          # (boards, 8, 3) box corners
         self.centres = origin + 0.5 * edges.sum(1)
         # anchor-relative world -> the unit box (u, v, depth): rows edge / |edge|^2, origin moved to 0
         self.to_box = np.zeros((len(boards), 4, 4))
@@ -99,7 +99,7 @@ class HierBillboards(Passes):
             box[:, 1] += (0.25, 0.25, 1e-4)
             box[..., :2] = (box[..., :2] - 0.5) / res                   # sample coordinates -> unit box
             box = np.clip(box, 0.0, 1.0)
-            unit = box[:, None, 0] + _CUBE[None].astype(np.float64) * (box[:, None, 1] - box[:, None, 0])
+            unit = box[:, None, 0] + CUBE[None].astype(np.float64) * (box[:, None, 1] - box[:, None, 0])
             self.occ_ranges.append((sum(len(t) for t in tris), 36 * len(box)))
             tris.append((o + unit.reshape(-1, 3) @ e).astype(np.float32))
         occ_vbo = ctx.buffer(np.concatenate(tris).tobytes())

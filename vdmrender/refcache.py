@@ -1,0 +1,117 @@
+"""The reference frames of a run: what they depend on (the cache key: the bundle's parts, the scene's
+light, material and cameras, and the code the tracers run), their tracer, and the cache that reuses the
+previous run's frames when nothing they depend on changed."""
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import asdict
+
+import numpy as np
+
+from vdmbake import code_fingerprint, exr, imported_closure, parts
+
+from . import borders, images, progress, reference
+from .techniques import Source, mesostructure
+
+
+def reference_code(mesostructure: bool) -> str:
+    """The fingerprint of the code a reference runs: the tracers, the cameras' pixel rays and what
+    they import (for a mesostructure, also the displaced mesh it traces), as installed."""
+    roots = ["vdmrender.reference", "vdmrender.camera"] + (["vdmrender.techniques.mesostructure"] if mesostructure
+                                                           else [])
+    return code_fingerprint(imported_closure(roots))
+
+
+def reference_key(geometry: dict, cams, light, material, background, code: str) -> str:
+    """The cache key of a reference: what it traces, under which light, material, background and cameras,
+    with which code."""
+    blob = {"code": code, "geometry": geometry, "light": asdict(light), "material": asdict(material),
+            "background": list(background),
+            "cameras": [[c.eye.tolist(), c.target.tolist(), c.up.tolist(), c.fov_deg, c.width, c.height,
+                         c.near, c.far] for c in cams]}
+    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()
+
+
+def reference_geometry(obj, entry, bundle) -> dict:
+    """What an object's reference depends on in the bundle (part hashes, its mesostructure), for cache keys."""
+    part = entry.get("mesh") or entry["quadrics"]
+    geometry = {"part": bundle.manifest["parts"][part]["sha256"]}
+    for key in ("albedo_map", "mesostructure_albedo"):   # colour textures
+        if entry.get(key):
+            geometry[key] = bundle.manifest["parts"][entry[key]]["sha256"]
+    if obj.mesostructure:   # the truly displaced geometry: the base mesh, the maps and how they are mapped
+        geometry.update(maps=bundle.manifest["parts"][entry["mesostructure"]]["sha256"],
+                        mesostructure=asdict(obj.mesostructure))
+    return geometry
+
+
+def object_reference(obj, entry, bundle, scene):
+    """The object's reference tracer (vdmrender.reference), and for a mesostructure object the Embree
+    scene of its open border (vdmrender.borders; None otherwise)."""
+    if obj.mesostructure:
+        src = Source(obj, entry, None, bundle, scene, None)
+        return (reference.MeshReference(mesostructure.reference_mesh(src), scene.light, obj.material),
+                mesostructure.skirt_scene(src))
+    if obj.kind == "surface":
+        return reference.MeshReference(bundle.surface(entry), scene.light, obj.material), None
+    return reference.QuadricReference(bundle.read(entry["quadrics"], parts.QUADRICS), scene.light, obj.material), None
+
+
+def cached_reference(out, folder: str, key: str, count: int):
+    """The previous run's reference frames and classes in `folder` if they were made under `key`, else None."""
+    prev_key = out.previous(f"{folder}/key.txt")
+    names = [f"{folder}/{k:03d}" for k in range(count)]
+    if not (prev_key.is_file() and prev_key.read_text().strip() == key
+            and all(out.previous(n + ".exr").is_file() for n in names)):
+        return None
+    cached = [exr.read(out.previous(n + ".exr")) for n in names]
+    return ([np.stack([p["reference"][c] for c in "RGBA"], -1) for p in cached],
+            [p["classes"]["C"].astype(np.uint8) if "classes" in p else None for p in cached])
+
+
+def save_reference(out, folder: str, key: str, frames, classes, background) -> None:
+    """The reference frames as EXR (the cache) and PNG, the pixel classes where there are some, and the key."""
+    for k, (f, c) in enumerate(zip(frames, classes)):
+        n = f"{folder}/{k:03d}"
+        layers = {"reference": {ch: f[..., i] for i, ch in enumerate("RGBA")}}
+        if c is not None:   # which pixels see an open border or the inside (vdmrender.borders), as a mask too
+            layers["classes"] = {"C": c.astype(np.float32)}
+            images.save_rgb(out.file(n + "-classes.png"), np.dstack([borders.COLOURS[c], np.full(c.shape, 255, np.uint8)]))
+        exr.write(out.file(n + ".exr"), layers)
+        images.save_rgb(out.file(n + ".png"), images.encode(f, background))
+    out.file(f"{folder}/key.txt").write_text(key + "\n")
+
+
+def load_or_trace(out, folder: str, key: str, cams, trace, background, what: str, log) -> tuple[list, list, dict]:
+    """The reference frames in `folder` (linear RGBA float32) and their pixel classes (None where not
+    classified): the previous run's where made under `key`, else traced by `trace(cams)` -> (frames,
+    classes, rays cast); saved (the next run's cache) and logged as WHAT."""
+    cached = cached_reference(out, folder, key, len(cams))
+    if cached is not None:
+        frames, classes = cached
+        info = {"cached": True, "trace_s": 0.0}
+    else:
+        t0 = time.perf_counter()
+        frames, classes, rays = trace(progress.bar(cams, f"{what}: reference"))
+        info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": rays}
+    save_reference(out, folder, key, frames, classes, background)
+    log(f"{what}: reference {len(cams)} frames " +
+        ("(cached)" if info["cached"] else f"traced in {info['trace_s']:.2f} s, {info['rays']} rays"))
+    return frames, classes, info
+
+
+def object_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list, list, dict]:
+    """One object's reference frames and, for a mesostructure object, each frame's pixel classes
+    (vdmrender.borders: open border, inside)."""
+    key = reference_key(reference_geometry(obj, entry, bundle), cams, scene.light, obj.material,
+                        scene.render.background, reference_code(obj.mesostructure is not None))
+
+    def trace(cams):
+        ref, skirt = object_reference(obj, entry, bundle, scene)
+        frames = [ref.render(c) for c in cams]
+        classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
+        return frames, classes, ref.scene.rays_cast
+
+    return load_or_trace(out, f"reference/{obj.name}", key, cams, trace, scene.render.background, obj.name, log)

@@ -1,0 +1,47 @@
+"""Scoring a variant's frames against the reference (vdmrender.metrics: ΔLuv, FLIP, coverage), writing the
+frames and heat maps, and the one line per measured row that vdmrender logs."""
+from __future__ import annotations
+
+import numpy as np
+
+from . import images, progress
+from .metrics import compare, flip_values
+
+
+def score_frames(frames, ref8, classes, out, frame_dir: str, heat_dir: str, heat_max, background, flip, desc: str):
+    """Each frame against its reference: its scores (metrics.compare, with FLIP, coverage and non-finite
+    pixels), and its sRGB frame and heat map, also written as FRAME_DIR/NNN.png and HEAT_DIR/NNN.png."""
+    scores, heats, enc = [], [], []
+    for k, (f, r8, cls) in enumerate(progress.bar(list(zip(frames, ref8, classes)), desc)):
+        f8 = images.encode(f, background)
+        c = compare(f8, r8, cls)
+        c.update(flip=flip_values(f8, r8, c["scored"]) if flip else np.zeros(0),
+                 coverage=float((r8[..., 3] > 0).mean()), nonfinite=int((~np.isfinite(f)).any(-1).sum()))
+        heat = images.heatmap(c["dist"], heat_max)
+        images.save_rgb(out.file(f"{frame_dir}/{k:03d}.png"), f8)
+        images.save_rgb(out.file(f"{heat_dir}/{k:03d}.png"), heat)
+        scores.append(c)
+        heats.append(heat)
+        enc.append(f8)
+    return scores, heats, enc
+
+
+def show(x, width: int, digits: int) -> str:
+    return f"{'-':>{width}}" if x is None else f"{x:{width}.{digits}f}"
+
+
+def time_line(row: dict) -> str:
+    """A row's time as the log shows it: GPU median, spread, wall time, and a flag when not steady or noisy."""
+    flags = [f for f, bad in (("not steady", row["steady"] is False), ("noisy", row["spread_warning"]),
+                              ("wall time: query saturated", row["saturated"])) if bad]
+    px = row.get("per_pixel")
+    return (f"{row['median_ms']:9.3f} ms/frame GPU (±{row['spread_ms']:.3f}, wall {row['wall_ms']:.3f})"
+            + (f" [{', '.join(flags)}]" if flags else "")
+            + (f"  per px: {px['fragments']:.2f} frag {px['fetches']:.1f} fetch {px['steps']:.1f} step"
+               if px and px["fragments"] is not None else ""))
+
+
+def row_line(row: dict) -> str:
+    """A row's time, work and error as the log shows them."""
+    return (f"{time_line(row)}  mean dLuv {show(row['mean_dluv'], 7, 3)}  p95 {show(row['p95_dluv'], 7, 3)}"
+            f"  IoU {show(row['iou'], 6, 4)}  FLIP {show(row['flip_mean'], 6, 4)}")

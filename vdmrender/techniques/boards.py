@@ -1,0 +1,62 @@
+"""What both billboard renderers share (Vichitvejpaisal 2005): the unit box each billboard is drawn as, the
+shading offsets and the coarse mesh's push back (sec. 3.4), the colour maps' texture (sec. 3.1), the coarse
+mesh's draws, and the raster matrix with its far plane at infinity. The thesis's march is
+techniques/billboards.py, the exact hierarchical trace techniques/billboards_hier.py."""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from .. import gl
+from .raster import MeshInputs
+
+NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels (as impostors) ...
+BOARD_TEXELS = 1.0           # ... plus this many of the billboard's map texels. Mean dLuv of the improved method,
+                             # torus, R 128, 96x96, 512 map: 0 -> 0.77 (acne where billboards overlap), 0.5 -> 0.30,
+                             # 1 -> 0.19, 1.5 -> 0.17; with a 1024 map 0.37, 0.24, 0.18 (sphere: 0.053 for all)
+COARSE_BEHIND = 0.05         # the coarse mesh is depth-tested as if this far (x radius) behind where it is, so that
+                             # it fills holes rather than poking through the billboards (its vertices lie off the
+                             # surface). Improved, with coarse, mean dLuv at 96x96 (sphere, torus): 0 -> 0.38, 1.22;
+                             # 0.01 -> 0.25, 1.13; 0.03 -> 0.14, 0.47; 0.05 -> 0.14, 0.45; 0.1 -> 0.14, 0.45
+
+# The unit cube [0, 1]^3 as 12 triangles, counter-clockwise seen from outside.
+CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], np.float32)
+CUBE = CORNERS[np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                         [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])].reshape(-1, 3)
+
+
+def coarse_draws(ctx, mesh, anchor) -> tuple[dict, MeshInputs]:
+    """The coarse mesh (sec. 3.4) uploaded once, anchor-relative, with the asset's colours where it carries
+    them (raster.MeshInputs), and drawn by mesh.vert two ways: {"depth": (program, vao) writing depth only
+    (depth.frag), "shaded": (program, vao) (mesh.frag)}; and its inputs (the shaded pass binds them)."""
+    inputs = MeshInputs(ctx, mesh, anchor)
+    draws = {}
+    for kind, frag, defines, attrs in (("depth", "depth.frag", (), [inputs.position]),
+                                       ("shaded", "mesh.frag", inputs.defines, inputs.attributes)):
+        prog = gl.program(ctx, "mesh.vert", frag, defines)
+        draws[kind] = (prog, gl.vertex_array(ctx, prog, attrs, inputs.index))
+    return draws, inputs
+
+
+ALBEDO_MAPS_UNIT = 5   # texture unit of the billboards' colour maps (shaders/include/board_albedo.glsl)
+
+
+def albedo_maps(ctx, bordered):
+    """The billboards' colour maps (thesis sec. 3.1; vdmbake.billboard_maps.albedo_texels, bordered like
+    their normal and depth maps) as one RGB16F texture array, linear filtering, one layer per billboard;
+    None where the bake stored none (an asset without colours: the material's albedo)."""
+    if not bordered or any(m.albedo is None for m in bordered):
+        return None
+    data = np.stack([np.asarray(m.albedo, np.float16) for m in bordered])
+    tex = ctx.texture_array((data.shape[2], data.shape[1], len(bordered)), 3, data.tobytes(), dtype="f2")
+    tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    tex.repeat_x = tex.repeat_y = False
+    return tex
+
+
+def infinite_far(projection: np.ndarray) -> np.ndarray:
+    """A perspective projection with its far plane at infinity: same x, y, w and near plane."""
+    p = projection.copy()
+    n = p[2, 3] / (p[2, 2] - 1.0)        # from (f + n) / (n - f) and 2 f n / (n - f)
+    p[2, 2], p[2, 3] = -1.0, -2.0 * n
+    return p
