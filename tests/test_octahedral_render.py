@@ -1,4 +1,4 @@
-"""Octahedral impostors, the render side: the shader's view choice against its numpy twin, and frames
+"""Octahedral impostors, the render side (the shader's view choice against its numpy twin: tests/test_twins.py): frames
 through OpenGL (Mesa llvmpipe without a GPU) against the Embree reference of the full mesh, in the stiff
 cases (top-down, bottom-up, grazing on the map's fold, close-up inside the bounding sphere, far from the
 origin, camera inside the object). Bounds sit a little above the values measured on llvmpipe (in comments)."""
@@ -11,7 +11,6 @@ from vdmbake import octahedral as oc
 from vdmbake import primitives
 from vdmbake.errors import InputError
 from vdmbake.meshes import TriMesh
-from vdmrender import gl
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.octahedral import Octahedral, atlas_texels, shadow_size
 
@@ -47,74 +46,7 @@ def render(ctx, atlas, camera, **kw) -> np.ndarray:
 
 
 
-# --- the shader's twin of vdmbake.octahedral ------------------------------------------------------
-
-_PROBE = """#version 430
-#include "octahedral.glsl"
-uniform sampler2D u_dirs;   // one direction per texel (RGB32F)
-uniform int u_out;          // 0: blended view direction sum w_k e_k; 1, 2, 3: e, u, v of view (x, y)
-out vec4 frag;
-void main() {
-    ivec2 p = ivec2(gl_FragCoord.xy);
-    if (u_out == 0) {
-        ivec2 view[3];
-        vec3 w;
-        nearest_views(texelFetch(u_dirs, p, 0).xyz, view, w);
-        vec3 s = vec3(0.0);
-        for (int k = 0; k < 3; k++) {
-            vec3 e, u, v;
-            view_frame(view[k], e, u, v);
-            s += w[k] * e;
-        }
-        frag = vec4(s, w.x + w.y + w.z);
-    } else {
-        vec3 e, u, v;
-        view_frame(p, e, u, v);
-        frag = vec4(u_out == 1 ? e : (u_out == 2 ? u : v), 1.0);
-    }
-}
-"""
-
-
-def _probe(ctx, dirs: np.ndarray, views: int, hemi: bool, basis: np.ndarray, out: int, size: int) -> np.ndarray:
-    frag = gl._with_defines(gl.expand(_PROBE), ("HEMI",) if hemi else ())
-    prog = ctx.program(vertex_shader=gl.source("fullscreen.vert"), fragment_shader=frag)
-    tex = ctx.texture((size, size), 3, np.ascontiguousarray(dirs, np.float32).tobytes(), dtype="f4")
-    target = gl.Target(ctx, size, size)
-    try:
-        tex.use(0)
-        gl.set_uniforms(prog, u_dirs=0, u_out=out, u_views=views)
-        prog["u_basis"].write(np.ascontiguousarray(basis.T, np.float32).tobytes())
-        target.begin()
-        ctx.vertex_array(prog, []).render(vertices=3)
-        return target.read()[::-1]   # row 0 at y = 0, as the texture
-    finally:
-        target.release()
-        tex.release()
-        prog.release()
-
-
-@pytest.mark.parametrize("hemi", [False, True])
-@pytest.mark.parametrize("views", [8, 13])
-def test_shader_views_match_the_bake(ctx, views, hemi):
-    """The shader picks the bake's views: every lattice view's frame (e, u, v), and for 4096 directions
-    (random, poles, equator) the blended view direction, against vdmbake.octahedral in float64."""
-    basis = oc.map_basis([0.2, -0.3, 0.93])
-    e, u, v = oc.view_frames(views, hemi, basis)
-    for k, want in enumerate((e, u, v), 1):
-        got = _probe(ctx, np.zeros((views, views, 3)), views, hemi, basis, k, views)[:views, :views, :3]
-        assert np.abs(got - want).max() < 2e-6        # measured 4.8e-7
-    size = 64
-    d = np.random.default_rng(1).normal(size=(size * size, 3))
-    d[:6] = [[0, 0, 1], [0, 0, -1], [1, 0, 0], [0, 1, 0], [1, -1, 0], [-1, 0, 0]]
-    if hemi:   # straight down has no nearest horizon point (every one is as near): left out
-        d[1] = [0.0, 0.6, -0.8]
-    d = (d / np.linalg.norm(d, axis=1, keepdims=True)) @ basis     # also in the map's own frame
-    idx, w = oc.nearest_views(d, views, hemi, basis)
-    want = (w[..., None] * e[idx[..., 1], idx[..., 0]]).sum(1)
-    got = _probe(ctx, d.reshape(size, size, 3), views, hemi, basis, 0, size).reshape(-1, 4)
-    assert np.abs(got[:, 3] - 1).max() < 1e-5
-    assert np.abs(got[:, :3] - want).max() < 1e-5     # measured 1.2e-6
+# The shader's view choice (nearest_views, view_frame) against vdmbake.octahedral: tests/test_twins.py.
 
 
 # --- frames against the reference --------------------------------------------------------------------

@@ -351,7 +351,7 @@ def test_only_zero_volume_input_is_refused(tmp_path):
 
 def test_bench_quick_smoke(tmp_path):
     """make bench's script runs end to end (two small real molecules at 256x192) and writes its report."""
-    from vdmrender.bench import main as bench_main
+    from bench.quadrics import main as bench_main
 
     r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
     assert r.exit_code == 0, r.output

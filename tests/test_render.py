@@ -2,6 +2,7 @@
 compare against the Embree reference, and the report's contract."""
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -146,16 +147,22 @@ def test_unused_programs_are_not_compiled(tmp_path):
 
 def test_wheel_ships_the_shaders(tmp_path):
     """The shaders are found from a built wheel too (vdmrender/shaders is a link to shaders/), and the wheel
-    holds every module and data file of both packages (the technique subpackages were missing from
-    `packages`: setuptools shipped them only by a deprecated fallback, with a warning)."""
+    holds exactly the modules and data files of both packages (the technique subpackages were missing from
+    `packages`: setuptools shipped them only by a deprecated fallback, with a warning; the benchmarks are not
+    shipped)."""
+    # built from a copy of the sources: setuptools keeps build/lib in the tree it builds, and a stale one
+    # from an earlier build would ship modules deleted since
+    src = tmp_path / "src"
+    shutil.copytree(ROOT, src, symlinks=True, ignore=shutil.ignore_patterns(
+        ".git", ".venv", ".device", "out", "build", "*.egg-info", "__pycache__", ".pytest_cache"))
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation",
-                    "-w", str(tmp_path), str(ROOT)], check=True, capture_output=True)
+                    "-w", str(tmp_path), str(src)], check=True, capture_output=True)
     (wheel,) = tmp_path.glob("*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
     for f in (ROOT / "shaders").rglob("*"):
         if f.is_file():
             assert f"vdmrender/shaders/{f.relative_to(ROOT / 'shaders').as_posix()}" in names
-    for package in ("vdmbake", "vdmrender"):
-        for f in (ROOT / package).rglob("*"):
-            if f.suffix in (".py", ".txt") and "shaders" not in f.parts:
-                assert f.relative_to(ROOT).as_posix() in names, f
+    tree = {f.relative_to(ROOT).as_posix() for package in ("vdmbake", "vdmrender") for f in (ROOT / package).rglob("*")
+            if f.suffix in (".py", ".txt") and "shaders" not in f.parts and "__pycache__" not in f.parts}
+    # exactly the tree's modules: not the benchmarks (bench/)
+    assert {n for n in names if n.endswith((".py", ".txt")) and ".dist-info" not in n} == tree

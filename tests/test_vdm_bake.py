@@ -182,7 +182,7 @@ def test_bench_quick_smoke(tmp_path):
 
     from click.testing import CliRunner
 
-    from vdmrender.bench_vdm import main as bench_main
+    from bench.vdm import main as bench_main
 
     r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
     assert r.exit_code == 0, r.output

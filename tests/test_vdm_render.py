@@ -304,7 +304,8 @@ def test_costs_per_fragment(tmp_path):
     light where lit, each a step and a fetch, then the 3: view searches V = steps - 4 searches, light
     searches 5 searches - steps, and fetches - 6 V - steps in [0, 3 V]. (At most 19 and 18 fetches a
     fragment, as the colour-coded counts of the first implementation measured.)"""
-    from vdmrender import gl, interleave
+    from bench.interleave import scene_of
+    from vdmrender import counters, gl
     from vdmrender.techniques import Source
     from vdmrender.techniques.vdm import VDMPass
 
@@ -313,12 +314,14 @@ def test_costs_per_fragment(tmp_path):
     from vdmbake.bake import bake
 
     bake(tmp_path / "s.toml", tmp_path / "b.bundle")
-    bundle, sc, obj, entry, cams = interleave.scene_of(tmp_path / "b.bundle")
+    bundle, sc, obj, entry, cams = scene_of(tmp_path / "b.bundle")
     src = Source(obj, entry, entry["techniques"]["vdm"], bundle, sc, obj.techniques["vdm"])
     ctx = gl.create_context()
     try:
-        paper, refined = (interleave.costs(ctx, lambda c, r=r: VDMPass(c, src, 8, r), cams)["passes"]["frame"]
-                          for r in (0, 4))
+        with counters.counting(ctx):
+            built = [VDMPass(ctx, src, 8, r) for r in (0, 4)]
+        target = gl.Target(ctx, cams[0].width, cams[0].height)
+        paper, refined = (counters.count_frames(ctx, p, cams, target)["passes"]["frame"] for p in built)
     finally:
         ctx.release()
     print(paper, refined)

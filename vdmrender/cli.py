@@ -37,7 +37,7 @@ def _resolution(ctx, param, value):
 @click.option("--repeats", type=click.IntRange(1, 1000), help="Timed renders per frame, at least (scene default otherwise).")
 @click.option("--warmup", type=click.IntRange(0, 100), help="Untimed renders per frame before timing, at least.")
 @click.option("--warmup-s", type=click.FloatRange(0, 600), metavar="SECONDS",
-              help="Warm up at least this long, then until successive windows of GPU times agree within 5%% "
+              help="Warm up at least this long, then until successive windows of GPU times agree within 5% "
                    "(default 0.1; on a GPU give 2: its clocks need about a second of sustained work).")
 @click.option("--sample-s", type=click.FloatRange(0, 600), metavar="SECONDS",
               help="Time at least this long (and at least --repeats renders per frame; default 0).")
@@ -52,7 +52,7 @@ def _resolution(ctx, param, value):
               help="With --baseline: exit 1 if a variant's mean ΔLuv grew by more than this (absolute ΔLuv).")
 @click.option("--max-slowdown", type=click.FloatRange(min=0, min_open=True),
               help="With --baseline: exit 1 if a variant's median GPU time per frame grew by more than this ratio "
-                   "(1.25: 25%% slower) and by more than both runs' spreads together (noise).")
+                   "(1.25: 25% slower) and by more than both runs' spreads together (noise).")
 @click.option("--compare-devices", is_flag=True,
               help="With --baseline: compare times even when the baseline ran on another GL device (refused "
                    "otherwise: --max-slowdown exits 2, and the table leaves times out).")
@@ -105,7 +105,8 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
     Examples:
       vdmrender out/default.bundle -o out/default --max-error 2.0
       vdmrender out/default.bundle -o out/new --baseline out/default/report.json \\
-          --max-error-increase 0.05 --max-slowdown 1.25
+          --max-error-increase 0.05 --max-slowdown 1.25 --sample-s 1.5
+      vdmrender out/default.bundle -o out/gpu --device cuda:0 --warmup-s 2 --sample-s 1
     """
     if (max_error_increase is not None or max_slowdown is not None) and baseline is None:
         fail(InputError("--max-error-increase and --max-slowdown compare with an earlier run; give its "

@@ -6,7 +6,7 @@ compile their fragment stages with COUNT (gl.program adds it), which draws the s
 atomics, to four counters in a storage buffer: fragments shaded, texture fetches, search steps and searches.
 `count_frame` runs a renderer's passes one by one, reading and zeroing the counters after each, and adds
 per pass what GL and moderngl tell without the shaders: primitives (GL_PRIMITIVES_GENERATED), draw calls
-and instances drawn. `resident_bytes` is the GPU memory the renderer holds.
+and instances drawn; `count_frames` sums them over cameras. `resident_bytes` is the GPU memory the renderer holds.
 
     with counters.counting(ctx):
         r = variant.build(ctx)
@@ -80,6 +80,21 @@ def count_frame(ctx, renderer, camera, target) -> dict:
         moderngl.VertexArray.render = render
     total = {k: sum(p[k] for p in passes.values()) for k in (*COUNTERS, "primitives", "draws", "instances")}
     return {"passes": passes, "total": total, "covered": int((target.read()[..., 3] > 0).sum())}
+
+
+def count_frames(ctx, renderer, cams, target) -> dict:
+    """count_frame over every camera, `target` (a gl.Target) cleared before each frame and drawn into as kept:
+    {"total": counts, "passes": {name: counts}, "covered": pixels}, each summed over the cameras."""
+    out = {"total": {}, "passes": {}, "covered": 0}
+    for cam in cams:
+        target.clear()
+        c = count_frame(ctx, renderer, cam, target.kept())
+        out["covered"] += c["covered"]
+        for into, counts in [(out["total"], c["total"]),
+                             *((out["passes"].setdefault(name, {}), p) for name, p in c["passes"].items())]:
+            for k, v in counts.items():
+                into[k] = into.get(k, 0) + v
+    return out
 
 
 def resident_bytes(renderer) -> int:

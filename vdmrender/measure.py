@@ -85,17 +85,8 @@ class Harness:
         with counters.counting(self.ctx):
             renderer = built(build)
         try:
-            total, passes, covered = {}, {}, 0
-            for cam in cams:
-                self.target.clear()
-                c = counters.count_frame(self.ctx, renderer, cam, self.target.kept())
-                covered += c["covered"]
-                for k, v in c["total"].items():
-                    total[k] = total.get(k, 0) + v
-                for name, p in c["passes"].items():
-                    mine = passes.setdefault(name, {})
-                    for k, v in p.items():
-                        mine[k] = mine.get(k, 0) + v
+            c = counters.count_frames(self.ctx, renderer, cams, self.target)
+            total, passes, covered = c["total"], c["passes"], c["covered"]
             total.update(covered=covered, bytes=counters.resident_bytes(renderer))
         finally:
             renderer.release()

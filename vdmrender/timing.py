@@ -5,7 +5,7 @@ On a real GPU, wall time around ctx.finish() adds driver latency, and clocks idl
 second of sustained work (docs/timing.md). So a frame's time is the sum of its passes' GL_TIME_ELAPSED
 queries; wall time (first call to finish) and CPU submit time (the renderer's calls returning) are kept
 beside it. The harness clears the target before every frame, outside every query, and times that clear
-once apart: it is the harness's cost, not the technique's.
+apart (measure.Harness): it is the harness's cost, not the technique's.
 """
 from __future__ import annotations
 

@@ -59,10 +59,11 @@ def sizes(bundle: Path) -> dict:
 
 
 def interleaved(bundle_path: Path, render_dir: Path) -> dict:
+    from bench import interleave
     from vdmbake import parts
     from vdmbake.bundle import Bundle
     from vdmbake.meshes import TriMesh
-    from vdmrender import gl, interleave
+    from vdmrender import gl
     from vdmrender.camera import cameras_for
     from vdmrender.techniques import Source
     from vdmrender.techniques.billboards_hier import HierBillboards

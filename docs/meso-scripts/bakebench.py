@@ -1,4 +1,4 @@
-"""The timed part of vdmrender.bench_vdm.paper_bake, runnable against either tree."""
+"""The timed part of bench.vdm.paper_bake, runnable against either tree."""
 import json, os, sys, time
 import numpy as np
 from vdmbake import heightfields, vdm

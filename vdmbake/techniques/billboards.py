@@ -1,6 +1,6 @@
 """Technique `billboards`: enhanced billboards (Vichitvejpaisal 2005). Each variant names a projection
 (greedy set cover, sec. 3.2, or the axis baseline, sec. 4.2), a per-pixel march (the thesis's 100 steps
-with hit range 0.01 or 0.02, sec. 3.3 and 4.1; the improved one; or hier, the exact hierarchical trace
+with hit range 0.01 (sec. 4.1) or 0.02 (sec. 3.4); the improved one; or hier, the exact hierarchical trace
 through a min/max pyramid of each depth map, beyond the thesis) and optionally the coarse mesh that
 fills holes (sec. 3.4). The bake makes only the projections, pyramids and coarse mesh the variants
 need; vdmbake/billboards.py and vdmbake/billboard_maps.py hold the kernels."""

@@ -11,7 +11,7 @@ from .shadowmap import ShadowMap, translation
 
 class Passes:
     """A renderer whose frame is a list of passes (`passes`: (name, callable) in order): render runs
-    them; a profile times each (bench_billboards)."""
+    them; vdmrender.timing times each."""
 
     def passes(self, camera, target) -> list:
         raise NotImplementedError

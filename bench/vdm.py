@@ -11,7 +11,7 @@
    float32 weights, the refine settings against POM, relief and displacement, and the frame pass's costs
    per covered pixel (vdmrender/counters.py: fragments, texture fetches, search steps, searches).
 
-    python -m vdmrender.bench_vdm -o out/bench [--quick]
+    python -m bench.vdm -o out/bench [--quick]
 """
 from __future__ import annotations
 
@@ -25,10 +25,11 @@ import numpy as np
 
 from vdmbake import heightfields, vdm, vdm_storage
 
-from . import gl, interleave, progress, report
-from .bench import measure_scene
-from .techniques import Source, variants
-from .techniques.vdm import VDMPass
+from bench import interleave
+from bench.quadrics import measure_scene
+from vdmrender import gl, progress, report
+from vdmrender.techniques import Source, variants
+from vdmrender.techniques.vdm import VDMPass
 
 # (name, primitive, params, tiling): tilings keep a tile about as long as it is wide
 SURFACES = [("torus", "torus", "{ segments = 256, rings = 64 }", (16, 4)),

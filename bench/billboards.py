@@ -14,7 +14,7 @@ Then, on the bunny, in one process (issue 9's closing measurements):
   * march cost, instrumented (vdmrender/counters.py): fragments, texture fetches, march steps (cell visits
     for hier) and searches per covered pixel, improved against hier, at 800x600.
 
-    python -m vdmrender.bench_billboards -o out/bench [--quick]
+    python -m bench.billboards -o out/bench [--quick]
 """
 from __future__ import annotations
 
@@ -26,8 +26,8 @@ from pathlib import Path
 
 import click
 
-from . import progress
-from .bench import measure_scene
+from bench.quadrics import measure_scene
+from vdmrender import progress
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
           ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]
@@ -60,9 +60,9 @@ techniques = {{ mesh = {{}}, coarse = {{ ratios = [0.1] }}, billboards = {{ vari
 def _builders(bundle_path: Path, width: int, height: int):
     """(camera, {label: build}, (bundle, scene, object, entry)) for the bench scene's object, as vdmrender
     builds them, at width x height."""
-    from .camera import cameras_for
-    from .interleave import scene_of
-    from .techniques import variants
+    from bench.interleave import scene_of
+    from vdmrender.camera import cameras_for
+    from vdmrender.techniques import variants
 
     bundle, scene, obj, entry, _ = scene_of(bundle_path)
     cam = cameras_for(scene.camera, entry["centre"], entry["radius"], width, height)[0]
@@ -74,7 +74,7 @@ def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> l
     (after one untimed frame each), every pass timed with ctx.finish() after it: wall time and the
     process's CPU time (llvmpipe's threads are the process's own: the work done, much less disturbed
     by other processes on a shared machine than wall time)."""
-    from . import gl
+    from vdmrender import gl
 
     ctx = gl.create_context()
     rows = []
@@ -121,7 +121,7 @@ def march_cost(bundle_path: Path, width: int, height: int) -> dict:
     box fragment and the coarse mesh's; hier: its pre-passes', the screen pass's and the coarse mesh's),
     texture fetches, march steps (improved: its samples and bisections; hier: cell visits, a pyramid fetch
     each) and searches (a billboard marched or traced); steps per search is a march's mean length."""
-    from . import counters, gl
+    from vdmrender import counters, gl
 
     cam, builds, _ = _builders(bundle_path, width, height)
     ctx = gl.create_context()

@@ -7,7 +7,7 @@ as a 16-bit PNG of its metres and as a float EXR: one normalisation rule makes t
 Each row carries the surface score (border and inside pixels apart, vdmrender.borders) and the score
 over every pixel (mean_dluv_all, iou_all: what the report counted before).
 
-    python -m vdmrender.bench_borders -o out/bench-borders [--height png|exr|exr-flipped] [--res 256]
+    python -m bench.borders -o out/bench-borders [--height png|exr|exr-flipped] [--res 256]
 
 (`exr-flipped` writes the picture upside down: what code that does not flip picture rows needs to
 see the same surface, for before / after comparisons.)
@@ -20,7 +20,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from vdmrender.bench import measure_scene
+from bench.quadrics import measure_scene
 
 VIEWS = [("above35", 35), ("above3", 3), ("below35", -35)]
 

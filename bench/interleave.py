@@ -16,9 +16,9 @@ import numpy as np
 from vdmbake import exr
 from vdmbake.bundle import Bundle
 
-from . import counters, gl, images
-from .camera import cameras_for
-from .metrics import compare
+from vdmrender import counters, gl, images
+from vdmrender.camera import cameras_for
+from vdmrender.metrics import compare
 
 
 def scene_of(bundle_path: Path):
@@ -78,22 +78,13 @@ def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: in
 
 
 def costs(ctx, build: Callable, cams) -> dict:
-    """build(ctx) built with the cost counters on, one frame per camera: counters.count_frame's counts summed
-    over the cameras, {"covered": pixels, "passes": {name: counts}, "total": counts} (divide by "covered"
-    for figures per covered pixel)."""
+    """build(ctx) built with the cost counters on, one frame per camera: counters.count_frames (divide by
+    "covered" for figures per covered pixel)."""
     target = gl.Target(ctx, cams[0].width, cams[0].height)
     with counters.counting(ctx):
         r = build(ctx)
-    out = {"covered": 0, "passes": {}, "total": {}}
     try:
-        for cam in cams:
-            c = counters.count_frame(ctx, r, cam, target)
-            out["covered"] += c["covered"]
-            for name, counts in [*c["passes"].items(), ("total", c["total"])]:
-                into = out["total"] if name == "total" else out["passes"].setdefault(name, {})
-                for k, v in counts.items():
-                    into[k] = into.get(k, 0) + v
+        return counters.count_frames(ctx, r, cams, target)
     finally:
         r.release()
         target.release()
-    return out
