@@ -13,7 +13,7 @@ OpenImageIO's idiff use; over the union of both coverage masks:
 * local damage: at most 1% of the pixels with ΔLuv > 10 (a shift puts 4.9% or more there; rounding
   cannot: one 8-bit step in every channel is at most 1.4).
 
-On the renderer they were made on the frames reproduce exactly. The tests below prove, for every
+On the renderer they were made on the frames reproduce to a few pixels. The tests below prove, for every
 frame, that the bounds reject a one-pixel shift (all three) and a 3% darker light (the mean);
 docs/goldens.md has the measurements and the reasoning. A failing frame is written with its golden
 and a ΔLuv heat map under out/golden-failures/ (VDM_GOLDEN_OUT=DIR to move it); VDM_GOLDEN_STATS=PATH
