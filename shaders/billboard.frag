@@ -1,10 +1,10 @@
 #version 430
-// Enhanced billboards, per pixel (Vichitvejpaisal 2005, sec. 3.3 step 2): the pixel's ray clipped to
+// Enhanced billboards, per pixel (Vichitvejpaisal2005 §3.3 step 2): the pixel's ray clipped to
 // the billboard's box (slab test in its u, v, w frame) and to the near and far planes, the depth map
 // marched from entry to exit (billboard.glsl: THESIS or IMPROVED), then at the hit the normal map, the
 // shared shading model with the shadow map, and the hit's exact depth, so billboards and the coarse
-// mesh depth-test together (sec. 3.4). SHADOW: the light's pass; only the depth is written.
-// ALBEDO_MAPS: the colour at the hit is the billboard's colour map (sec. 3.3 step 2.3), else the material's.
+// mesh depth-test together (Vichitvejpaisal2005 §3.4). SHADOW: the light's pass; only the depth is written.
+// ALBEDO_MAPS: the colour at the hit is the billboard's colour map (Vichitvejpaisal2005 §3.3 step 2.3), else the material's.
 // A camera inside the box needs nothing special: the ray starts on the near plane (as the reference's).
 #include "cost_count.glsl"
 #include "billboard.glsl"
@@ -58,7 +58,7 @@ void main() {
     // enters the box behind the surface and meets it from below (f = ray depth - map depth falling there,
     // the map's slope from central differences half a texel apart) sees its back: shade that side, as the
     // mesh and the reference do (an open surface seen from behind). A ray that entered in front and meets
-    // it from below went through one of the march's holes (sec. 3.4): left as the thesis shades it.
+    // it from below went through one of the march's holes (Vichitvejpaisal2005 §3.4): left as the thesis shades it.
     vec3 s0 = o + d * t0;
     float h = 0.5 / float(textureSize(u_alpha, 0).x);
     vec2 grad = vec2(map_depth(st.xy + vec2(h, 0.0), v_layer) - map_depth(st.xy - vec2(h, 0.0), v_layer),

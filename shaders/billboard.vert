@@ -1,5 +1,5 @@
 #version 430
-// Enhanced billboards (Vichitvejpaisal 2005, sec. 3.3 step 1): each billboard is drawn as its
+// Enhanced billboards (Vichitvejpaisal2005 §3.3 step 1): each billboard is drawn as its
 // bounding box, one instance per billboard, so that every pixel its geometry can cover runs the
 // fragment stage's ray march. Only the BACK faces are rasterised (front faces culled): they cover the
 // box's screen footprint whether the eye is outside or inside the box, and they are never in front of

@@ -1,5 +1,5 @@
 #version 430
-// Enhanced billboards by the hierarchical march (Vichitvejpaisal 2005, sec. 3.3 step 2, beyond the thesis):
+// Enhanced billboards by the hierarchical march (Vichitvejpaisal2005 §3.3 step 2, beyond the thesis):
 // one fragment per pixel (a screen triangle, scissored to the billboards' screen box) traces the pixel's
 // ray through every billboard it meets, each clipped to its box (slab test), to where it enters the
 // billboard's occupied pyramid cells (OCCUPANCY pre-pass) and to the nearest hit so far, so a billboard
@@ -12,7 +12,7 @@
 //   COARSE_DEPTH  the coarse mesh's depth pre-pass (pushed back as the frame's coarse pass is) bounds every
 //                 ray: what lies behind it would lose the depth test against the coarse mesh anyway;
 //   SHADOW        the light's pass (orthographic), depth only;
-//   ALBEDO_MAPS   the colour at the hit is the billboard's colour map (sec. 3.3 step 2.3), else the material's.
+//   ALBEDO_MAPS   the colour at the hit is the billboard's colour map (Vichitvejpaisal2005 §3.3 step 2.3), else the material's.
 // BOARDS (defined by the caller) is the number of billboards, MAX_ITER the tracer's cap per billboard.
 // Counts (cost_count.glsl): each billboard traced is a search, each of its cell visits a step.
 #include "cost_count.glsl"

@@ -1,7 +1,7 @@
 #version 430
-// Deferred shading of ray-cast quadrics (de Poel & Bresser 2009, sec. 4): the G-buffer holds
+// Deferred shading of ray-cast quadrics (dePoel2009 §4): the G-buffer holds
 // the normal and mu (the ray's interpolation factor between the near and far planes) instead
-// of depth; the position is rebuilt from mu (eq. 3-4). Optional Sobel outlines: silhouettes
+// of depth; the position is rebuilt from mu (dePoel2009 eq. 3-4). Optional Sobel outlines: silhouettes
 // from the depth, creases from the normals, strengths u_silhouette and u_crease. Each hit writes its
 // exact depth, so the pass is depth-tested against whatever else the target holds (composite frames).
 #include "cost_count.glsl"

@@ -1,6 +1,6 @@
 #version 430
 // Base meshes of mesostructure techniques (vdm, pom, bump): the per-vertex surface frame of
-// VDM sec. 3.2 (texture tangents, principal curvatures and direction) is interpolated per pixel.
+// Wang2003 §3.2 (texture tangents, principal curvatures and direction) is interpolated per pixel.
 in vec3 in_pos;       // anchor-relative
 in vec3 in_normal;
 in vec2 in_uv;

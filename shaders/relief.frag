@@ -1,12 +1,12 @@
 #version 430
 // Relief mapping by exact hierarchical tracing, the peer of POM and VDM: per pixel, the view ray in the
-// mesostructure's texture space (VDM sec. 3.2: the base mesh's interpolated frame) traced through the
+// mesostructure's texture space (Wang2003 §3.2: the base mesh's interpolated frame) traced through the
 // min/max pyramid of the depth field to its exact first hit with the bilinear surface
 // (heightfield_trace.glsl), then the hit's texture coordinate for the normal map, a shadow ray from the
 // hit toward the light by the same tracer, the true depth of the hit, and the shared shading. The normal
 // map is read at its finest level at the exact hit, as the traced reference's interpolated vertex normals
 // are (a mip-mapped lookup blurs the normals at a texel or more per pixel: docs/relief-notes.md).
-// Curvature (beyond POM; VDM sec. 3.1 and Appendix, curved relief mapping of Oliveira & Policarpo 2005):
+// Curvature (beyond POM; Wang2003 §3.1 and Appendix, curved relief mapping of Oliveira & Policarpo 2005):
 // the base surface near the pixel is the quadric of its interpolated principal curvatures, so a ray's depth
 // below it, at tangential distance s along texture direction e, is its depth below the tangent plane minus
 // c(e) s^2 / 2 (texture_curvature). Both rays are traced bent by that term: on a convex surface a view

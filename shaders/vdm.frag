@@ -1,7 +1,7 @@
 #version 430
-// View-dependent displacement mapping, the per-pixel algorithm of Wang et al. 2003, sec. 3.2:
+// View-dependent displacement mapping, the per-pixel algorithm of Wang2003 §3.2:
 // silhouette determination (MVM), real texture coordinate, shadow determination, shading.
-// d_VDM and theta_MVM are reconstructed from the SVD (sec. 3.3): W (x, y, phi) . E (theta, c).
+// d_VDM and theta_MVM are reconstructed from the SVD (Wang2003 §3.3): W (x, y, phi) . E (theta, c).
 // Compiled per variant: K eigenfunctions (the group loop unrolls); REFINE > 0 finishes the view ray's
 // hit and decides the self-shadow on the height field itself (beyond the paper: refine_view,
 // shadow_march); ORIGINAL_LOOKUP: the first implementation's lookup (float weights mip-mapped, phi
@@ -143,7 +143,7 @@ void main() {
     vec2 dm = vdm_lookup(T, acos(min(V.z, 1.0)), atan(V.y, V.x), cV, dx, dy);
     // 1. Silhouette determination: beyond the maximal view angle the ray meets no mesostructure.
     bool miss = acos(min(V.z, 1.0)) > dm.y;
-    // 2. Real texture coordinate T' = T - d V_xy (the Appendix's extended d on curved surfaces), at
+    // 2. Real texture coordinate T' = T - d V_xy (Wang2003 Appendix's extended d on curved surfaces), at
     //    distance t along the view ray, which cannot pass the mesostructure's floor.
     float t = clamp(ray_distance(max(dm.x, 0.0), V.z, cV), 0.0, depth_distance(u_depth, stV, V.z, cV));
 #if REFINE > 0
@@ -154,7 +154,7 @@ void main() {
     if (miss) discard;
 #endif
     vec2 T1 = T - curved_ray(t, 0.0, stV, -V.z, cV).x * V.xy;
-    float h = depth_at_lod0(T1);                      // sec. 3.2: h as given by the height field
+    float h = depth_at_lod0(T1);                      // Wang2003 §3.2: h as given by the height field
     vec3 P = v_pos - Vw * (t * world_length(F, V));
     // 3. Shadow determination, along the light ray bent with c_L as the tables are (the paper ignores
     //    curvature here).
@@ -166,7 +166,7 @@ void main() {
 #if REFINE > 0
         lit = shadow_march(T1, h, L, cL, exit_distance(h, length(L.xy), L.z, cL));
 #else
-        // The paper's test (sec. 3.2, Fig. 5): from T'' (T' + h tan(theta_L) L on a plane), where the
+        // The paper's test (Wang2003 §3.2, Fig. 5): from T'' (T' + h tan(theta_L) L on a plane), where the
         // light ray leaves the surface, the VDM along L reaches P' (d_L = h / cos(theta_L)) unless
         // something is in the way. The light's polar angle is clamped to the sampled ones: beyond the
         // last, the lookup would hold a steeper ray's hit, short of P' (false shadows under a low

@@ -1,8 +1,8 @@
 """Enhanced billboards: what the renderer needs from each billboard's maps, computed once in the bake
 (pure numpy; the maps themselves come from vdmbake.billboards).
 
-The surface a billboard stands for is the bilinear interpolation of its depth map (Vichitvejpaisal 2005,
-sec. 3.1: the depth map is a height field over the billboard plane, ray-marched in sec. 3.3). Its samples
+The surface a billboard stands for is the bilinear interpolation of its depth map (Vichitvejpaisal2005
+§3.1: the depth map is a height field over the billboard plane, ray-marched in Vichitvejpaisal2005 §3.3). Its samples
 sit at texel centres, so the bilinear surface of the R x R map runs between them; with a one-texel border
 it covers the whole box, [0, 1]^2 in map coordinates, as (R + 1)^2 bilinear cells ("texels" of the surface:
 the square between four neighbouring samples).

@@ -1,26 +1,27 @@
-"""Enhanced billboards: the bake (Vichitvejpaisal 2005, chapter 3), pure numpy + Embree.
+"""Enhanced billboards: the bake (Vichitvejpaisal2005 chapter 3), pure numpy + Embree.
 
-An enhanced billboard (sec. 3.1) is a box looking at part of the model along one view
+An enhanced billboard (Vichitvejpaisal2005 §3.1) is a box looking at part of the model along one view
 direction w: an orthographic R x R projection of the polygons it captured, as a transparency
 map (alpha), a depth map (distance from the box front along w, 0..1 of the box depth), a
 normal map and, for an asset with its own colours (per-vertex colours or an albedo map), the
-colour map (sec. 3.1: "color and normal of projected polygon poly is stored in color map and normal
-map"; here the linear albedo at the texel's surface point, which the renderer shades, sec. 3.3 step 2.3).
+colour map (Vichitvejpaisal2005 §3.1: "color and normal of projected polygon poly is stored in color map and normal
+map"; here the linear albedo at the texel's surface point, which the renderer shades,
+Vichitvejpaisal2005 §3.3 step 2.3).
 An asset without colours has no colour map: the material's albedo is the colour everywhere. The
-renderer (sec. 3.3) ray-marches the depth map as a height field inside the box.
+renderer (Vichitvejpaisal2005 §3.3) ray-marches the depth map as a height field inside the box.
 
-Building (sec. 3.2) is greedy set cover over a 36 x 18 array of candidate view directions
-(sec. 4.1): take the direction that projects the most remaining polygons, keep those within
+Building (Vichitvejpaisal2005 §3.2) is greedy set cover over a 36 x 18 array of candidate view directions
+(Vichitvejpaisal2005 §4.1): take the direction that projects the most remaining polygons, keep those within
 the depth limit e_depth of the billboard plane, make them one billboard, remove them, repeat.
-A polygon is projectable from w (sec. 3.1, conditions 1 and 2) when it faces the viewer,
-n . (-w) > min_cos (sec. 4.3: nearly perpendicular polygons are not projected), and it is
+A polygon is projectable from w (Vichitvejpaisal2005 §3.1, conditions 1 and 2) when it faces the viewer,
+n . (-w) > min_cos (Vichitvejpaisal2005 §4.3: nearly perpendicular polygons are not projected), and it is
 not occluded: an Embree ray from its centroid toward the viewer meets nothing of the full
 mesh. Occlusion by the full mesh does not change as polygons are removed, so it is computed
 once, as a (directions x faces) matrix, and the loop is then cheap bookkeeping.
 
 Approximations: a polygon's visibility is that of its centroid (a partly covered polygon
 whose centroid is seen is captured; its covered part is what the map's front-most surface
-shows); intersecting polygons (sec. 4.3) therefore need no special case. Maps are square
+shows); intersecting polygons (Vichitvejpaisal2005 §4.3) therefore need no special case. Maps are square
 (R x R) whatever the box's aspect: texels are stretched to the box's u and v extents.
 
 Geometry is handled relative to the bounding-box centre (float64) and Embree anchors its
@@ -40,7 +41,7 @@ from .errors import InputError
 from .meshes import TriMesh, validate
 from .parts import Billboard
 
-# The axis baseline of sec. 4.2 (Figure 4-5), as view directions: +X, -X, +Y, -Y, +Z, -Z.
+# The axis baseline of Vichitvejpaisal2005 §4.2 (Fig. 4-5), as view directions: +X, -X, +Y, -Y, +Z, -Z.
 AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
 HAIR = 1e-5         # visibility rays start this far (x model diameter) off the face, along its normal
 MARGIN = 1e-4       # boxes grow by this (x model diameter) on every side: a flat set keeps a depth,
@@ -50,16 +51,16 @@ DEGENERATE = 1e-12  # faces with area below this x diameter^2 have no normal
 
 @dataclass(frozen=True)
 class Settings:
-    mode: str = "greedy"      # "greedy" (sec. 3.2) or "axis" (the +-X, +-Y, +-Z baseline of sec. 4.2)
-    azimuths: int = 36        # the candidate view-plane array A (sec. 4.1: 36 x 18)
+    mode: str = "greedy"      # "greedy" (Vichitvejpaisal2005 §3.2) or "axis" (the +-X, +-Y, +-Z baseline of §4.2)
+    azimuths: int = 36        # the candidate view-plane array A (Vichitvejpaisal2005 §4.1: 36 x 18)
     elevations: int = 18
-    resolution: int = 512     # map side in texels (sec. 4.1: 512 x 512)
-    # e_depth (sec. 3.1 condition 3, sec. 3.2 step 7), as a fraction of the bounding-sphere diameter:
+    resolution: int = 512     # map side in texels (Vichitvejpaisal2005 §4.1: 512 x 512)
+    # e_depth (Vichitvejpaisal2005 §3.1 condition 3, §3.2 step 7), as a fraction of the bounding-sphere diameter:
     # the billboard plane p sits at the nearest projectable polygon, and a polygon is stored only if
     # its distance to p (that of its nearest vertex) is at most e_depth. A box is thus about e_depth
     # deep (plus its deepest polygon's own extent along w), which bounds the ray-march per billboard.
     max_depth: float = 0.5
-    min_cos: float = 0.25     # n . (-w) at or below this: too close to perpendicular (sec. 4.3), ~75.5 deg
+    min_cos: float = 0.25     # n . (-w) at or below this: too close to perpendicular (Vichitvejpaisal2005 §4.3), ~75.5 deg
     max_billboards: int = 64
 
 
@@ -73,8 +74,8 @@ class Result:
 
 
 def candidate_directions(azimuths: int, elevations: int) -> np.ndarray:
-    """(A*E, 3) unit view directions on a latitude-longitude grid (the view-plane array of sec. 3.2,
-    Figure 3-2), elevation-major from the south; elevations at bin centres, so no pole is repeated."""
+    """(A*E, 3) unit view directions on a latitude-longitude grid (the view-plane array of Vichitvejpaisal2005 §3.2,
+    Fig. 3-2), elevation-major from the south; elevations at bin centres, so no pole is repeated."""
     el = (np.arange(elevations) + 0.5) / elevations * np.pi - np.pi / 2
     az = np.arange(azimuths) / azimuths * 2 * np.pi
     e, a = np.meshgrid(el, az, indexing="ij")
@@ -100,7 +101,7 @@ def _check(s: Settings):
 
 
 def bake(mesh: TriMesh, settings: Settings = Settings(), log=lambda msg: None) -> Result:
-    """Visibility of every face from every candidate (sec. 3.2 step 3), the greedy or axis choice of
+    """Visibility of every face from every candidate (Vichitvejpaisal2005 §3.2 step 3), the greedy or axis choice of
     billboards (steps 1-12), their maps (steps 9-10), and the faces left out, by reason:
     too_small (degenerate, or smaller than 1/4 of the finest billboard texel even seen head-on),
     perpendicular (never facing a candidate by more than min_cos), hidden (facing some candidate
@@ -132,7 +133,7 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), log=lambda msg: None) -
         log(f"billboard {k + 1}: w = {np.round(b.axes[2], 3).tolist()}, {len(f)} faces, "
             f"{int(b.alpha.sum())} texels, box {np.round(b.size, 4).tolist()}")
 
-    # Faces never captured, by reason (sec. 3.4 and 4.3).
+    # Faces never captured, by reason (Vichitvejpaisal2005 §3.4, §4.3).
     captured = np.zeros(len(tri), bool)
     for f in faces:
         captured[f] = True
@@ -147,8 +148,8 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), log=lambda msg: None) -
 
 
 def _visibility(v, faces, starts, fn, dirs, min_cos, pool):
-    """Sec. 3.2 step 3 for all candidates at once: vis[d, f] is True where face f is projectable
-    from dirs[d] (sec. 3.1 conditions 1 and 2). Rays are cast only for the front-facing pairs."""
+    """Vichitvejpaisal2005 §3.2 step 3 for all candidates at once: vis[d, f] is True where face f is projectable
+    from dirs[d] (Vichitvejpaisal2005 §3.1 conditions 1 and 2). Rays are cast only for the front-facing pairs."""
     scene = RayScene(v, faces)
     scene.occluded(np.zeros((1, 3)), AXES[:1])  # Embree commits on the first query: before threads share it
 
@@ -169,7 +170,7 @@ def _visibility(v, faces, starts, fn, dirs, min_cos, pool):
 
 
 def _build(vis, tri, fn, area, dirs, settings: Settings, scale: float) -> list[tuple[int, np.ndarray]]:
-    """Sec. 3.2 steps 1-12: (direction, captured faces) per billboard, in order."""
+    """Vichitvejpaisal2005 §3.2 steps 1-12: (direction, captured faces) per billboard, in order."""
     remaining = np.ones(tri.shape[0], bool)
     counts = vis.sum(1)  # |S| per candidate over the remaining faces
     chosen, d = [], -1
@@ -185,7 +186,7 @@ def _build(vis, tri, fn, area, dirs, settings: Settings, scale: float) -> list[t
 
 
 def _pick(counts, last, vis, remaining, fn, area, dirs, greedy: bool) -> int:
-    """Greedy (sec. 3.2 step 4): the candidate projecting the most remaining polygons; ties go to the
+    """Greedy (Vichitvejpaisal2005 §3.2 step 4): the candidate projecting the most remaining polygons; ties go to the
     largest projected area (the most head-on view), then the first index. Axis mode: the next axis
     direction in order that still projects something."""
     if not greedy:
@@ -200,7 +201,7 @@ def _pick(counts, last, vis, remaining, fn, area, dirs, greedy: bool) -> int:
 
 
 def _maps(v, mesh: TriMesh, fn, take, w, resolution: int, scale: float) -> Billboard:
-    """Sec. 3.2 steps 9-10: project the captured faces orthographically along w into an R x R box.
+    """Vichitvejpaisal2005 §3.2 steps 9-10: project the captured faces orthographically along w into an R x R box.
     One Embree ray per texel centre from the box front along +w against these faces only."""
     axes = view_frame(w)
     faces = mesh.faces[take]
@@ -226,7 +227,7 @@ def _maps(v, mesh: TriMesh, fn, take, w, resolution: int, scale: float) -> Billb
     normal[hit] = n
     shape = (resolution, resolution)
     albedo = None
-    if texture.has_albedo(mesh):   # the colour map (sec. 3.1): the asset's albedo at the texel's surface point
+    if texture.has_albedo(mesh):   # the colour map (Vichitvejpaisal2005 §3.1): the asset's albedo at the texel's surface point
         albedo = np.zeros((resolution * resolution, 3))
         albedo[hit] = texture.surface_albedo(mesh, take[prim], b, None)
         albedo = albedo.reshape(shape + (3,)).astype(np.float32)

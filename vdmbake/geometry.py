@@ -2,7 +2,7 @@
 midpoint subdivision, surfaces of revolution, the icosphere, periodic bilinear sampling of a
 height field, and conventional displacement mapping (Cook 1984), which is both the `displaced`
 technique (baked at a few levels) and, subdivided to half-texel edges, the truly displaced
-geometry the mesostructure reference traces (DESIGN.md, "The reference").
+geometry the mesostructure reference traces (the reference of docs/architecture.md §1 step 4).
 """
 from __future__ import annotations
 
@@ -191,7 +191,7 @@ def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: fl
     return TriMesh(moved, f, texspace.world_normals(J, a["normal"], n_tex), a["uv"])
 
 
-# Open boundaries (VDM sec. 5: "VDMs will be extended to model open surface boundaries, which are not
+# Open boundaries (Wang2003 §5: "VDMs will be extended to model open surface boundaries, which are not
 # handled in our current implementation"). The mesostructure fills a shell under the base surface, down
 # to depth * s_n; on a closed surface the shell has no sides. Where the base surface has a border (a
 # plane, an open mesh) the shell is open there, and what a view sees through that side is modelled by no

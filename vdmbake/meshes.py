@@ -14,7 +14,7 @@ from .errors import InputError
 
 @dataclass
 class SurfaceFrame:
-    """Per-vertex differential geometry for mapping mesostructure onto a surface (VDM, sec. 3.2):
+    """Per-vertex differential geometry for mapping mesostructure onto a surface (Wang2003 §3.2):
     the texture tangents and the principal curvatures and directions."""
     dpdu: np.ndarray    # (V, 3) world-space derivative of position along texture u
     dpdv: np.ndarray    # (V, 3) ... along texture v

@@ -1,5 +1,5 @@
 """A mesostructure's colour tile (`[objects.mesostructure] albedo`): the albedo map that repeats with the
-height field, as every textured figure of the VDM paper (Wang et al. 2003, Fig. 9) has one.
+height field, as every textured figure of the VDM paper (Wang2003 Fig. 9) has one.
 
 The tile is an albedo map as vdmbake.texture defines it ((H, W, 3) uint8 sRGB, row 0 at v = 0, the
 picture's bottom, as height fields) spanning one tile of texture space: the mesostructure techniques and

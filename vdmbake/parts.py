@@ -169,7 +169,7 @@ ALBEDO_MAP = PartKind("albedo-map", ".png", _pack_albedo_map, _unpack_albedo_map
 
 @dataclass
 class MesostructureMaps:
-    """One tile of the mesostructure (VDM sec. 3), N x N texels, row 0 at tile v = 0 (image order:
+    """One tile of the mesostructure (Wang2003 §3), N x N texels, row 0 at tile v = 0 (image order:
     [row, column] = [v, u]). heights in [0, 1] (1 = the reference surface); normals: unit
     texture-space normals of the displaced height field (z along the surface normal, the depth in
     tile units), the shading normals of every mesostructure technique and of the reference."""
@@ -207,9 +207,9 @@ MESOSTRUCTURE = PartKind("mesostructure", ".exr", _pack_mesostructure, _unpack_m
 @dataclass
 class VDMTables:
     """d_VDM(x, y, phi, theta, c) ~ sum_i W[phi, y, x, i] E_vdm[i, c, theta] and theta_MVM(x, y, phi, c)
-    ~ sum_i W[phi, y, x, i] E_mvm[i, c] (sec. 3.3). x, y: texel centres of the tile; phi, theta: bin
+    ~ sum_i W[phi, y, x, i] E_mvm[i, c] (Wang2003 §3.3). x, y: texel centres of the tile; phi, theta: bin
     centres of [0, 2 pi) and [0, pi / 2]; c: the curvature samples listed in the manifest. d in
-    texture units (extended d = l / sin(theta) on curved surfaces, the Appendix), theta_MVM in radians.
+    texture units (extended d = l / sin(theta) on curved surfaces, Wang2003 Appendix), theta_MVM in radians.
     W is stored as float32, float16 or uint8 codes (vdmbake/vdm_storage.py): the weight is
     W * scale[i] + offset[i] (scale 1, offset 0 for floats)."""
     W: np.ndarray       # (n_phi, N, N, k) float32, float16 or uint8
@@ -263,7 +263,7 @@ VDM = PartKind("vdm", ".exr", _pack_vdm, _unpack_vdm, VDMMeta)
 
 @dataclass
 class Billboard:
-    """One enhanced billboard (thesis sec. 3.1): a box looking along w at part of the model, and its
+    """One enhanced billboard (Vichitvejpaisal2005 §3.1): a box looking along w at part of the model, and its
     R x R maps; texel [row, col] = (v, u), row 0 at v = 0."""
     origin: np.ndarray   # (3,) world corner of the box at texel (0, 0), depth 0
     axes: np.ndarray     # (3, 3) rows u, v, w (w = view direction into the model), right-handed
@@ -271,7 +271,7 @@ class Billboard:
     alpha: np.ndarray    # (R, R) float32 coverage 0/1
     depth: np.ndarray    # (R, R) float32 in [0, 1] along w (0 = box front), 1 where alpha is 0
     normal: np.ndarray   # (R, R, 3) float32 world unit shading normal facing -w, 0 where alpha is 0
-    albedo: np.ndarray | None = None   # (R, R, 3) the colour map (sec. 3.1): linear RGB albedo, 0 where alpha
+    albedo: np.ndarray | None = None   # (R, R, 3) the colour map (Vichitvejpaisal2005 §3.1): linear RGB albedo, 0 where alpha
                                        # is 0; only for assets with their own colours (texture.has_albedo)
 
 

@@ -1,6 +1,6 @@
 """Quadric lists: spheres and capped cylinders (atoms and bonds), for per-pixel ray casting.
 
-Nothing is ray cast at bake time (de Poel & Bresser 2009, sec. 3): the bake only parses,
+Nothing is ray cast at bake time (dePoel2009 §3): the bake only parses,
 transforms, drops what has no volume, computes bounds, and stores the lists as PLY
 elements `sphere` (x y z radius red green blue) and `cylinder` (x0 y0 z0 x1 y1 z1 radius
 red green blue), positions in float64.

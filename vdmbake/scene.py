@@ -114,7 +114,7 @@ class Transform:
 
 @dataclass(frozen=True)
 class Mesostructure:
-    """Detail geometry over a surface object's UVs (VDM, sec. 3): a height field tiled `tiling` times
+    """Detail geometry over a surface object's UVs (Wang2003 §3): a height field tiled `tiling` times
     over the UV square, lying inward of the surface, `depth` deep in tile units (a tile spans 1 x 1);
     the VDM tables sample it `size`^2 texels x `phi` x `theta` views x `curvatures`."""
     height: str = setting(REQUIRED, Text(f"a pattern ({', '.join(PATTERNS)}), skimage:NAME "

@@ -20,7 +20,7 @@ data's shared control points make the shared border curves bit-identical); they 
 where their UVs agree too (a UV seam keeps its copies, as any UV-mapped mesh does), and every copy of a
 point of one piece gets the mean of the patch normals and shape tensors there (the patches meet with
 tangent continuity, so the means only smooth rounding). Triangles that collapse where a patch edge
-does are dropped: at 8 segments that leaves 4032 triangles, the count of the VDM paper's Fig. 9
+does are dropped: at 8 segments that leaves 4032 triangles, the count of Wang2003 Fig. 9's
 teapot (Wang et al. 2003). The teapot is not closed: the rim's inner lip and the lid's edge leave the
 classic gap between lid and pot, and the handle's and the spout's ends are open where they enter the
 body (tests/test_teapot.py measures the border).

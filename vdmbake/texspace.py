@@ -1,4 +1,4 @@
-"""The map between world space and mesostructure texture space, per vertex (VDM, sec. 3.2).
+"""The map between world space and mesostructure texture space, per vertex (Wang2003 §3.2).
 
 A tile of the height field spans 1 x 1 texture units. Near a surface point the map from texture
 space to world space is affine: M = [J | s_n N], J = [dP/du / tiling_u, dP/dv / tiling_v] (3 x 2,

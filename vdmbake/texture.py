@@ -1,12 +1,12 @@
 """Albedo maps: an asset's base-colour texture (or a mesostructure tile's colour) and the albedo of a
-surface point (DESIGN.md's shading model: "albedo from a colour texture or a constant").
+surface point (the shading model takes its albedo from a colour texture or a constant).
 
 A map is (H, W, 3) uint8 sRGB, row 0 at texture v = 0 (the picture's bottom, as OBJ, glTF after its
 flip, and GL's t = 0). Texels are decoded to linear before they are blended (the GL spec's order for
 sRGB textures); `sample` is the numpy twin of the renderer's read (bilinear, wrapping, texel centres at
 (i + 1/2) / W). The renderer uploads the decoded texels (`linear`, as half floats) rather than an sRGB8
-texture: llvmpipe's sRGB8 decode is off by up to 2.5% on dark codes (a flat textured plane scored 0.39
-mean dLuv against the reference, 0.009 with linear texels). No mipmaps on either side, so the reference
+texture: llvmpipe's sRGB8 decode is off by up to 2.5% on dark codes (docs/tuning.md has the error it
+made). No mipmaps on either side, so the reference
 and every technique see the same texture and the error measures the technique alone.
 """
 from __future__ import annotations

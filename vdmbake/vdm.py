@@ -1,11 +1,11 @@
-"""View-dependent displacement mapping: the bake (Wang et al. 2003, sec. 3.1, 3.3 and Appendix).
+"""View-dependent displacement mapping: the bake (Wang2003 §3.1, §3.3 and Appendix).
 
 Units are texture units: one tile of the height field spans [0, 1) x [0, 1); the mesostructure
 lies inward of the reference surface z = 0, at z = -depth * (1 - h(x, y)), h in [0, 1] (1 = top).
 Curvatures are in 1 / texture unit. The viewing vector V = (sin t cos p, sin t sin p, cos t)
 points from the surface to the eye; the ray enters the surface at the texel along -V, and
 d_VDM is the distance along it to the first mesostructure hit, -1 where there is none.
-For curved surfaces d_VDM is the Appendix's extended definition l / sin(theta), l the arc
+For curved surfaces d_VDM is the extended definition of Wang2003 Appendix, l / sin(theta), l the arc
 length in texture space between the entry point and the hit, so that the real texture
 coordinate is always T' = T - d_VDM * V_xy.
 
@@ -102,7 +102,7 @@ FLAT_BLOCK_RAYS = 1 << 19   # rays generated and cast per block: their arrays st
 
 def vdm_flat(heights: np.ndarray, depth: float, sampling: Sampling, scene: RayScene | None = None,
              on_block=None):
-    """Zero-curvature VDM by ray casting (sec. 3.1): (N, N, n_phi, n_theta) float32 distances,
+    """Zero-curvature VDM by ray casting (Wang2003 §3.1): (N, N, n_phi, n_theta) float32 distances,
     the ray count, and the Embree scene (reusable). Rows are y, columns x (image order).
     on_block(out, rows): called with the table and each block of texel rows (a slice) once it is cast."""
     n = sampling.size
@@ -151,7 +151,7 @@ CHUNK_ROWS = 8192  # rows (x, y, phi) per block: the (rows, theta, sample) tempo
 
 
 def hit_geometry(d_flat: np.ndarray, sampling: Sampling) -> tuple:
-    """The curvature-independent part of the Appendix's resampling, computed once per table: which
+    """The curvature-independent part of Wang2003 Appendix's resampling, computed once per table: which
     zero-curvature samples hit (valid), their extended d (0 where none), and the arc length s and depth
     h of each hit below its entry point. Theta-major: (n_theta, rows) for d_flat (..., n_theta), so the
     per-row scans over theta (running maximum, ranks, counts) run across whole rows at once."""
@@ -164,7 +164,7 @@ def hit_geometry(d_flat: np.ndarray, sampling: Sampling) -> tuple:
 
 def vdm_curved(d_flat: np.ndarray, sampling: Sampling, c: float, geometry: tuple | None = None,
                out: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The Appendix's resampling (resample_columns) over cache-sized blocks of rows: (table, horizon) of
+    """Wang2003 Appendix's resampling (resample_columns) over cache-sized blocks of rows: (table, horizon) of
     d_flat's shape and its shape less theta. `geometry`: hit_geometry(d_flat) when several curvatures share
     it; `out`: where to write the table (any view of d_flat's shape whose leading axes are contiguous)."""
     rows = d_flat.reshape(-1, d_flat.shape[-1])
@@ -196,7 +196,7 @@ def _scan(op, a: np.ndarray) -> np.ndarray:
 
 
 def resample_columns(geometry: tuple, sampling: Sampling, c: float) -> tuple[np.ndarray, np.ndarray]:
-    """The Appendix's curvature resampling: bend the zero-curvature hit points to curvature c,
+    """Wang2003 Appendix's curvature resampling: bend the zero-curvature hit points to curvature c,
     take their new viewing angles theta', drop those that became occluded (theta' not above
     every earlier one), resample linearly at the uniform thetas; -1 past the last hit on a
     convex surface (the ray leaves it). Values are the extended d = l / sin(theta).
@@ -266,7 +266,7 @@ def resample_columns(geometry: tuple, sampling: Sampling, c: float) -> tuple[np.
 
 
 def mvm(vdm: np.ndarray, sampling: Sampling, horizons: dict | None = None) -> np.ndarray:
-    """Maximal View polar angle Map (sec. 3.3): theta_MVM(x, y, phi, c), the largest theta with
+    """Maximal View polar angle Map (Wang2003 §3.3): theta_MVM(x, y, phi, c), the largest theta with
     d != -1. The uniform samples only bracket it: the upper edge of the last valid sample's bin
     is taken (pi / 2 where every sample is valid, so a flat or concave patch never clips grazing
     views; 0 where none is), or, for the convex curvatures in `horizons` (c index -> (N, N, n_phi)
@@ -307,7 +307,7 @@ class Truncation:
 
 
 def compress(vdm: np.ndarray, theta_mvm: np.ndarray, k: int, report=()) -> Compressed:
-    """SVD of A = [A_VDM, A_MVM] (sec. 3.3): rows (x, y, phi), columns (theta, c) then (c); the -1
+    """SVD of A = [A_VDM, A_MVM] (Wang2003 §3.3): rows (x, y, phi), columns (theta, c) then (c); the -1
     entries of A_VDM are replaced by the MVM angle first. Computed from the Gram matrix A^T A
     (columns are few), float64; W = A E. k is capped at the matrix rank; the reconstruction
     error is measured for k and for every smaller k in `report` (the first k columns of E are

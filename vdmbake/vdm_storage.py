@@ -1,4 +1,4 @@
-"""How the VDM's eigenfunction weights W are stored (Wang et al. 2003, sec. 3.3, where 8 eigenfunctions
+"""How the VDM's eigenfunction weights W are stored (Wang2003 §3.3, where 8 eigenfunctions
 of 128^2 x 32 weights make the paper's 4 MB: one byte per weight). Formats: float32; float16; uint8
 codes with a per-eigenfunction scale and offset (weight = code * scale + offset). The bake keeps the
 smallest format whose rounding leaves the reconstruction's RMS error within TOLERANCE of the SVD

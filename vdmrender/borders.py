@@ -4,7 +4,7 @@ scores the surface apart from its border: the reference and the metric agree on 
 Per pixel, the primary ray (the reference's, clipped to the same near / far planes) is classed:
 - BORDER: it crosses the shell's side wall (the skirt) before its reference hit, or crosses it and
   hits nothing: what it sees depends on how the open side of the mesostructure is closed, which no
-  per-pixel method models (VDM sec. 5);
+  per-pixel method models (Wang2003 §5);
 - INSIDE: its reference hit is the displaced sheet seen from behind (the base surface's back, below
   the mesostructure): a height field has no underside, so nothing there is the surface's to render;
 - SURFACE: everything else, the pixels the techniques are scored on.

@@ -15,7 +15,7 @@ import numpy as np
 
 def curved_ray(t, h0, st, cz, c) -> tuple[np.ndarray, np.ndarray]:
     """The ray's point at distance t: (sigma, depth). sigma is the arc length under the point over
-    sin theta, the Appendix's extended displacement (the point lies over T -+ sigma V_xy); depth is
+    sin theta, the extended displacement of Wang2003 Appendix (the point lies over T -+ sigma V_xy); depth is
     below the surface."""
     x, y = t * st, t * cz - h0
     return t * (1.0 - c * y), -y - 0.5 * c * x * x

@@ -1,4 +1,5 @@
-"""Colour and error metrics: CIE 1976 L*u*v* and the thesis's average intensity difference (eq. 2.2).
+"""Colour and error metrics: CIE 1976 L*u*v* and the average intensity difference of
+Vichitvejpaisal2005 eq. 2.2.
 
 Colours are 8-bit sRGB (IEC 61966-2-1: sRGB primaries, D65 white), decoded to linear RGB,
 taken to CIE XYZ with the sRGB matrix, then to L*u*v* relative to the D65 white (Y_n = 1).
@@ -39,14 +40,14 @@ def srgb8_to_luv(rgb8: np.ndarray) -> np.ndarray:
 
 
 def delta_luv(a_rgb8: np.ndarray, b_rgb8: np.ndarray) -> np.ndarray:
-    """Per-pixel Euclidean distance in L*u*v* (the summand of eq. 2.2)."""
+    """Per-pixel Euclidean distance in L*u*v* (the summand of Vichitvejpaisal2005 eq. 2.2)."""
     return np.linalg.norm(srgb8_to_luv(a_rgb8) - srgb8_to_luv(b_rgb8), axis=-1)
 
 
 def compare(frame: np.ndarray, reference: np.ndarray, classes: np.ndarray | None = None) -> dict:
     """Error of one frame against the reference; both (H, W, 4) uint8 sRGB + coverage alpha.
 
-    Eq. 2.2 averages over object pixels; here those are the union of both coverage masks,
+    Vichitvejpaisal2005 eq. 2.2 averages over object pixels; here those are the union of both coverage masks,
     so a missing or an extra silhouette pixel counts. `classes` (vdmrender.borders, (H, W)): pixels
     that see an open border or the surface from inside are scored apart ("apart": their count and
     values); "mean" and "iou" are over the other, surface pixels, "mean_all" and "iou_all" over every
@@ -69,7 +70,7 @@ def compare(frame: np.ndarray, reference: np.ndarray, classes: np.ndarray | None
 
 def flip_values(frame: np.ndarray, reference: np.ndarray, scored: np.ndarray) -> np.ndarray:
     """NVIDIA FLIP (Andersson et al. 2020, LDR, default 67 pixels per degree) of the sRGB frame
-    against the reference, at the `scored` pixels (those eq. 2.2 averages over; none where there
+    against the reference, at the `scored` pixels (those Vichitvejpaisal2005 eq. 2.2 averages over; none where there
     are none), each in [0, 1]. FLIP models what a viewer notices when flipping between the two images,
     so it sees edges and patterns: a second opinion beside ΔLuv, which weighs every pixel alone."""
     if not scored.any():

@@ -1,7 +1,7 @@
 """Ray/quadric kernels and projected bounds (pure numpy, float64): the reference's exact
 intersections, and the numpy twin of the impostor shaders' bounding box (shaders/include/quadric.glsl).
 
-Parameter space (Sigg et al. 2006; de Poel & Bresser 2009, sec. 3): a sphere is the unit
+Parameter space (Sigg2006; dePoel2009 §3): a sphere is the unit
 sphere x^T D x = 0 with D = diag(1, 1, 1, -1); the variance matrix T maps it to the scene.
 """
 from __future__ import annotations

@@ -1,11 +1,11 @@
-// Ray / depth-map intersection of one enhanced billboard (Vichitvejpaisal 2005, sec. 3.3 step 2.2),
+// Ray / depth-map intersection of one enhanced billboard (Vichitvejpaisal2005 §3.3 step 2.2),
 // in the billboard's texture space: s = (u, v, depth) in the unit box, depth 0 at the box front, 1 at
 // its back. The maps of all billboards are layers of two texture arrays:
 //   u_maps  RGBA32F, linear: world unit normal (xyz) and depth (w), with a one-texel border; the border
 //           and the empty texels next to covered ones are extrapolated from them (techniques/billboards.py),
 //           so bilinear filtering at a map's edge or silhouette follows the surface's slope;
 //   u_alpha R8, read per texel: 0 marks an empty texel, which a ray passes through.
-// THESIS (sec. 4.1): 100 fixed steps of sqrt(2)/100 (the ray length sqrt(2), the diagonal of the unit
+// THESIS (Vichitvejpaisal2005 §4.1): 100 fixed steps of sqrt(2)/100 (the ray length sqrt(2), the diagonal of the unit
 // depth map) from the box entry; the first sample whose depth is within the hit range e of the map's
 // (and whose texel is covered) is the hit. Samples past the box exit end the search (no hit).
 // IMPROVED: one step per texel that the ray's projection onto the map crosses (times u_steps_per_texel,
@@ -19,7 +19,7 @@
 #include "cost_count.glsl"
 uniform sampler2DArray u_maps;
 uniform sampler2DArray u_alpha;
-uniform float u_hit_range;   // THESIS: e (0.01 in sec. 4.1, 0.02 to fill holes, sec. 3.4)
+uniform float u_hit_range;   // THESIS: e (0.01 in Vichitvejpaisal2005 §4.1, 0.02 to fill holes, §3.4)
 uniform float u_steps_per_texel;   // IMPROVED: steps per texel crossed (1 by default)
 
 const int MIN_STEPS = 4;
@@ -59,7 +59,7 @@ float march(vec3 o, vec3 d, float t0, float t1, int layer) {
     for (int k = 0; k < 100; k++) {
         float x = float(k) * STRIDE;
         STEP();
-        if (x > reach) break;                // past the box: transparent (sec. 3.3 step 2.2)
+        if (x > reach) break;                // past the box: transparent (Vichitvejpaisal2005 §3.3 step 2.2)
         vec3 s = s0 + dir * x;
         if (abs(s.z - map_depth(s.xy, layer)) < u_hit_range && covered(s.xy, layer)) return t0 + x / len;
     }

@@ -3,7 +3,7 @@
 // (gl_FragDepth: impostors, billboards, mesostructure). Numpy twins: vdmrender/camera.py.
 
 // The ray through window position frag_xy (pixels) between the near and the far plane:
-// p = near_point + s * segment, s in [0, 1] (de Poel & Bresser's interpolation factor mu, eq. 3-4).
+// p = near_point + s * segment, s in [0, 1] (the interpolation factor mu of dePoel2009 eq. 3-4).
 void pixel_ray(mat4 inv_view_proj, vec2 viewport, vec2 frag_xy, out vec3 near_point, out vec3 segment) {
     vec2 ndc = frag_xy / viewport * 2.0 - 1.0;
     vec4 a = inv_view_proj * vec4(ndc, -1.0, 1.0);

@@ -1,13 +1,13 @@
 // Straight rays through the mesostructure of a curved reference surface, in texture space. The
 // surface is bent to curvature c (texture units; > 0 convex) along the ray's azimuth, as the VDM
-// bake bends its tables (Wang et al. 2003, Appendix; vdmbake/vdm.py bend), taken to second order in
+// bake bends its tables (Wang2003 Appendix; vdmbake/vdm.py bend), taken to second order in
 // c times the distance (the osculating parabola: |c t| is below 0.2 for the depths tables are
 // baked for). Numpy twin: vdmrender/curved_ray.py. A ray starts h0 below the surface at arc
 // position 0 and runs at polar angle theta from the surface normal (st = sin theta), down into the
 // surface (cz = -cos theta: a view ray) or up out of it (cz = cos theta: a light ray).
 
 // The ray's point at distance t: (sigma, depth). sigma is the arc length under the point over
-// sin theta, the Appendix's extended displacement: the point lies over texture coordinate
+// sin theta, the extended displacement of Wang2003 Appendix: the point lies over texture coordinate
 // T -+ sigma * V.xy. depth is below the surface.
 vec2 curved_ray(float t, float h0, float st, float cz, float c) {
     float x = t * st, y = t * cz - h0;                      // in the plane: along the surface, up

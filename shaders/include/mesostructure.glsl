@@ -1,4 +1,4 @@
-// Mesostructure texture space per pixel (VDM sec. 3.2), the GLSL twin of vdmbake/texspace.py.
+// Mesostructure texture space per pixel (Wang2003 §3.2), the GLSL twin of vdmbake/texspace.py.
 #include "camera.glsl"
 // A tile spans 1 x 1 texture units; the mesostructure lies u_depth (texture units) below the
 // reference surface. Near the pixel, texture space maps to world space by M = [J | s_n N].
@@ -70,7 +70,7 @@ vec3 world_normal(Frame F, vec3 n) {
 
 // The mesostructure's shading normal at T in world space, read at the finest level: the reference
 // shades the displaced mesh with these normals at its vertices, unfiltered (mip-mapped normals blur
-// the shading against it: torus, bricks, 512^2, pom@16 1.353 -> 1.042 dLuv).
+// the shading against it; docs/tuning.md has the figures).
 vec3 mesostructure_normal(Frame F, vec2 T) {
     return world_normal(F, FETCH(textureLod(u_normals, T, 0.0)).xyz);
 }

@@ -1,8 +1,8 @@
-"""Technique `billboards`: enhanced billboards (Vichitvejpaisal 2005). Each variant names a projection
-(greedy set cover, sec. 3.2, or the axis baseline, sec. 4.2), a per-pixel march (the thesis's 100 steps
-with hit range 0.01 (sec. 4.1) or 0.02 (sec. 3.4); the improved one; or hier, the exact hierarchical trace
+"""Technique `billboards`: enhanced billboards (Vichitvejpaisal2005). Each variant names a projection
+(greedy set cover, Vichitvejpaisal2005 §3.2, or the axis baseline, §4.2), a per-pixel march (the thesis's 100 steps
+with hit range 0.01 (Vichitvejpaisal2005 §4.1) or 0.02 (§3.4); the improved one; or hier, the exact hierarchical trace
 through a min/max pyramid of each depth map, beyond the thesis) and optionally the coarse mesh that
-fills holes (sec. 3.4). The bake makes only the projections, pyramids and coarse mesh the variants
+fills holes (Vichitvejpaisal2005 §3.4). The bake makes only the projections, pyramids and coarse mesh the variants
 need; vdmbake/billboards.py and vdmbake/billboard_maps.py hold the kernels."""
 from __future__ import annotations
 
@@ -16,16 +16,16 @@ from ..schema import Integer, ListOf, Number, Parsed, Technique, setting
 
 @dataclass(frozen=True)
 class Variant:
-    projection: str   # "greedy" (sec. 3.2) or "axis" (sec. 4.2)
+    projection: str   # "greedy" (Vichitvejpaisal2005 §3.2) or "axis" (§4.2)
     method: str       # "hit0.01" / "hit0.02": the thesis's march with that hit range; "improved"; "hier"
-    coarse: bool      # the coarse mesh fills holes (sec. 3.4)
+    coarse: bool      # the coarse mesh fills holes (Vichitvejpaisal2005 §3.4)
 
     def __str__(self) -> str:
         return f"{self.projection}-{self.method}" + ("+coarse" if self.coarse else "")
 
     @property
     def hit_range(self) -> float | None:
-        """The thesis's hit range e (sec. 3.3 step 2.2), None for the improved march."""
+        """The thesis's hit range e (Vichitvejpaisal2005 §3.3 step 2.2), None for the improved march."""
         return float(self.method[3:]) if self.method.startswith("hit") else None
 
 

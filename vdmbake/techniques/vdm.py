@@ -1,6 +1,6 @@
 """Technique `vdm`: view-dependent displacement mapping (Wang et al. 2003). The bake casts the
-zero-curvature tables, bends them to the curvature range the base mesh has (the Appendix), adds the
-MVM, compresses [A_VDM, A_MVM] by SVD to the largest k the scene renders (sec. 3.1-3.3), and stores
+zero-curvature tables, bends them to the curvature range the base mesh has (Wang2003 Appendix), adds the
+MVM, compresses [A_VDM, A_MVM] by SVD to the largest k the scene renders (Wang2003 §3.1-3.3), and stores
 the weights in the smallest format whose rounding the truncation hides (vdmbake/vdm_storage.py);
 vdmbake/vdm.py holds the kernels. Each variant is a k and a refine setting: refine 0 is the paper's
 per-pixel algorithm, R > 0 finishes the view ray's hit and the self-shadow on the height field."""

@@ -1,18 +1,18 @@
-"""Enhanced billboards, the render side (Vichitvejpaisal 2005, sec. 3.3, 3.4 and 4.1).
+"""Enhanced billboards, the render side (Vichitvejpaisal2005 §3.3, §3.4, §4.1).
 
 Each billboard of the bake (vdmbake.billboards: origin, axes u v w, size, alpha, depth and normal
-maps) is drawn as its bounding box, one instance per billboard (sec. 3.3 step 1). Only the box's back
+maps) is drawn as its bounding box, one instance per billboard (Vichitvejpaisal2005 §3.3 step 1). Only the box's back
 faces are rasterised: they cover its screen footprint whether the eye is outside or inside the box, and
 near-plane clipping removes only box parts whose whole ray segment lies before the near plane; the
 raster matrix has its far plane at infinity, so no box face is lost behind the far plane. Per pixel,
 the ray from the near plane to the far plane is clipped to the box (slab test in u, v, w) and marches
-the depth map as a height field (shaders/include/billboard.glsl, sec. 3.3 step 2.2):
+the depth map as a height field (shaders/include/billboard.glsl, Vichitvejpaisal2005 §3.3 step 2.2):
   "thesis"   100 fixed steps of sqrt(2)/100 in the unit depth-map box, a hit where |ray depth - map
-             depth| < e (hit_range; 0.01 in sec. 4.1, 0.02 to fill holes in sec. 3.4), texel coverage;
+             depth| < e (hit_range; 0.01 in Vichitvejpaisal2005 §4.1, 0.02 to fill holes in §3.4), texel coverage;
   "improved" a step per texel crossed by the ray's projection on the map, a hit where the ray passes
              behind the map, 5 bisections and a secant step, then coverage: any texel of the bilinear
              footprint covered (so neighbouring billboards overlap by up to a texel instead of leaving
-             cracks: at 96x96, R 128, mean dLuv sphere 0.05, torus 0.19; nearest-texel coverage 0.39, 1.34).
+             cracks; docs/tuning.md has the comparison with nearest-texel coverage).
 A camera inside a box needs no special case: the ray starts on the near plane, like the reference's.
 The hit is shaded with the shared model (normal map, shadow map) and writes its exact gl_FragDepth.
 
@@ -20,8 +20,8 @@ Texture layout: two texture arrays, one layer per billboard. RGBA32F normal (wor
 (R+2)^2 with a one-texel border, linear filtering; the border and the empty texels near covered ones are
 linearly extrapolated from them in the bake (vdmbake/billboard_maps.py), so filtering at a map's edge or
 silhouette follows the surface's slope. R8 alpha, R^2, read per texel (texelFetch, textureGather). For an
-asset with its own colours, a third: the colour maps (sec. 3.1), RGB16F linear albedo with the same border
-(albedo_maps), read at the hit (sec. 3.3 step 2.3); otherwise the colour is the material's albedo.
+asset with its own colours, a third: the colour maps (Vichitvejpaisal2005 §3.1), RGB16F linear albedo with the same border
+(albedo_maps), read at the hit (Vichitvejpaisal2005 §3.3 step 2.3); otherwise the colour is the material's albedo.
 
 Passes per frame: the shadow map, then the frame. The shadow map holds what the frame draws: the
 billboards ray-marched with the same method from the light's orthographic camera (gl_FragDepth), plus
@@ -30,7 +30,7 @@ full mesh, which only the reference uses. Shadow lookups from a billboard hit mo
 the shadow map's normal offset plus BOARD_TEXELS of the billboard's map texels (plus 2 e box depths for
 "thesis", whose hits lie up to e off the surface in both passes).
 
-Hole filling (sec. 3.4): a coarse mesh, if given, is drawn in both passes (mesh.vert, mesh.frag,
+Hole filling (Vichitvejpaisal2005 §3.4): a coarse mesh, if given, is drawn in both passes (mesh.vert, mesh.frag,
 depth.frag) and depth-tested with the billboards, but as if COARSE_BEHIND farther from the eye (and from
 the light) than it is: it fills the pixels where no billboard is hit (the thesis: "the coarse mesh fills
 the pixels that are not rendered by the enhanced billboards") instead of poking through them.
@@ -133,7 +133,7 @@ class Billboards(Passes):
                 vao = gl.vertex_array(ctx, prog, [(cube, "3f", "in_corner"),
                                                   (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
                 self.draws.append((stage, prog, vao, "boards"))
-        if coarse is not None:   # sec. 3.4: the coarse mesh, in both passes
+        if coarse is not None:   # Vichitvejpaisal2005 §3.4: the coarse mesh, in both passes
             draws, self.coarse = coarse_draws(ctx, coarse, self.anchor)
             self.objects.append(self.coarse)
             self.draws += [("shadow", *draws["depth"], "mesh"), ("frame", *draws["shaded"], "mesh")]

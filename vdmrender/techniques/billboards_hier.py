@@ -1,6 +1,6 @@
 """Enhanced billboards by the hierarchical march: the render side of the `hier` method.
 
-The thesis's billboards (Vichitvejpaisal 2005, sec. 3.3; techniques/billboards.py) rasterise each
+The thesis's billboards (Vichitvejpaisal2005 §3.3; techniques/billboards.py) rasterise each
 billboard's box and ray-march its depth map per fragment: a pixel under n boxes runs n marches of a step
 per texel, shades n hits and keeps the nearest by the depth test, which writing gl_FragDepth keeps from
 rejecting anything early on llvmpipe. Here a frame is:
@@ -8,7 +8,7 @@ rejecting anything early on llvmpipe. Here a frame is:
      COARSE_BEHIND so that it does not shadow the billboard surface it approximates; without a shadow
      mesh, the billboards traced into it by pass 4 from the light's camera (docs/billboards-speed-notes.md
      has the cost and the error of both);
-  2. with hole filling (sec. 3.4), the coarse mesh's depth, pushed back as in pass 5: no ray needs to go
+  2. with hole filling (Vichitvejpaisal2005 §3.4), the coarse mesh's depth, pushed back as in pass 5: no ray needs to go
      past it, since what lies behind would lose the depth test against the coarse mesh anyway;
   3. the occupancy pre-pass (billboard_occupancy.vert/.frag): per billboard, the boxes of its occupied
      pyramid cells at OCCUPANCY_LEVEL rasterised into its own tile of one float texture, keeping per pixel
@@ -45,7 +45,7 @@ class HierBillboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, coarse=None, bounds=None,
                  shadow_mesh=None):
         """boards: vdmbake.parts.Billboard (their boxes: origin, axes, size); bordered: their
-        vdmbake.parts.BorderedMaps with pyramids; coarse: an optional TriMesh that fills holes (sec. 3.4);
+        vdmbake.parts.BorderedMaps with pyramids; coarse: an optional TriMesh that fills holes (Vichitvejpaisal2005 §3.4);
         shadow_mesh: the TriMesh that casts the shadows (None: the billboards do); bounds: (centre, radius)
         of the model."""
         boards, bordered = list(boards), list(bordered)

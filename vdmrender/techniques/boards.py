@@ -1,6 +1,6 @@
-"""What both billboard renderers share (Vichitvejpaisal 2005): the unit box each billboard is drawn as, the
-shading offsets and the coarse mesh's push back (sec. 3.4), the colour maps' texture (sec. 3.1), the coarse
-mesh's draws, and the raster matrix with its far plane at infinity. The thesis's march is
+"""What both billboard renderers share (Vichitvejpaisal2005): the unit box each billboard is drawn as, the
+shading offsets and the coarse mesh's push back (§3.4), the colour maps' texture (§3.1), the coarse mesh's
+draws, and the raster matrix with its far plane at infinity. The thesis's march is
 techniques/billboards.py, the exact hierarchical trace techniques/billboards_hier.py."""
 from __future__ import annotations
 
@@ -11,13 +11,11 @@ from .. import gl
 from .raster import MeshInputs
 
 NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels (as impostors) ...
-BOARD_TEXELS = 1.0           # ... plus this many of the billboard's map texels. Mean dLuv of the improved method,
-                             # torus, R 128, 96x96, 512 map: 0 -> 0.77 (acne where billboards overlap), 0.5 -> 0.30,
-                             # 1 -> 0.19, 1.5 -> 0.17; with a 1024 map 0.37, 0.24, 0.18 (sphere: 0.053 for all)
+BOARD_TEXELS = 1.0           # ... plus this many of the billboard's map texels: less gives acne where billboards
+                             # overlap (the sweep is in docs/tuning.md)
 COARSE_BEHIND = 0.05         # the coarse mesh is depth-tested as if this far (x radius) behind where it is, so that
                              # it fills holes rather than poking through the billboards (its vertices lie off the
-                             # surface). Improved, with coarse, mean dLuv at 96x96 (sphere, torus): 0 -> 0.38, 1.22;
-                             # 0.01 -> 0.25, 1.13; 0.03 -> 0.14, 0.47; 0.05 -> 0.14, 0.45; 0.1 -> 0.14, 0.45
+                             # surface; the sweep is in docs/tuning.md)
 
 # The unit cube [0, 1]^3 as 12 triangles, counter-clockwise seen from outside.
 CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], np.float32)
@@ -26,8 +24,8 @@ CUBE = CORNERS[np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], 
 
 
 def coarse_draws(ctx, mesh, anchor) -> tuple[dict, MeshInputs]:
-    """The coarse mesh (sec. 3.4) uploaded once, anchor-relative, with the asset's colours where it carries
-    them (raster.MeshInputs), and drawn by mesh.vert two ways: {"depth": (program, vao) writing depth only
+    """The coarse mesh (Vichitvejpaisal2005 §3.4) uploaded once, anchor-relative, with the asset's colours
+    where it carries them (raster.MeshInputs), and drawn by mesh.vert two ways: {"depth": (program, vao) writing depth only
     (depth.frag), "shaded": (program, vao) (mesh.frag)}; and its inputs (the shaded pass binds them)."""
     inputs = MeshInputs(ctx, mesh, anchor)
     draws = {}
@@ -42,7 +40,7 @@ ALBEDO_MAPS_UNIT = 5   # texture unit of the billboards' colour maps (shaders/in
 
 
 def albedo_maps(ctx, bordered):
-    """The billboards' colour maps (thesis sec. 3.1; vdmbake.billboard_maps.albedo_texels, bordered like
+    """The billboards' colour maps (Vichitvejpaisal2005 §3.1; vdmbake.billboard_maps.albedo_texels, bordered like
     their normal and depth maps) as one RGB16F texture array, linear filtering, one layer per billboard;
     None where the bake stored none (an asset without colours: the material's albedo)."""
     if not bordered or any(m.albedo is None for m in bordered):

@@ -40,9 +40,9 @@ def textured(mesh, src):
 
 def reference_mesh(src):
     """The truly displaced geometry the reference traces: the base mesh subdivided until no edge spans
-    more than half a texel, and displaced (DESIGN.md, "The reference"), textured by the tile albedo if
-    any. Too large to bake (8 M faces on the benchmark's torus), it is built here from the bundle's base
-    mesh and maps by the same kernel the `displaced` bake uses."""
+    more than half a texel, and displaced (the reference of docs/architecture.md §1 step 4), textured by
+    the tile albedo if any. Too large to bake (8 M faces on the benchmark's torus), it is built here from
+    the bundle's base mesh and maps by the same kernel the `displaced` bake uses."""
     m = src.obj.mesostructure
     base = src.bundle.read(src.entry["mesh"], parts.MESH)
     meso = maps(src)

@@ -1,4 +1,4 @@
-"""Renderer of `vdm`: view-dependent displacement mapping per pixel (Wang et al. 2003, sec. 3.2-3.3,
+"""Renderer of `vdm`: view-dependent displacement mapping per pixel (Wang2003 §3.2-3.3,
 shaders/vdm.frag) with the first k eigenfunctions of the baked SVD, refined on the height field if asked."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from vdmbake.errors import InputError
 
 from .mesostructure import MesostructurePass, texture
 
-# VDM's shadow test (sec. 3.2 step 3): P' is lit unless d_L < h / cos(theta_L) - eps, with eps this many
+# VDM's shadow test (Wang2003 §3.2 step 3): P' is lit unless d_L < h / cos(theta_L) - eps, with eps this many
 # mesostructure depths plus this many texels: the tables' angular sampling and the flat shadow test put the
 # light's hit that far off (the sweep that chose them is in docs/tuning.md).
 SHADOW_EPS_DEPTH, SHADOW_EPS_TEXELS = 0.2, 2.0
