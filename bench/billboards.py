@@ -122,6 +122,7 @@ def march_cost(bundle_path: Path, width: int, height: int) -> dict:
     texture fetches, march steps (improved: its samples and bisections; hier: cell visits, a pyramid fetch
     each) and searches (a billboard marched or traced); steps per search is a march's mean length."""
     from vdmrender import counters, gl
+    from vdmrender.measure import is_light_pass
 
     cam, builds, _ = _builders(bundle_path, width, height)
     ctx = gl.create_context()
@@ -136,7 +137,7 @@ def march_cost(bundle_path: Path, width: int, height: int) -> dict:
             finally:
                 target.release()
                 r.release()
-            frame = {k: sum(p[k] for n, p in c["passes"].items() if n != "shadow") for k in counters.COUNTERS}
+            frame = {k: sum(p[k] for n, p in c["passes"].items() if not is_light_pass(n)) for k in counters.COUNTERS}
             px = max(c["covered"], 1)
             out[name] = {"covered_pixels": c["covered"], **{f"{k}_per_pixel": round(v / px, 2) for k, v in frame.items()},
                          "steps_per_search": round(frame["steps"] / max(frame["searches"], 1), 2)}

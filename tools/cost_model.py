@@ -18,6 +18,8 @@ from pathlib import Path
 import click
 import numpy as np
 
+from vdmrender.measure import is_light_pass
+
 FEATURES = ("fragments", "fetches", "steps", "primitives", "light fragments")
 
 
@@ -27,7 +29,7 @@ def features(row: dict) -> list[float]:
     cam = {k: 0 for k in ("fragments", "fetches", "steps")}
     light = 0
     for name, p in row["counters_per_pass"].items():
-        if name == "shadow" or name.endswith(" shadow"):
+        if is_light_pass(name):
             light += p["fragments"]
         else:
             for k in cam:

@@ -259,9 +259,6 @@ class Kept:
     def begin(self):
         self.target.bind()
 
-    def clear(self):
-        self.target.clear()
-
     def kept(self) -> "Kept":
         return self
 

@@ -95,7 +95,6 @@ class FrameTimer:
         return statistics.median(out)
 
 
-
 def _window(cameras: int) -> int:
     """Frames per warm-up window: whole rounds over the cameras, at least 3 frames."""
     return cameras * math.ceil(3 / cameras)
