@@ -56,7 +56,7 @@ def write_dem(folder: Path) -> dict:
     from matplotlib import cbook
     from PIL import Image
 
-    from vdmbake import exr
+    from vdmbake.formats import exr
 
     z = np.asarray(cbook.get_sample_data("jacksboro_fault_dem.npz")["elevation"])
     folder.mkdir(parents=True, exist_ok=True)

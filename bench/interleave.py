@@ -13,8 +13,8 @@ from typing import Callable
 
 import numpy as np
 
-from vdmbake import exr
-from vdmbake.bundle import Bundle
+from vdmbake.formats import exr
+from vdmbake.bundle.directory import Bundle
 
 from vdmrender import counters, gl, images
 from vdmrender.camera import cameras_for

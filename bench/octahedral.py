@@ -28,9 +28,9 @@ from pathlib import Path
 import click
 import numpy as np
 
-from vdmbake import parts
+from vdmbake.bundle import parts
 from vdmbake.bake import bake, object_mesh
-from vdmbake.bundle import Bundle
+from vdmbake.bundle.directory import Bundle
 from vdmbake.scene import load_scene
 from vdmbake.techniques.octahedral import VARIANT as OCT_VARIANT
 

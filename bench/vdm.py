@@ -23,7 +23,8 @@ from pathlib import Path
 import click
 import numpy as np
 
-from vdmbake import heightfields, vdm, vdm_storage
+from vdmbake.assets import heightfields
+from vdmbake.kernels import vdm, vdm_storage
 
 from bench import interleave
 from bench.quadrics import measure_scene

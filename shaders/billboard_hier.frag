@@ -4,7 +4,7 @@
 // ray through every billboard it meets, each clipped to its box (slab test), to where it enters the
 // billboard's occupied pyramid cells (OCCUPANCY pre-pass) and to the nearest hit so far, so a billboard
 // behind a hit costs little and each pixel is shaded once. Per billboard,
-// heightfield_trace.glsl descends the min/max pyramid of its depth map (vdmbake/billboard_maps.py: the
+// heightfield_trace.glsl descends the min/max pyramid of its depth map (vdmbake/kernels/billboard_maps.py: the
 // bilinear surface of the bordered map, empty cells marked so that rays pass them) and returns the exact
 // first crossing of the surface (hf_trace_two_sided: either way, so an open surface seen from behind or a
 // closed model seen from inside is drawn too, shaded two-sided; the ray's side is unknown where it enters

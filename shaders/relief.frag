@@ -5,7 +5,7 @@
 // (heightfield_trace.glsl), then the hit's texture coordinate for the normal map, a shadow ray from the
 // hit toward the light by the same tracer, the true depth of the hit, and the shared shading. The normal
 // map is read at its finest level at the exact hit, as the traced reference's interpolated vertex normals
-// are (a mip-mapped lookup blurs the normals at a texel or more per pixel: docs/relief-notes.md).
+// are (a mip-mapped lookup blurs the normals at a texel or more per pixel: docs/mesostructure.md).
 // Curvature (beyond POM; Wang2003 §3.1 and Appendix, curved relief mapping of Oliveira & Policarpo 2005):
 // the base surface near the pixel is the quadric of its interpolated principal curvatures, so a ray's depth
 // below it, at tangential distance s along texture direction e, is its depth below the tangent plane minus

@@ -122,8 +122,8 @@ def check_scene_text(path: Path, text: str) -> None:
 def check_manifest(bundle: Path, manifest) -> None:
     """A bundle with this manifest: refused in one line, or every part reads (or is refused in one
     line), and every object's cameras and the memory guard work from what was accepted."""
-    from vdmbake.bundle import Bundle
-    from vdmbake.parts import KINDS
+    from vdmbake.bundle.directory import Bundle
+    from vdmbake.bundle.parts import KINDS
     from vdmrender.camera import cameras_for
     from vdmrender.render import geometry_bytes
 

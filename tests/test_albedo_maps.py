@@ -12,12 +12,15 @@ import numpy as np
 import pytest
 
 from tests.scenes import bake_and_render
-from vdmbake import coarse, parts, primitives, texture
-from vdmbake.meshes import TriMesh, load_mesh_file, resolve_path, weld
+from vdmbake.kernels import coarse
+from vdmbake.bundle import parts
+from vdmbake.assets import primitives
+from vdmbake.common import texture
+from vdmbake.assets.meshes import TriMesh, load_mesh_file, resolve_path, weld
 from vdmbake.scene import Light, Material
 from vdmrender import gl, images, metrics, reference
 from vdmrender.camera import orbit
-from vdmrender.techniques.raster import RasterMesh
+from vdmrender.passes.raster import RasterMesh
 
 BUNNY = "pkg:pymeshlab/tests/sample_meshes/bunny10k_textured.obj"
 BG = (0.05, 0.05, 0.06)
@@ -171,7 +174,7 @@ def test_scene_to_report(tmp_path):
     rows = {(r["object"], r["label"]): r for r in json.loads(result.stdout)["rows"]}
     # measured at 64 px with a 512² shadow map: mesh 0.145, coarse@0.5 2.437 (IoU 0.9961); the plain bunny 0.056
     assert rows["bunny", "mesh"]["mean_dluv"] < 0.3 and rows["bunny", "coarse@0.5"]["mean_dluv"] < 3.2
-    from vdmbake.bundle import Bundle
+    from vdmbake.bundle.directory import Bundle
     b = Bundle(tmp_path / "b.bundle")
     entry = b.manifest["objects"]["bunny"]
     assert b.manifest["parts"][entry["albedo_map"]]["kind"] == "albedo-map"

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from vdmbake.bundle import FORMAT_VERSION
+from vdmbake.bundle.directory import FORMAT_VERSION
 from vdmbake.cli import main as vdmbake_main
 from vdmbake.errors import InputError
 from vdmrender.cli import main as vdmrender_main

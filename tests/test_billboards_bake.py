@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake import billboards as bb
-from vdmbake import primitives
+from vdmbake.kernels import billboards as bb
+from vdmbake.assets import primitives
 from vdmbake.errors import InputError
-from vdmbake.meshes import TriMesh, vertex_normals
+from vdmbake.assets.meshes import TriMesh, vertex_normals
 
 R = 64
 
@@ -259,7 +259,7 @@ def test_deterministic_and_logged():
 def test_a_mesh_no_billboard_can_capture_is_refused_at_bake(tmp_path):
     """Collinear triangles have no area, so no projection captures them: the bake says so (exit 2)
     instead of writing a bundle the renderer cannot draw. Since issue 14 a mesh without area is refused
-    for every technique when it is loaded (vdmbake.meshes.validate), before the billboards' own check."""
+    for every technique when it is loaded (vdmbake.assets.meshes.validate), before the billboards' own check."""
     from click.testing import CliRunner
 
     from vdmbake.cli import main as bake_main

@@ -13,8 +13,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vdmbake import billboard_maps, billboards, coarse, octahedral, parts
-from vdmbake.meshes import TriMesh, load_mesh_file, resolve_path
+from vdmbake.kernels import billboard_maps, billboards, coarse, octahedral
+from vdmbake.bundle import parts
+from vdmbake.assets.meshes import TriMesh, load_mesh_file, resolve_path
 from vdmrender.camera import orbit
 from vdmrender.techniques.billboards import Billboards
 from vdmrender.techniques.billboards_hier import HierBillboards

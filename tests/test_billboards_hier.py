@@ -1,5 +1,5 @@
 """Enhanced billboards by the hierarchical march (method `hier`): the baked pyramid with empty cells
-(vdmbake/pyramid.py, vdmbake/billboard_maps.py) against an independent brute force, the occupancy boxes,
+(vdmbake/common/pyramid.py, vdmbake/kernels/billboard_maps.py) against an independent brute force, the occupancy boxes,
 and the GL technique (techniques/billboards_hier.py) against the Embree reference of the full mesh and
 against the improved march it must match. Bounds sit a little above the values measured on llvmpipe."""
 from __future__ import annotations
@@ -9,10 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from vdmbake import billboard_maps, parts, primitives
-from vdmbake import billboards as bb
-from vdmbake import pyramid as P
-from vdmbake.meshes import TriMesh, vertex_normals
+from vdmbake.kernels import billboard_maps
+from vdmbake.bundle import parts
+from vdmbake.assets import primitives
+from vdmbake.kernels import billboards as bb
+from vdmbake.common import pyramid as P
+from vdmbake.assets.meshes import TriMesh, vertex_normals
 from vdmrender import images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.billboards_hier import HierBillboards

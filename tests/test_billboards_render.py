@@ -1,19 +1,20 @@
 """Enhanced billboards, the render side (Vichitvejpaisal 2005, sec. 3.3, 3.4, 4.1): billboards baked by
-vdmbake.billboards, ray-marched through OpenGL (Mesa llvmpipe without a GPU), against the Embree
+vdmbake.kernels.billboards, ray-marched through OpenGL (Mesa llvmpipe without a GPU), against the Embree
 reference of the full mesh. Bounds sit a little above the values measured on llvmpipe (in comments)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from vdmbake import billboard_maps, coarse, primitives
-from vdmbake import billboards as bb
+from vdmbake.kernels import billboard_maps, coarse
+from vdmbake.assets import primitives
+from vdmbake.kernels import billboards as bb
 from vdmbake.errors import InputError
-from vdmbake.meshes import TriMesh
+from vdmbake.assets.meshes import TriMesh
 from vdmrender import images, metrics
 from vdmrender.camera import Camera, clip_planes
-from vdmbake import parts
-from vdmbake.parts import Billboard
+from vdmbake.bundle import parts
+from vdmbake.bundle.parts import Billboard
 from vdmrender.techniques.billboards import Billboards
 
 from frames import BG, LIGHT, MATERIAL, draw, score

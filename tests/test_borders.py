@@ -1,5 +1,5 @@
 """Open boundaries (VDM sec. 5, issue 10): the shell's side wall along a base mesh's borders
-(vdmbake.geometry.skirt), the pixel classes the reference and the metric agree on (vdmrender/borders.py),
+(vdmbake.common.geometry.skirt), the pixel classes the reference and the metric agree on (vdmrender/borders.py),
 and a plane with a real elevation model scored on its surface, its border and inside apart.
 
 Bounds are the figures measured on Mesa llvmpipe with some headroom, the measurement beside them."""
@@ -8,9 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake import geometry, primitives
-from vdmbake.embree import RayScene
-from vdmbake.meshes import load_mesh_file
+from vdmbake.common import geometry
+from vdmbake.assets import primitives
+from vdmbake.common.embree import RayScene
+from vdmbake.assets.meshes import load_mesh_file
 from vdmrender import borders as pixel_classes
 from vdmrender.camera import Camera
 from vdmrender.metrics import compare
@@ -34,7 +35,7 @@ def test_closed_surfaces_and_uv_seams_have_no_border(tmp_path):
     m = load_mesh_file(_torus_obj(tmp_path))                 # split at its UV seams by the loader
     ids = np.arange(len(m.vertices))
     assert len(geometry.boundary_edges(m.faces, ids)) > 0     # keyed by vertex, the seams look open
-    from vdmbake.curvature import estimate_frame
+    from vdmbake.kernels.curvature import estimate_frame
     m.frame = estimate_frame(m.vertices, m.faces, m.normals, m.uvs)
     assert len(geometry.skirt(m, 0.05, (4, 1))[1]) == 0       # welded by position they are not
 

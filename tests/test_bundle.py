@@ -13,12 +13,13 @@ from click.testing import CliRunner
 
 import vdmbake
 import vdmbake.bake as bake_mod
-import vdmbake.coarse as coarse_mod
-from vdmbake import exr, parts, ply
-from vdmbake.bundle import FORMAT, FORMAT_VERSION, Bundle
+import vdmbake.kernels.coarse as coarse_mod
+from vdmbake.formats import exr, ply
+from vdmbake.bundle import parts
+from vdmbake.bundle.directory import FORMAT, FORMAT_VERSION, Bundle
 from vdmbake.cli import main as vdmbake_main
 from vdmbake.errors import InputError
-from vdmbake.meshes import TriMesh
+from vdmbake.assets.meshes import TriMesh
 from vdmbake.scene import load_scene
 
 from scenes import TINY_HEAD as HEAD

@@ -1223,8 +1223,8 @@ def test_sphere_mesh_in_its_bounding_sphere(shapes):
 
 
 def test_reader_agrees_with_project_unpacking(meso, shapes):
-    import vdmbake.parts as parts
-    from vdmbake.bundle import Bundle
+    import vdmbake.bundle.parts as parts
+    from vdmbake.bundle.directory import Bundle
 
     torus = meso.manifest["objects"]["torus"]
     ours, theirs = meso.mesh(torus["mesh"]), Bundle(meso.root).read(torus["mesh"], parts.MESH)
@@ -1391,11 +1391,11 @@ def test_displaced_meshes_carry_the_base_texture_coordinates(albedo):
 
 
 def test_albedo_lookup_agrees_with_project(albedo):
-    """The project's unpacking and lookup (vdmbake.texture.sample, what the reference reads) give the spec's
+    """The project's unpacking and lookup (vdmbake.common.texture.sample, what the reference reads) give the spec's
     albedo at the displaced vertices' tile coordinates T = uv * tiling."""
-    import vdmbake.parts as parts
-    from vdmbake.bundle import Bundle
-    from vdmbake.texture import sample
+    import vdmbake.bundle.parts as parts
+    from vdmbake.bundle.directory import Bundle
+    from vdmbake.common.texture import sample
 
     obj = albedo.manifest["objects"]["wall"]
     T = albedo.mesh(obj["techniques"]["displaced"]["meshes"][1]["mesh"])["uvs"].astype(np.float64) * (2, 3)
@@ -1503,8 +1503,8 @@ def test_colour_maps_show_the_assets_colours(painted):
 
 
 def test_colour_maps_agree_with_project_unpacking(painted):
-    import vdmbake.parts as parts
-    from vdmbake.bundle import Bundle
+    import vdmbake.bundle.parts as parts
+    from vdmbake.bundle.directory import Bundle
 
     obj = painted.manifest["objects"]["painted"]
     bundle = Bundle(painted.root)

@@ -78,7 +78,7 @@ def test_depth_order_between_techniques(tmp_path):
     report = json.loads(result.stdout)
     # The test measures occlusion: in each frame the objects overlap on screen, and which is in front
     # changes between the two frames (the reference's own per-object depths say so).
-    from vdmbake.bundle import Bundle
+    from vdmbake.bundle.directory import Bundle
     from vdmrender.composite import scene_sphere
     from vdmrender import images, metrics, reference
     from vdmrender.camera import cameras_for

@@ -10,10 +10,11 @@ import pytest
 from PIL import Image
 
 from bench import interleave
-from vdmbake import billboard_maps, coarse, octahedral, primitives, quadrics
-from vdmbake import billboards as bb
+from vdmbake.kernels import billboard_maps, coarse, octahedral, quadrics
+from vdmbake.assets import primitives
+from vdmbake.kernels import billboards as bb
 from vdmbake.bake import bake
-from vdmbake.meshes import TriMesh
+from vdmbake.assets.meshes import TriMesh
 from vdmbake.scene import Light, Material
 from vdmrender import counters, gl
 from vdmrender import quadric_math as qm
@@ -23,8 +24,8 @@ from vdmrender.techniques.billboards import Billboards
 from vdmrender.techniques.billboards_hier import HierBillboards
 from vdmrender.techniques.impostor import Impostors
 from vdmrender.techniques.octahedral import Octahedral
-from vdmrender.techniques.raster import RasterMesh
-from vdmrender.techniques.shadowmap import translation
+from vdmrender.passes.raster import RasterMesh
+from vdmrender.passes.shadowmap import translation
 from vdmrender.techniques.tessellated import Tessellated
 
 import meso_scenes

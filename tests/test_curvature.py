@@ -1,4 +1,4 @@
-"""Estimated surface frames (vdmbake.curvature) against the primitives' analytic ones.
+"""Estimated surface frames (vdmbake.kernels.curvature) against the primitives' analytic ones.
 
 Every bound sits a little above the value measured when it was set (the comment beside it)."""
 from __future__ import annotations
@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from vdmbake import primitives
-from vdmbake.curvature import estimate_frame
-from vdmbake.meshes import TriMesh, rotation_xyz, vertex_normals
+from vdmbake.assets import primitives
+from vdmbake.kernels.curvature import estimate_frame
+from vdmbake.assets.meshes import TriMesh, rotation_xyz, vertex_normals
 
 
 def _estimate(m: TriMesh, normals=None):

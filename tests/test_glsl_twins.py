@@ -1,11 +1,11 @@
 """The GLSL ideas shared by several shaders (shaders/include/frame.glsl, camera.glsl) against their
-numpy twins (vdmbake.geometry.onb, vdmrender.camera.pixel_ray and window_depth), evaluated per pixel
+numpy twins (vdmbake.common.geometry.onb, vdmrender.camera.pixel_ray and window_depth), evaluated per pixel
 on the GL device (llvmpipe here): the two must agree to float32 precision."""
 from __future__ import annotations
 
 import numpy as np
 
-from vdmbake.geometry import onb
+from vdmbake.common.geometry import onb
 from vdmrender import gl
 from vdmrender.camera import Camera, pixel_ray, window_depth
 
@@ -38,8 +38,8 @@ void main() {{
     vao = ctx.vertex_array(prog, [])
     fbo.use()
     ctx.viewport = (0, 0, w, h)
-    tex.use(0)
-    gl.set_uniforms(prog, u_in=0, u_viewport=(float(w), float(h)), u_m=m if m is not None else np.eye(4))
+    gl.bind_textures(prog, u_in=tex)
+    gl.set_uniforms(prog, u_viewport=(float(w), float(h)), u_m=m if m is not None else np.eye(4))
     vao.render(vertices=3)
     out = [np.frombuffer(t.read(), np.float32).reshape(h, w, 4).copy() for t in targets]
     gl.release(vao, fbo, *targets, tex, prog)

@@ -15,7 +15,7 @@ OpenImageIO's idiff use; over the union of both coverage masks:
 
 On the renderer they were made on the frames reproduce to a few pixels. The tests below prove, for every
 frame, that the bounds reject a one-pixel shift (all three) and a 3% darker light (the mean);
-docs/goldens.md has the measurements and the reasoning. A failing frame is written with its golden
+docs/trust.md has the measurements and the reasoning. A failing frame is written with its golden
 and a ΔLuv heat map under out/golden-failures/ (VDM_GOLDEN_OUT=DIR to move it); VDM_GOLDEN_STATS=PATH
 writes every comparison's statistics and the GL renderer as JSON, failures included.
 
@@ -35,7 +35,7 @@ import pytest
 from PIL import Image
 
 from vdmbake.bake import bake
-from vdmbake.bundle import Bundle
+from vdmbake.bundle.directory import Bundle
 from vdmbake.scene import Scene, parse_scene_dict
 from vdmrender import gl, images
 from vdmrender.camera import cameras_for
@@ -51,7 +51,7 @@ THRESHOLDS = (0.5, 1.0, 2.0, 5.0, PIXEL_DLUV)     # recorded: how far beyond rou
 HEAT_MAX = 2.0      # heat map scale: a one-code rounding (<= 0.94) purple to red, darker light orange, damage yellow
 SHIFTS = {"right": (0, 1), "left": (0, -1), "down": (1, 0), "up": (-1, 0)}
 RENDERER_TEXT = ("The golden images were rendered on:\n{}\n"
-                 "Other drivers are held to the bounds of docs/goldens.md, not to exact equality.\n"
+                 "Other drivers are held to the bounds of docs/trust.md, not to exact equality.\n"
                  "Regenerate with VDM_REGEN_GOLDEN=1 pytest tests/test_golden.py on a known-good commit.\n")
 
 

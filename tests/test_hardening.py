@@ -13,8 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vdmbake import exr, parts, ply
-from vdmbake.bundle import Bundle
+from vdmbake.formats import exr, ply
+from vdmbake.bundle import parts
+from vdmbake.bundle.directory import Bundle
 from vdmbake.errors import InputError
 
 from test_bad_input import GOOD_SCENE, assert_input_error, bake, render, write_scene
@@ -228,8 +229,8 @@ def test_exr_contents_checked(damage):
 
 @pytest.mark.parametrize("damage", ["index", "negative", "nan", "count"])
 def test_ply_contents_checked(damage):
-    from vdmbake import primitives
-    from vdmbake.primitives import PRIMITIVES
+    from vdmbake.assets import primitives
+    from vdmbake.assets.primitives import PRIMITIVES
 
     m = primitives.build("sphere", PRIMITIVES["sphere"][1]())
     meta = {"vertices": len(m.vertices), "faces": len(m.faces)}
@@ -286,8 +287,8 @@ def test_nan_uvs_refused_with_a_mesostructure(tmp_path):
 def test_coarse_ratio_leaving_no_face_refused(tmp_path, monkeypatch):
     """fast-simplification can collapse a small mesh to nothing; the bake says so instead of writing a
     part vdmrender cannot draw."""
-    from vdmbake import coarse
-    from vdmbake.meshes import TriMesh
+    from vdmbake.kernels import coarse
+    from vdmbake.assets.meshes import TriMesh
 
     monkeypatch.setattr(coarse, "simplify", lambda mesh, ratio: TriMesh(mesh.vertices[:0], mesh.faces[:0], mesh.normals[:0]))
     out = tmp_path / "x.bundle"
@@ -297,8 +298,8 @@ def test_coarse_ratio_leaving_no_face_refused(tmp_path, monkeypatch):
 
 def test_bake_reads_each_part_back_through_the_renderers_checks(tmp_path, monkeypatch):
     """Whatever a bake step writes goes through the reader's checks before the bundle is committed."""
-    from vdmbake import coarse
-    from vdmbake.meshes import TriMesh
+    from vdmbake.kernels import coarse
+    from vdmbake.assets.meshes import TriMesh
 
     real = coarse.simplify
 
@@ -430,7 +431,7 @@ def test_stale_staging_of_dead_processes_removed(tmp_path):
 
 def test_bundle_lost_between_the_two_renames_is_restored(tmp_path, baked):
     """A kill between the fallback swap's two renames left only `.NAME.old-PID`: the next run puts it back."""
-    from vdmbake.staging import StagedDir
+    from vdmbake.bundle.staging import StagedDir
 
     out = tmp_path / "x.bundle"
     shutil.copytree(baked, tmp_path / f".x.bundle.old-{_dead_pid()}")
@@ -448,7 +449,7 @@ def test_live_processes_staging_is_left_alone(tmp_path):
 
 def test_swap_keeps_a_bundle_at_every_instant(tmp_path, baked, monkeypatch):
     """The commit exchanges the folders in one step: the path never lacks a bundle."""
-    from vdmbake import staging
+    from vdmbake.bundle import staging
 
     out = tmp_path / "x.bundle"
     shutil.copytree(baked, out)
@@ -493,7 +494,7 @@ def test_debug_keeps_exit_code_2(tmp_path):
 def test_full_disk_is_exit_2(tmp_path, monkeypatch):
     import errno
 
-    from vdmbake import bundle as bundle_module
+    from vdmbake.bundle import directory as bundle_module
 
     def full(self, rel, kind, value):
         raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "x"))
@@ -588,7 +589,7 @@ def test_height_map_size_limit_is_the_same_for_png_and_exr(tmp_path, fmt, monkey
     header, for both (made small here so the test stays small)."""
     from PIL import Image
 
-    from vdmbake import heightfields
+    from vdmbake.assets import heightfields
 
     monkeypatch.setattr(heightfields, "MAX_PIXELS", 64 * 64)
     a = np.linspace(0, 1, 65 * 64, dtype=np.float32).reshape(64, 65)

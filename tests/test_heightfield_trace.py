@@ -1,4 +1,4 @@
-"""The exact hierarchical height-field tracer: the min/max pyramid (vdmbake/pyramid.py), its numpy traversal
+"""The exact hierarchical height-field tracer: the min/max pyramid (vdmbake/common/pyramid.py), its numpy traversal
 against an independent brute force, and the GLSL include (shaders/include/heightfield_trace.glsl) run on
 rays read from textures, one ray per pixel, against the same brute force. Stress cases: vertical walls
 (cliffs), one-texel slots and walls, grazing rays, rays straight down, rays along cell edges and through
@@ -8,9 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake import heightfields
-from vdmbake import pyramid as P
-from vdmrender import gl, hftrace
+from vdmbake.assets import heightfields
+from vdmbake.common import pyramid as P
+from vdmrender import gl
+from vdmrender.passes import hftrace
 
 # ----------------------------------------------------------------------------- test fields and rays
 
@@ -122,8 +123,8 @@ def test_texture_levels_follow_gl_mip_sizes():
 
 
 def test_parts_round_trip(tmp_path):
-    """The bundle's EXR parts (vdmbake.exr) give back the same pyramid."""
-    from vdmbake import exr
+    """The bundle's EXR parts (vdmbake.formats.exr) give back the same pyramid."""
+    from vdmbake.formats import exr
     p = P.build(np.random.default_rng(3).random((13, 6)).astype(np.float32), P.WRAP)
     exr.write(tmp_path / "p.exr", P.to_parts(p))
     q = P.from_parts(exr.read(tmp_path / "p.exr"), P.WRAP)
@@ -246,11 +247,9 @@ def trace_gl(ctx, p: P.Pyramid, rays: np.ndarray, reentry=False, defines=()) -> 
     hf = hftrace.pyramid_texture(ctx, p)
     target = gl.Target(ctx, w, 1)
     try:
-        tex_o.use(1)
-        tex_d.use(2)
-        tex_k.use(4)
-        hftrace.bind(prog, hf, p, 3)
-        gl.set_uniforms(prog, u_o=1, u_d=2, u_k=4, u_reentry=int(reentry))
+        gl.bind_textures(prog, u_o=tex_o, u_d=tex_d, u_k=tex_k)
+        hftrace.bind(prog, hf, p)
+        gl.set_uniforms(prog, u_reentry=int(reentry))
         target.begin()
         ctx.vertex_array(prog, []).render(mode=ctx.TRIANGLES, vertices=3)
         return target.read()[0].astype(np.float64)

@@ -1,4 +1,4 @@
-"""vdmbake.heightfields: procedural tiles, PNG/EXR loading, periodic resampling, scikit-image photos."""
+"""vdmbake.assets.heightfields: procedural tiles, PNG/EXR loading, periodic resampling, scikit-image photos."""
 from __future__ import annotations
 
 import sys
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from vdmbake import exr
-from vdmbake import heightfields as hf
+from vdmbake.formats import exr
+from vdmbake.assets import heightfields as hf
 from vdmbake.errors import InputError
 
 N = 128

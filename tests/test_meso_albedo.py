@@ -13,15 +13,18 @@ from PIL import Image
 
 from meso_scenes import OBLIQUE, TOP, TORUS, PLANE, ORBIT, scene
 from scenes import bake_and_render, rows_by_label
-from vdmbake import heightfields, meso_albedo, parts, texture
+from vdmbake.assets import heightfields, meso_albedo
+from vdmbake.bundle import parts
+from vdmbake.common import texture
 from vdmbake.bake import bake, input_hash
-from vdmbake.bundle import Bundle
-from vdmbake.colour import srgb8_to_linear
+from vdmbake.bundle.directory import Bundle
+from vdmbake.common.colour import srgb8_to_linear
 from vdmbake.errors import InputError
 from vdmbake.scene import load_scene
 from vdmrender import gl, images, metrics, reference
 from vdmrender.camera import cameras_for
-from vdmrender.techniques import Source, mesostructure, variants
+from vdmrender.techniques import Source, variants
+from vdmrender.passes import mesostructure
 
 ALL = ('vdm = { k = [8], refine = [0, 4] }, pom = { steps = [16] }, relief = { iterations = [32] }, bump = {}, '
        'displaced = { levels = [2] }, mesh = {}')
@@ -142,7 +145,7 @@ def test_orientation_same_in_gl_and_reference(ctx, tmp_path):
 
 
 def test_albedo_lookup_twin(ctx):
-    """albedo.glsl's lookup against its numpy twin (vdmbake.texture.sample) at random texture coordinates
+    """albedo.glsl's lookup against its numpy twin (vdmbake.common.texture.sample) at random texture coordinates
     far outside [0, 1) (wrap-around), on a random 16 x 8 map: bilinear after the sRGB decode, rows at v."""
     rng = np.random.default_rng(3)
     tile = rng.integers(0, 256, (8, 16, 3)).astype(np.uint8)
@@ -157,9 +160,7 @@ def test_albedo_lookup_twin(ctx):
     try:
         fbo.use()
         ctx.viewport = (0, 0, n, n)
-        inp.use(0)
-        tex.use(1)
-        prog["u_in"], prog["u_albedo_map"] = 0, 1
+        gl.bind_textures(prog, u_in=inp, u_albedo_map=tex)
         vao.render(vertices=3)
         got = np.frombuffer(out.read(), np.float32).reshape(n * n, 4)[:, :3]
     finally:

@@ -9,8 +9,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from vdmbake import curvature, exr, geometry, heightfields as hf, primitives, vdm
-from vdmbake.meshes import load_mesh_file
+from vdmbake.kernels import curvature, vdm
+from vdmbake.formats import exr
+from vdmbake.common import geometry
+from vdmbake.assets import heightfields as hf, primitives
+from vdmbake.assets.meshes import load_mesh_file
 
 DEPTH = 0.1
 

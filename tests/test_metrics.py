@@ -14,7 +14,7 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore")  # colour warns once that SciPy is absent; nothing used here needs it
     import colour
 
-from vdmbake.colour import srgb_encode, to_srgb8
+from vdmbake.common.colour import srgb_encode, to_srgb8
 from vdmbake.scene import Light, Material
 from vdmrender import metrics, shading
 

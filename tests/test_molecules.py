@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from vdmbake.errors import InputError
-from vdmbake.molecules import STYLES, find_bonds, load_molecule
+from vdmbake.assets.molecules import STYLES, find_bonds, load_molecule
 
 ANG = np.deg2rad(104.5)
 WATER = [("O", "O", (0.0, 0.0, 0.0)),

@@ -1,14 +1,14 @@
-"""Octahedral impostors, the bake (vdmbake.octahedral): the octahedral maps, the lattice triangle and
+"""Octahedral impostors, the bake (vdmbake.kernels.octahedral): the octahedral maps, the lattice triangle and
 weights of every direction, the views' frames, and captures against an analytic sphere."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from vdmbake import octahedral as oc
-from vdmbake import primitives
+from vdmbake.kernels import octahedral as oc
+from vdmbake.assets import primitives
 from vdmbake.errors import InputError
-from vdmbake.meshes import TriMesh
+from vdmbake.assets.meshes import TriMesh
 
 
 def random_directions(n=20000, seed=0, upper=False):
@@ -195,7 +195,7 @@ def test_stored_atlas_extrapolates_around_silhouettes():
     covered ones extrapolated from them (on a sphere's rim the depth keeps falling towards the centre
     plane: below 1), farther ones as baked (depth 1, code 0); all within range; nothing enters the
     EMPTY rings' outer ring of any tile, so no view reaches into another."""
-    from vdmbake.billboard_maps import PAD
+    from vdmbake.kernels.billboard_maps import PAD
 
     n, res = 5, 32
     a = oc.bake(primitives.sphere(1.0, 48, 24), oc.Settings(n, res))

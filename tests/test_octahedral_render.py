@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake import octahedral as oc
-from vdmbake import primitives
+from vdmbake.kernels import octahedral as oc
+from vdmbake.assets import primitives
 from vdmbake.errors import InputError
-from vdmbake.meshes import TriMesh
+from vdmbake.assets.meshes import TriMesh
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.octahedral import Octahedral, atlas_texels, shadow_size
 
@@ -46,7 +46,7 @@ def render(ctx, atlas, camera, **kw) -> np.ndarray:
 
 
 
-# The shader's view choice (nearest_views, view_frame) against vdmbake.octahedral: tests/test_twins.py.
+# The shader's view choice (nearest_views, view_frame) against vdmbake.kernels.octahedral: tests/test_twins.py.
 
 
 # --- frames against the reference --------------------------------------------------------------------

@@ -1,13 +1,15 @@
-"""Every bundle part kind (vdmbake.parts) round-trips: unpack(pack(value)) gives the value back,
+"""Every bundle part kind (vdmbake.bundle.parts) round-trips: unpack(pack(value)) gives the value back,
 to float32 where the format stores float32, and the reader refuses a part of another kind."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from vdmbake import parts, primitives, quadrics
+from vdmbake.bundle import parts
+from vdmbake.assets import primitives
+from vdmbake.kernels import quadrics
 from vdmbake.errors import InputError
-from vdmbake.meshes import TriMesh
+from vdmbake.assets.meshes import TriMesh
 
 RNG = np.random.default_rng(3)
 

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from tests.scenes import TINY_HEAD
-from vdmbake import parts, quadric_mesh
-from vdmbake.bundle import Bundle
+from vdmbake.bundle import parts
+from vdmbake.kernels import quadric_mesh
+from vdmbake.bundle.directory import Bundle
 from vdmbake.errors import InputError
-from vdmbake.quadrics import QuadricSet
+from vdmbake.kernels.quadrics import QuadricSet
 from vdmbake.scene import parse_scene_dict
 
 RED, BLUE = [0.8, 0.05, 0.05], [0.05, 0.1, 0.9]

@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from vdmbake.cli import main as bake_main
-from vdmbake.geometry import onb
+from vdmbake.common.geometry import onb
 from vdmrender import quadric_math as qm
 from vdmrender.camera import Camera
 
@@ -280,7 +280,7 @@ def test_tracer_from_inside_overlapping_quadrics_matches_brute_force():
     """Rays from points inside many overlapping spheres and cylinders: the box walk's first hit is the
     nearest of every quadric tested by brute force (the old walk got 27-67% of them wrong), and
     shadow rays (any hit) with a short range agree on whether something lies within it."""
-    from vdmbake.quadrics import QuadricSet
+    from vdmbake.kernels.quadrics import QuadricSet
     from vdmrender.reference import QuadricTracer
 
     rng = np.random.default_rng(3)

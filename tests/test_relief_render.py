@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from vdmbake import parts
-from vdmbake.bundle import Bundle
+from vdmbake.bundle import parts
+from vdmbake.bundle.directory import Bundle
 
 import meso_scenes
 from meso_scenes import BIG_PLANE, GRAZING, OBLIQUE, ORBIT, PLANE, TOP, TORUS, centre_dluv, manifest, mean, render
@@ -29,7 +29,7 @@ def scene(camera, obj, techniques=ALL, **kw):
 def stage_errors(tmp_path, out, *defines_list, iterations=32):
     """(mean dLuv, IoU) of relief.frag compiled with each tuple of defines (e.g. ("FLAT",)) on the scene's
     cameras, against the reference the CLI run traced."""
-    from vdmbake import exr
+    from vdmbake.formats import exr
     from vdmbake.scene import parse_scene_dict
     from vdmrender import gl, images
     from vdmrender.camera import cameras_for
@@ -188,9 +188,9 @@ def test_all_zero_heights(tmp_path):
 def test_back_faces_follow_the_winding():
     """relief's frame pass culls the faces its stage would discard: back faces of a consistently wound mesh,
     front faces of one wound the other way, nothing for a mixed one."""
-    from vdmbake import primitives
-    from vdmbake.meshes import TriMesh
-    from vdmrender.techniques.mesostructure import back_faces
+    from vdmbake.assets import primitives
+    from vdmbake.assets.meshes import TriMesh
+    from vdmrender.passes.mesostructure import back_faces
     m = primitives.build("torus", {"major": 1.0, "minor": 0.35, "segments": 16, "rings": 8})
     assert back_faces(m) == "back"
     flipped = TriMesh(m.vertices, m.faces[:, ::-1].copy(), m.normals, m.uvs)

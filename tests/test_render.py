@@ -83,9 +83,9 @@ def test_far_from_origin_wide_fov_and_camera_inside(tmp_path):
     # Inside the closed tube every ray hits the wall and no light gets in: the traced reference has
     # full coverage and ambient only. (The shadow map leaks a little light along the light-space
     # silhouette, where both walls' depths meet; that is the frame's measured error above.)
-    from vdmbake import exr
+    from vdmbake.formats import exr
     from vdmbake.scene import Light, Material
-    from vdmbake.colour import to_srgb8
+    from vdmbake.common.colour import to_srgb8
 
     ref = exr.read(out / "reference/far/002.exr")["reference"]
     assert (ref["A"] == 1).all()
@@ -127,7 +127,7 @@ def test_shader_includes_expand():
 
 def test_unused_programs_are_not_compiled(tmp_path):
     """A scene with only `mesh` compiles the mesh and depth programs and nothing else."""
-    from vdmbake.bundle import Bundle
+    from vdmbake.bundle.directory import Bundle
     from vdmbake.scene import parse_scene_dict
     from vdmrender.techniques import variants
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake import primitives
-from vdmbake.meshes import transformed
+from vdmbake.assets import primitives
+from vdmbake.assets.meshes import transformed
 from vdmbake.scene import Transform
 
 

@@ -1,4 +1,4 @@
-"""The Utah teapot primitive (vdmbake/teapot.py): the patch data, the Bezier evaluation, the welded
+"""The Utah teapot primitive (vdmbake/assets/teapot.py): the patch data, the Bezier evaluation, the welded
 tessellation (border, normals, UVs, frame), and the teapot through the renderer with a mesostructure
 (the VDM paper's Fig. 9 scene) and without one. Bounds are the figures measured on llvmpipe (2-core
 machine) with modest headroom, each measurement in a comment beside it."""
@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake import primitives, teapot
-from vdmbake.geometry import boundary_edges
-from vdmbake.meshes import weld
+from vdmbake.assets import primitives, teapot
+from vdmbake.common.geometry import boundary_edges
+from vdmbake.assets.meshes import weld
 
 import meso_scenes
 from meso_scenes import ORBIT, mean, render

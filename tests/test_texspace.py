@@ -6,9 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake import geometry, primitives, texspace, vdm
+from vdmbake.common import geometry, texspace
+from vdmbake.assets import primitives
+from vdmbake.kernels import vdm
 from vdmbake.errors import InputError
-from vdmbake.meshes import TriMesh
+from vdmbake.assets.meshes import TriMesh
 
 RNG = np.random.default_rng(2003)
 E_U, E_V = np.array([[1.0, 0.0]]), np.array([[0.0, 1.0]])

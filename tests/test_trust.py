@@ -57,10 +57,10 @@ def test_code_fingerprint_follows_imports_and_edits(tmp_path, monkeypatch):
 def test_reference_code_covers_what_the_reference_runs():
     mods = vdmbake.imported_closure(["vdmrender.reference", "vdmrender.camera"])
     assert {"vdmrender.reference", "vdmrender.quadric_math", "vdmrender.shading", "vdmrender.camera",
-            "vdmbake.embree", "vdmbake.geometry"} <= set(mods)
+            "vdmbake.common.embree", "vdmbake.common.geometry"} <= set(mods)
     assert "vdmrender.gl" not in mods                 # GL code does not invalidate the cached reference
-    meso = vdmbake.imported_closure(["vdmrender.techniques.mesostructure"])
-    assert "vdmrender.techniques.mesostructure" in meso
+    meso = vdmbake.imported_closure(["vdmrender.passes.mesostructure"])
+    assert "vdmrender.passes.mesostructure" in meso
     assert refcache.reference_code(True) != refcache.reference_code(False)
 
 
@@ -73,7 +73,7 @@ def test_other_bake_code_rebakes_with_the_reason_logged(tmp_path, monkeypatch):
     assert manifest["code_fingerprint"] == bake_mod.bake_code()
     r = CliRunner().invoke(bake_main, [str(scene), "-o", str(out)])
     assert "up to date" in r.stderr
-    # As after an edit to, say, vdmbake/vdm.py: another fingerprint of the package's sources.
+    # As after an edit to, say, vdmbake/kernels/vdm.py: another fingerprint of the package's sources.
     monkeypatch.setattr(bake_mod, "bake_code", lambda: "f" * 64)
     r = CliRunner().invoke(bake_main, [str(scene), "-o", str(out)])
     assert r.exit_code == 0, r.output
@@ -163,6 +163,27 @@ def test_strict_gl_refuses_unknown_uniforms_and_layout_mismatches(monkeypatch):
         gl.release(gl.vertex_array(ctx, lax, [(buf, "3f 3f", "in_pos", "in_normal")]), buf)
         monkeypatch.setenv("VDM_GL_STRICT", "0")   # not strict: skipped, as before
         gl.set_uniforms(prog, u_mvp_typo=np.eye(4))
+    finally:
+        ctx.release()
+
+
+def test_textures_are_bound_by_sampler_name():
+    """Each sampler reads the texture given by its name, on a unit of its own that no caller numbers;
+    a misspelt sampler is refused like a misspelt uniform."""
+    ctx = gl.create_context()
+    try:
+        prog = gl.program(ctx, "billboard.vert", "billboard.frag", ("IMPROVED",))
+        names = gl.samplers(prog)
+        assert names == sorted(names) and {"u_maps", "u_alpha", "u_shadow_map"} <= set(names)
+        assert "u_board_texels" not in names    # a float, and ints such as pom's u_steps, are no samplers
+        assert "u_steps" not in gl.samplers(gl.program(ctx, "mesostructure.vert", "pom.frag"))
+        textures = {n: ctx.texture((1, 1), 1, dtype="f4") for n in names}
+        gl.bind_textures(prog, **textures)
+        assert sorted(prog[n].value for n in names) == list(range(len(names)))   # one unit each
+        assert all(prog[n].value == names.index(n) for n in names)
+        with pytest.raises(gl.GLError, match="no active sampler 'u_map'"):
+            gl.bind_textures(prog, u_map=textures["u_maps"])
+        gl.release(*textures.values())
     finally:
         ctx.release()
 

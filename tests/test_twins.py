@@ -18,13 +18,14 @@ import numpy as np
 import pytest
 
 import test_heightfield_trace as hft_tests          # its fields and ray mixture (module import: no tests collected)
-from vdmbake import octahedral as oc
-from vdmbake import pyramid as P
-from vdmbake import texspace, texture
-from vdmbake.geometry import onb
-from vdmbake.meshes import SurfaceFrame
+from vdmbake.kernels import octahedral as oc
+from vdmbake.common import pyramid as P
+from vdmbake.common import texspace, texture
+from vdmbake.common.geometry import onb
+from vdmbake.assets.meshes import SurfaceFrame
 from vdmrender import curved_ray as cr
-from vdmrender import gl, hftrace, quadric_math, shading
+from vdmrender import gl, quadric_math, shading
+from vdmrender.passes import hftrace
 from vdmrender.camera import Camera, pixel_ray, window_depth
 from vdmrender.glsl_eval import evaluate
 

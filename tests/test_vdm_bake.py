@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake import vdm
+from vdmbake.kernels import vdm
 
 from vdm_oracle import bent, vdm_exact
 

@@ -16,8 +16,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from vdmbake import parts, vdm
-from vdmbake.bundle import Bundle
+from vdmbake.bundle import parts
+from vdmbake.kernels import vdm
+from vdmbake.bundle.directory import Bundle
 
 import meso_scenes
 from meso_scenes import (BIG_PLANE, CYLINDER, GRAZING, HEAD_ON, OBLIQUE, ORBIT, PLANE, TOP, TORUS, centre_dluv,

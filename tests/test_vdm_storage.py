@@ -1,4 +1,4 @@
-"""The VDM weights' storage (vdmbake/vdm_storage.py): 8-bit codes with a per-eigenfunction scale and
+"""The VDM weights' storage (vdmbake/kernels/vdm_storage.py): 8-bit codes with a per-eigenfunction scale and
 offset, half floats, float32; the error each adds, measured through the eigenfunctions' Gram matrices
 without rebuilding the tables; the bake's choice and what it writes."""
 from __future__ import annotations
@@ -8,8 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from vdmbake import exr, vdm_storage
-from vdmbake.bundle import Bundle
+from vdmbake.formats import exr
+from vdmbake.kernels import vdm_storage
+from vdmbake.bundle.directory import Bundle
 
 RNG = np.random.default_rng(3)
 

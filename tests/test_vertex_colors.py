@@ -10,12 +10,14 @@ import numpy as np
 import pytest
 
 from tests.scenes import bake_and_render, rows_by_label
-from vdmbake import coarse, parts, primitives
-from vdmbake.meshes import TriMesh, load_mesh_file, resolve_path
+from vdmbake.kernels import coarse
+from vdmbake.bundle import parts
+from vdmbake.assets import primitives
+from vdmbake.assets.meshes import TriMesh, load_mesh_file, resolve_path
 from vdmbake.scene import Light, Material
 from vdmrender import gl, images, metrics, reference
 from vdmrender.camera import orbit
-from vdmrender.techniques.raster import RasterMesh
+from vdmrender.passes.raster import RasterMesh
 
 AIRPLANE = "pkg:pymeshlab/tests/sample_meshes/colored_airplane.ply"
 BG = (0.05, 0.05, 0.06)
@@ -91,7 +93,7 @@ def test_scene_to_report(tmp_path):
     rows = rows_by_label(result)
     # measured at 64 px with a 512² shadow map: mesh 0.2425 (IoU 0.9981), coarse@0.5 0.918 (IoU 0.9981)
     assert rows["mesh"]["mean_dluv"] < 0.35 and rows["coarse@0.5"]["mean_dluv"] < 1.3
-    from vdmbake.bundle import Bundle
+    from vdmbake.bundle.directory import Bundle
     b = Bundle(tmp_path / "b.bundle")
     entry = b.manifest["objects"]["plane"]
     assert b.read(entry["mesh"], parts.MESH).colors is not None

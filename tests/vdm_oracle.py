@@ -1,10 +1,10 @@
-"""Test oracles for the VDM bake, independent of the kernels they check (vdmbake/vdm.py)."""
+"""Test oracles for the VDM bake, independent of the kernels they check (vdmbake/kernels/vdm.py)."""
 from __future__ import annotations
 
 import numpy as np
 
-from vdmbake import vdm
-from vdmbake.embree import RayScene
+from vdmbake.kernels import vdm
+from vdmbake.common.embree import RayScene
 
 
 def bent(s, h, c):

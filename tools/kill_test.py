@@ -38,9 +38,9 @@ def debris(target: Path) -> list[str]:
 
 
 def bundle_ok(path: Path) -> bool:
-    from vdmbake.bundle import Bundle
+    from vdmbake.bundle.directory import Bundle
     from vdmbake.errors import InputError
-    from vdmbake.parts import KINDS
+    from vdmbake.bundle.parts import KINDS
 
     try:
         b = Bundle(path)

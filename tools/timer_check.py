@@ -16,7 +16,7 @@ from pathlib import Path
 
 import click
 
-from vdmbake.bundle import Bundle
+from vdmbake.bundle.directory import Bundle
 from vdmrender import gl
 from vdmrender.camera import cameras_for
 from vdmrender.techniques import variants

@@ -17,11 +17,13 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import (__version__, code_fingerprint, curvature, heightfields, meso_albedo, package_modules, parts, primitives,
-               quadric_mesh, quadrics, staging, vdm)
-from .bundle import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter
+from . import __version__, code_fingerprint, package_modules
+from .kernels import curvature, quadric_mesh, quadrics, vdm
+from .assets import heightfields, meso_albedo, primitives
+from .bundle import parts, staging
+from .bundle.directory import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter
 from .errors import InputError
-from .meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
+from .assets.meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
 from .scene import Object, Scene, load_scene
 from .techniques import REGISTRY
 
@@ -40,7 +42,7 @@ def object_quadrics(obj: Object, base: Path, warn=lambda m: None) -> tuple[quadr
     """The object's spheres and cylinders in world space, and counts of what was dropped; `warn` hears
     what of the input file was ignored to read it."""
     if obj.molecule:
-        from .molecules import load_molecule  # gemmi is imported only for molecule scenes
+        from .assets.molecules import load_molecule  # gemmi is imported only for molecule scenes
         q = load_molecule(resolve_path(obj.molecule, base), obj.style, warn)
     else:
         q = quadrics.inline(obj.spheres, obj.cylinders, obj.material.albedo)
@@ -50,7 +52,7 @@ def object_quadrics(obj: Object, base: Path, warn=lambda m: None) -> tuple[quadr
 
 def bake_code() -> str:
     """The fingerprint of the bake's code: every source file of the vdmbake package as installed, so
-    a local edit or an upgrade (say to vdmbake/vdm.py) makes every bundle baked before it stale."""
+    a local edit or an upgrade (say to vdmbake/kernels/vdm.py) makes every bundle baked before it stale."""
     return code_fingerprint(package_modules(__name__.partition(".")[0]))
 
 

@@ -13,11 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import InputError
-from .safeio import read_regular
-from .heightfields import PATTERNS, SKIMAGE_PHOTOS
-from . import meso_albedo
-from .molecules import STYLES
-from .primitives import PRIMITIVES
+from .formats.safeio import read_regular
+from .assets.heightfields import PATTERNS, SKIMAGE_PHOTOS
+from .assets import meso_albedo
+from .assets.molecules import STYLES
+from .assets.primitives import PRIMITIVES
 from .schema import (REQUIRED, printable, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
                      Vector, dump, read, setting)
 from .techniques import REGISTRY

@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .primitives import PRIMITIVES
+from .assets.primitives import PRIMITIVES
 from .schema import knob, markdown, settings
 from .scene import Cameras, Light, Material, Mesostructure, Object, Orbit, Pose, Render, Transform
 from .techniques import REGISTRY

@@ -386,7 +386,7 @@ class Technique:
                                       # more settings than the knob make a variant
     reads: Callable | None = None     # (its manifest entry, a variant's value, the object) -> {part path: part
                                       # kind} the variant's renderer reads; with `bake`. The bundle checks these
-                                      # before rendering (vdmbake.manifest); any lookup error is a bad entry
+                                      # before rendering (vdmbake.bundle.manifest); any lookup error is a bad entry
 
     @property
     def knob(self) -> dataclasses.Field | None:

@@ -1,4 +1,4 @@
-"""Which pixels see an open border of a surface with mesostructure (vdmbake.geometry.skirt), so the metric
+"""Which pixels see an open border of a surface with mesostructure (vdmbake.common.geometry.skirt), so the metric
 scores the surface apart from its border: the reference and the metric agree on what a border is.
 
 Per pixel, the primary ray (the reference's, clipped to the same near / far planes) is classed:

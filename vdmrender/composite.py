@@ -40,8 +40,8 @@ from . import images, refcache, reference, scoring
 from .camera import cameras_for, enclosing_sphere
 from .metrics import summarise
 from .techniques import variants
-from .techniques.raster import Passes
-from .techniques.shadowmap import ShadowMap, ShadowView
+from .passes.raster import Passes
+from .passes.shadowmap import ShadowMap, ShadowView
 
 FOLDER = "composite"   # OUT/composite/: reference/, frames/SET/, heatmaps/SET/, overview.png
 

@@ -2,7 +2,7 @@
 twin of shaders/include/curved_ray.glsl (refined VDM, beyond Wang et al. 2003).
 
 The reference surface is bent to curvature c (texture units; > 0 convex) along the ray's azimuth,
-as the VDM bake bends its tables (vdmbake/vdm.py bend), to second order in c times the distance:
+as the VDM bake bends its tables (vdmbake/kernels/vdm.py bend), to second order in c times the distance:
 |c t| stays below about 0.2 for the depths the tables are baked for, and tests/test_curved_ray.py
 bounds the difference from the exact bend. A ray starts h0 below the surface at arc position 0 and
 runs at polar angle theta from the surface normal (st = sin theta), down into the surface

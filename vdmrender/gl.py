@@ -13,7 +13,7 @@ import re
 import moderngl
 import numpy as np
 
-from vdmbake import texture
+from vdmbake.common import texture
 from vdmbake.errors import InputError
 
 SHADERS = importlib.resources.files("vdmrender") / "shaders"
@@ -100,7 +100,8 @@ def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = (), may_
             raise InputError(f"{vertex} + {fragment}{variant}: the shaders do "
                              f"not compile on {renderer_name(ctx)} (an overridden GL version, e.g. "
                              f"MESA_GL_VERSION_OVERRIDE, or a driver lacking GLSL 4.30?). Compiler log:\n{e}") from None
-        prog.extra = {"name": f"{vertex} + {fragment}{variant}", "may_lack": frozenset(may_lack)}
+        prog.extra = {"name": f"{vertex} + {fragment}{variant}", "may_lack": frozenset(may_lack),
+                      "units": {n: i for i, n in enumerate(samplers(prog))}}
         ctx.extra[key] = prog
     prog = ctx.extra[key]
     if prog.extra["may_lack"] != frozenset(may_lack):
@@ -125,6 +126,26 @@ def _lacks(prog, name: str, what: str) -> bool:
     return True
 
 
+_ONE_INT = (0x1404, 0x8B56)   # GL_INT, GL_BOOL: the uniforms besides samplers that hold one integer
+
+
+def samplers(prog) -> list[str]:
+    """The program's sampler uniforms in name order; bind_textures gives the i-th texture unit i."""
+    return sorted(n for n in prog if isinstance(prog[n], moderngl.Uniform) and prog[n].fmt == "1i"
+                  and prog[n].gl_type not in _ONE_INT)
+
+
+def bind_textures(prog, **textures) -> None:
+    """Bind textures to samplers by name: each sampler reads a texture unit of its own, fixed per program
+    (its place in `samplers`), so no caller numbers units. A name the program lacks is skipped if
+    declared in may_lack (or when not strict), an error otherwise."""
+    units = _info(prog).get("units") or {n: i for i, n in enumerate(samplers(prog))}
+    for name, tex in textures.items():
+        if not _lacks(prog, name, "sampler"):
+            tex.use(units[name])
+            prog[name].value = units[name]
+
+
 def set_uniforms(prog, **values) -> None:
     """Set uniforms by name; one the program lacks is skipped if declared in may_lack (or when not
     strict), an error otherwise. A 4x4 array is a matrix (row-major here, column-major in GLSL); any
@@ -145,11 +166,13 @@ _TOKEN = re.compile(r"(\d*)([fiux])(\d?)")
 _BYTES = {"f": 4, "i": 4, "u": 4, "x": 1}
 
 
-def vertex_array(ctx, prog, content: list, index=None):
+def vertex_array(ctx, prog, content: list, index=None, subset: bool = False):
     """ctx.vertex_array whose layout must match the program: every attribute given is one the
     program has (those it declared in may_lack become padding bytes of the same size), with the
     format's component count equal to the attribute's, and every attribute the program reads is
-    given. A mismatch is an error when strict (otherwise lacking attributes are padded)."""
+    given. A mismatch is an error when strict (otherwise lacking attributes are padded). subset: the
+    program reads only some of the attributes (a depth pass over its frame pass's layout, which the
+    frame pass checks): the others become padding, derived from their formats."""
     given, fixed = set(), []
     for buf, fmt, *names in content:
         spec, _, per = fmt.partition("/")
@@ -162,7 +185,7 @@ def vertex_array(ctx, prog, content: list, index=None):
                 continue
             name = next(it)
             given.add(name)
-            if _lacks(prog, name, "vertex attribute"):
+            if (subset and name not in prog) or _lacks(prog, name, "vertex attribute"):
                 tokens.append(f"{n * size}x")
                 names = [x for x in names if x != name]
                 continue
@@ -201,11 +224,8 @@ def set_shading(prog, light, material, albedo: bool = True) -> None:
                  u_shininess=material.shininess, **({"u_albedo": tuple(material.albedo)} if albedo else {}))
 
 
-ALBEDO_UNIT = 6   # texture unit of the asset's albedo map (shaders/include/albedo.glsl)
-
-
 def albedo_texture(ctx, albedo_map: np.ndarray):
-    """An albedo map (vdmbake.texture: uint8 sRGB, row 0 at v = 0) as a texture read as its numpy twin reads
+    """An albedo map (vdmbake.common.texture: uint8 sRGB, row 0 at v = 0) as a texture read as its numpy twin reads
     it: the texels decoded to linear (half floats), linear filtering, wrap-around, no mipmaps."""
     h, w = albedo_map.shape[:2]
     tex = ctx.texture((w, h), 3, np.ascontiguousarray(texture.linear(albedo_map), np.float16).tobytes(),

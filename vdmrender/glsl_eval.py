@@ -93,14 +93,13 @@ void main() {{
                 t.filter = (ctx.NEAREST, ctx.NEAREST)
                 made.append(t)
             units[name] = t
-        for unit, (name, t) in enumerate(units.items()):
-            t.use(unit)
         targets = [ctx.texture((w, h), 4, dtype="f4") for _ in range(outputs)]
         fbo = ctx.framebuffer(targets)
         vao = ctx.vertex_array(prog, [])
         fbo.use()
         ctx.viewport = (0, 0, w, h)
-        gl.set_uniforms(prog, u_eval_width=w, **{k: u for u, k in enumerate(units)}, **uniforms)
+        gl.bind_textures(prog, **units)
+        gl.set_uniforms(prog, u_eval_width=w, **uniforms)
         vao.render(vertices=3)
         return [np.frombuffer(t.read(), np.float32).reshape(h * w, 4)[:n].copy() for t in targets]
     finally:

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from vdmbake.colour import to_srgb8
+from vdmbake.common.colour import to_srgb8
 
 
 def encode(linear_rgba: np.ndarray, background) -> np.ndarray:

@@ -10,7 +10,7 @@ import os
 
 import numpy as np
 
-from vdmbake.colour import srgb8_to_linear
+from vdmbake.common.colour import srgb8_to_linear
 
 # Linear sRGB -> XYZ (IEC 61966-2-1, D65).
 SRGB_TO_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vdmbake.geometry import onb
+from vdmbake.common.geometry import onb
 
 D = np.diag([1.0, 1.0, 1.0, -1.0])
 UNBOUNDED = 1e-12   # R_w D R_w^T >= -this |R_w|^2: the quadric reaches the eye plane (quadric.glsl's test)

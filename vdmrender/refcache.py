@@ -10,16 +10,19 @@ from dataclasses import asdict
 
 import numpy as np
 
-from vdmbake import code_fingerprint, exr, imported_closure, parts
+from vdmbake import code_fingerprint, imported_closure
+from vdmbake.formats import exr
+from vdmbake.bundle import parts
 
 from . import borders, images, progress, reference
-from .techniques import Source, mesostructure
+from .techniques import Source
+from .passes import mesostructure
 
 
 def reference_code(mesostructure: bool) -> str:
     """The fingerprint of the code a reference runs: the tracers, the cameras' pixel rays and what
     they import (for a mesostructure, also the displaced mesh it traces), as installed."""
-    roots = ["vdmrender.reference", "vdmrender.camera"] + (["vdmrender.techniques.mesostructure"] if mesostructure
+    roots = ["vdmrender.reference", "vdmrender.camera"] + (["vdmrender.passes.mesostructure"] if mesostructure
                                                            else [])
     return code_fingerprint(imported_closure(roots))
 

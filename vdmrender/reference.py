@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from vdmbake.embree import RayScene
-from vdmbake.geometry import onb
-from vdmbake.texture import surface_albedo
+from vdmbake.common.embree import RayScene
+from vdmbake.common.geometry import onb
+from vdmbake.common.texture import surface_albedo
 
 from . import quadric_math
 from .shading import safe_normalize, shade

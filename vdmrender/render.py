@@ -7,9 +7,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from vdmbake import __version__
-from vdmbake.bundle import Bundle
+from vdmbake.bundle.directory import Bundle
 from vdmbake.errors import InputError
-from vdmbake.staging import StagedDir
+from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
 from . import baseline, composite, gl, images, measure, refcache, report, scoring, timing

@@ -2,7 +2,7 @@
 
 Lambert diffuse plus Blinn-Phong specular from one directional light, a constant ambient
 term, ambient only where shadowed: linear radiance (encoded to 8-bit sRGB on output by
-vdmbake.colour.to_srgb8).
+vdmbake.common.colour.to_srgb8).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-// The asset's albedo map (vdmbake/texture.py, whose `sample` is this lookup's numpy twin): texels
+// The asset's albedo map (vdmbake/common/texture.py, whose `sample` is this lookup's numpy twin): texels
 // decoded to linear (gl.albedo_texture), filtered bilinearly, wrapping, without mipmaps (as the reference).
 #include "cost_count.glsl"
 uniform sampler2D u_albedo_map;

@@ -8,8 +8,7 @@
 // THESIS (Vichitvejpaisal2005 §4.1): 100 fixed steps of sqrt(2)/100 (the ray length sqrt(2), the diagonal of the unit
 // depth map) from the box entry; the first sample whose depth is within the hit range e of the map's
 // (and whose texel is covered) is the hit. Samples past the box exit end the search (no hit).
-// IMPROVED: one step per texel that the ray's projection onto the map crosses (times u_steps_per_texel,
-// MIN_STEPS to 2 R); a hit where the ray passes from in front of the map to behind it (a sign change),
+// IMPROVED: one step per texel that the ray's projection onto the map crosses (MIN_STEPS to 2 R); a hit where the ray passes from in front of the map to behind it (a sign change),
 // refined by bisection and a final secant step, then alpha-tested at the refined point (an empty texel
 // lets the ray go on). THESIS tests the sample's own texel; IMPROVED accepts a hit if any texel of its
 // bilinear footprint is covered, so neighbouring billboards overlap by up to a texel instead of leaving
@@ -20,7 +19,6 @@
 uniform sampler2DArray u_maps;
 uniform sampler2DArray u_alpha;
 uniform float u_hit_range;   // THESIS: e (0.01 in Vichitvejpaisal2005 §4.1, 0.02 to fill holes, §3.4)
-uniform float u_steps_per_texel;   // IMPROVED: steps per texel crossed (1 by default)
 
 const int MIN_STEPS = 4;
 const int REFINE = 5;        // bisection steps before the secant step
@@ -70,7 +68,7 @@ float march(vec3 o, vec3 d, float t0, float t1, int layer) {
     SEARCH();
     float R = float(textureSize(u_alpha, 0).x);
     vec2 across = d.xy * (t1 - t0) * R;      // texels crossed by the ray's projection onto the map
-    int n = int(clamp(ceil(length(across) * u_steps_per_texel), float(MIN_STEPS), 2.0 * R));
+    int n = int(clamp(ceil(length(across)), float(MIN_STEPS), 2.0 * R));
     float dt = (t1 - t0) / float(n);
     float tp = t0;
     vec3 s = o + d * t0;

@@ -1,7 +1,7 @@
 // The billboards' colour maps (Vichitvejpaisal2005 §3.1: "color and normal of projected polygon
 // poly is stored in color map and normal map"; read at the hit, Vichitvejpaisal2005 §3.3 step 2.3): one RGB16F layer per
 // billboard of the asset's linear albedo, with the one-texel border of the normal and depth maps (the
-// bake, vdmbake/billboard_maps.py albedo_texels, fills it and the empty texels near covered ones with
+// bake, vdmbake/kernels/billboard_maps.py albedo_texels, fills it and the empty texels near covered ones with
 // their covered neighbours' colour), read with linear filtering. Only for assets with colours (ALBEDO_MAPS).
 #include "cost_count.glsl"
 uniform sampler2DArray u_albedo_maps;

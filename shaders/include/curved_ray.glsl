@@ -1,6 +1,6 @@
 // Straight rays through the mesostructure of a curved reference surface, in texture space. The
 // surface is bent to curvature c (texture units; > 0 convex) along the ray's azimuth, as the VDM
-// bake bends its tables (Wang2003 Appendix; vdmbake/vdm.py bend), taken to second order in
+// bake bends its tables (Wang2003 Appendix; vdmbake/kernels/vdm.py bend), taken to second order in
 // c times the distance (the osculating parabola: |c t| is below 0.2 for the depths tables are
 // baked for). Numpy twin: vdmrender/curved_ray.py. A ray starts h0 below the surface at arc
 // position 0 and runs at polar angle theta from the surface normal (st = sin theta), down into the

@@ -1,6 +1,6 @@
 // Exact hierarchical ray tracing of a bilinearly interpolated depth field through its min/max mip pyramid
 // (Tevs, Ihrke & Seidel 2008, "maximum mipmaps"; Drobot 2009, quadtree displacement mapping). The numpy
-// twin, with the pyramid's layout, is vdmbake/pyramid.py (build, texture_levels, trace).
+// twin, with the pyramid's layout, is vdmbake/common/pyramid.py (build, texture_levels, trace).
 //
 // INTERFACE
 //   float hf_trace(vec3 o, vec3 d, float t0, float t1)
@@ -34,13 +34,13 @@
 // period (W, H). HF_CLAMP: a bounded field, (W - 1) x (H - 1) cells; the ray is clipped to the domain
 // [0, W - 1] x [0, H - 1] and has no hit outside it.
 //
-// DATA (the caller binds; vdmbake/pyramid.py texture_levels builds it):
+// DATA (the caller binds; vdmbake/common/pyramid.py texture_levels builds it):
 //   u_hf        RGBA32F, a full mip chain over the level-0 cell grid padded to powers of two; level 0:
 //               the corners (c00, c01, c10, c11) = samples (i, j), (i, j+1), (i+1, j), (i+1, j+1) of each
 //               cell; level L >= 1: (min, max, min, max) over the level-0 cells [i 2^L, (i+1) 2^L) x
 //               [j 2^L, (j+1) 2^L). Read with texelFetch only (no filtering). One fetch serves a visit at
 //               any level, which on llvmpipe beats an RG32F min/max chain plus a gather of the corner
-//               samples (every branch's fetches are paid there; docs/relief-notes.md).
+//               samples (every branch's fetches are paid there; docs/mesostructure.md).
 //               Empty cells (pyramid.build's `empty`, e.g. a billboard's uncovered texels) hold HF_HUGE
 //               corners: rays pass them. Above level 0 a cell holding empty ones is (min, HF_HUGE, min, max).
 //   u_hf_cells  ivec2 (cells along x, cells along y) at level 0;  u_hf_top  the top level (one texel).

@@ -1,4 +1,4 @@
-// Mesostructure texture space per pixel (Wang2003 §3.2), the GLSL twin of vdmbake/texspace.py.
+// Mesostructure texture space per pixel (Wang2003 §3.2), the GLSL twin of vdmbake/common/texspace.py.
 #include "camera.glsl"
 // A tile spans 1 x 1 texture units; the mesostructure lies u_depth (texture units) below the
 // reference surface. Near the pixel, texture space maps to world space by M = [J | s_n N].

@@ -1,11 +1,11 @@
 // Octahedral impostors (Brucks 2018; Unreal's impostor baker, Amplify Impostors): N x N orthographic
 // views of the object on the lattice of an octahedral map of directions, in one atlas (the bake:
-// vdmbake/octahedral.py, whose numpy functions these mirror). Anchor-relative world coordinates: the
+// vdmbake/kernels/octahedral.py, whose numpy functions these mirror). Anchor-relative world coordinates: the
 // anchor is the bounding sphere's centre, every view's centre.
 //   u_atlas  RGBA16 unorm, linear: the normal in its view's frame (octahedral code, rg = code / 2 + 0.5),
 //            depth along the view (b: 0 at the front of the view's box, 1 at its back), coverage (a).
 //            Tile (i, j) holds view (i, j); empty texels next to covered ones carry extrapolated normal
-//            and depth (the bake: vdmbake/octahedral.py to_part), so filtering at a silhouette follows the surface.
+//            and depth (the bake: vdmbake/kernels/octahedral.py to_part), so filtering at a silhouette follows the surface.
 // HEMI: the views cover the upper hemisphere of u_basis (hemi-octahedral map), else the full sphere.
 // ALBEDO_ATLAS: u_albedo_atlas, laid out as u_atlas, holds the surface's linear albedo (an asset with its own
 // colours; the covered neighbours' mean around silhouettes), read at each view's hit and blended as the normal.
@@ -29,7 +29,7 @@ const float CLIFF_SLOPE = 2.0;  // its normal gives, plus CLIFF_SLOPE (depth per
 float sgn(float x) { return x >= 0.0 ? 1.0 : -1.0; }
 vec2 sgn(vec2 v) { return vec2(sgn(v.x), sgn(v.y)); }
 
-// The full octahedral map: unit square [-1, 1]^2 <-> sphere (vdmbake.octahedral.encode/decode).
+// The full octahedral map: unit square [-1, 1]^2 <-> sphere (vdmbake.kernels.octahedral.encode/decode).
 vec2 oct_encode(vec3 d) {
     vec2 p = d.xy / max(abs(d.x) + abs(d.y) + abs(d.z), 1e-30);
     return d.z < 0.0 ? (1.0 - abs(p.yx)) * sgn(p) : p;
@@ -60,7 +60,7 @@ vec3 map_decode(vec2 g) {
 }
 
 // The lattice triangle that direction e (towards the viewer, world) falls in: its three views
-// (i, j) and barycentric weights (vdmbake.octahedral.nearest_views). Cells are cut along the
+// (i, j) and barycentric weights (vdmbake.kernels.octahedral.nearest_views). Cells are cut along the
 // diagonal parallel to the map's creases in their quadrant.
 void nearest_views(vec3 e, out ivec2 view[3], out vec3 w) {
     float m = float(u_views - 1);
@@ -84,7 +84,7 @@ void nearest_views(vec3 e, out ivec2 view[3], out vec3 w) {
 }
 
 // View (i, j)'s direction towards the viewer e and axes u, v (u x v = e): Duff et al. 2017's frame in
-// the map's frame, its branch chosen on the lattice integers (vdmbake.octahedral.view_frames), then to world.
+// the map's frame, its branch chosen on the lattice integers (vdmbake.kernels.octahedral.view_frames), then to world.
 void view_frame(ivec2 view, out vec3 e, out vec3 u, out vec3 v) {
     e = map_decode(vec2(view) / float(u_views - 1) * 2.0 - 1.0);
 #if defined(HEMI)

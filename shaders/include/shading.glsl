@@ -1,6 +1,6 @@
 // The shared shading model: Lambert diffuse plus Blinn-Phong specular from one directional light,
 // a constant ambient term, ambient only where shadowed (as in Wang2003 §3.2, pixel shading). Passes
-// write linear radiance; vdmbake/colour.py (to_srgb8) encodes it to sRGB.
+// write linear radiance; vdmbake/common/colour.py (to_srgb8) encodes it to sRGB.
 // Its numpy twin is vdmrender/shading.py; the constants come from the scene.
 uniform vec3 u_light_dir;    // unit vector towards the light, world space
 uniform vec3 u_light_color;

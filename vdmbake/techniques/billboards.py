@@ -3,13 +3,14 @@
 with hit range 0.01 (Vichitvejpaisal2005 §4.1) or 0.02 (§3.4); the improved one; or hier, the exact hierarchical trace
 through a min/max pyramid of each depth map, beyond the thesis) and optionally the coarse mesh that
 fills holes (Vichitvejpaisal2005 §3.4). The bake makes only the projections, pyramids and coarse mesh the variants
-need; vdmbake/billboards.py and vdmbake/billboard_maps.py hold the kernels."""
+need; vdmbake/kernels/billboards.py and vdmbake/kernels/billboard_maps.py hold the kernels."""
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
 
-from .. import billboard_maps, billboards, coarse, parts
+from ..kernels import billboard_maps, billboards, coarse
+from ..bundle import parts
 from ..errors import InputError
 from ..schema import Integer, ListOf, Number, Parsed, Technique, setting
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .. import coarse, parts
+from ..kernels import coarse
+from ..bundle import parts
 from ..errors import InputError
 from ..schema import ListOf, Number, Technique, setting
 

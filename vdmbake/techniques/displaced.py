@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .. import geometry, parts
+from ..common import geometry
+from ..bundle import parts
 from ..schema import Integer, ListOf, Technique, setting
 
 

@@ -3,13 +3,14 @@ Unreal's baker as used in Fortnite, and of Amplify Impostors). Each variant name
 sphere of view directions, or the hemisphere above world +Z, the scenes' default up), N x N views of
 R x R texels in one atlas, and the per-view search (march: a ray / depth-map search; virtual: Amplify's
 single parallax step). The bake makes one atlas per layout and size the variants name (methods share
-it); vdmbake/octahedral.py holds the kernels."""
+it); vdmbake/kernels/octahedral.py holds the kernels."""
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
 
-from .. import octahedral, parts
+from ..kernels import octahedral
+from ..bundle import parts
 from ..schema import Invalid, ListOf, Number, Parsed, Technique, setting
 
 UP = (0.0, 0.0, 1.0)   # the hemisphere's up and the full map's centre view: world +Z
@@ -54,7 +55,7 @@ class Options:
 
 def bake(job) -> dict:
     """One atlas per LAYOUT-NxR the variants name: per view the normal's octahedral code in its frame,
-    depth along the view and coverage, extrapolated around the silhouettes (vdmbake.parts.OCTAHEDRAL)."""
+    depth along the view and coverage, extrapolated around the silhouettes (vdmbake.bundle.parts.OCTAHEDRAL)."""
     out = {}
     for v in job.options.variants:
         if v.atlas in out:

@@ -2,7 +2,7 @@
 paper): the view ray and the shadow ray traced through the min/max mip pyramid of the depth field
 (Tevs, Ihrke & Seidel 2008; Drobot 2009) to their exact first hit of the bilinear surface, both bent
 by the base surface's curvature at the pixel (curved relief mapping, Oliveira & Policarpo 2005).
-The bake builds the pyramid (vdmbake/pyramid.py); the knob caps the cell visits per ray."""
+The bake builds the pyramid (vdmbake/common/pyramid.py); the knob caps the cell visits per ray."""
 from __future__ import annotations
 
 import time
@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import parts, pyramid
+from ..bundle import parts
+from ..common import pyramid
 from ..schema import Integer, ListOf, Technique, setting
 
 

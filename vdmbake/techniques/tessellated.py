@@ -1,5 +1,5 @@
 """Technique `tessellated`: the impostors' peer, quadrics as instanced triangle meshes (icospheres and
-capped prisms of vdmbake.geometry). Needs only the quadric list."""
+capped prisms of vdmbake.common.geometry). Needs only the quadric list."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,8 +1,8 @@
 """Technique `vdm`: view-dependent displacement mapping (Wang et al. 2003). The bake casts the
 zero-curvature tables, bends them to the curvature range the base mesh has (Wang2003 Appendix), adds the
 MVM, compresses [A_VDM, A_MVM] by SVD to the largest k the scene renders (Wang2003 §3.1-3.3), and stores
-the weights in the smallest format whose rounding the truncation hides (vdmbake/vdm_storage.py);
-vdmbake/vdm.py holds the kernels. Each variant is a k and a refine setting: refine 0 is the paper's
+the weights in the smallest format whose rounding the truncation hides (vdmbake/kernels/vdm_storage.py);
+vdmbake/kernels/vdm.py holds the kernels. Each variant is a k and a refine setting: refine 0 is the paper's
 per-pixel algorithm, R > 0 finishes the view ray's hit and the self-shadow on the height field."""
 from __future__ import annotations
 
@@ -11,7 +11,9 @@ import os
 import time
 from dataclasses import dataclass
 
-from .. import parts, texspace, vdm, vdm_storage
+from ..bundle import parts
+from ..common import texspace
+from ..kernels import vdm, vdm_storage
 from ..errors import InputError
 from ..schema import Choice, Either, Integer, ListOf, Technique, setting
 

@@ -1,6 +1,6 @@
 """Enhanced billboards, the render side (Vichitvejpaisal2005 §3.3, §3.4, §4.1).
 
-Each billboard of the bake (vdmbake.billboards: origin, axes u v w, size, alpha, depth and normal
+Each billboard of the bake (vdmbake.kernels.billboards: origin, axes u v w, size, alpha, depth and normal
 maps) is drawn as its bounding box, one instance per billboard (Vichitvejpaisal2005 §3.3 step 1). Only the box's back
 faces are rasterised: they cover its screen footprint whether the eye is outside or inside the box, and
 near-plane clipping removes only box parts whose whole ray segment lies before the near plane; the
@@ -18,7 +18,7 @@ The hit is shaded with the shared model (normal map, shadow map) and writes its 
 
 Texture layout: two texture arrays, one layer per billboard. RGBA32F normal (world, xyz) + depth (w),
 (R+2)^2 with a one-texel border, linear filtering; the border and the empty texels near covered ones are
-linearly extrapolated from them in the bake (vdmbake/billboard_maps.py), so filtering at a map's edge or
+linearly extrapolated from them in the bake (vdmbake/kernels/billboard_maps.py), so filtering at a map's edge or
 silhouette follows the surface's slope. R8 alpha, R^2, read per texel (texelFetch, textureGather). For an
 asset with its own colours, a third: the colour maps (Vichitvejpaisal2005 §3.1), RGB16F linear albedo with the same border
 (albedo_maps), read at the hit (Vichitvejpaisal2005 §3.3 step 2.3); otherwise the colour is the material's albedo.
@@ -43,15 +43,15 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from vdmbake import parts
+from vdmbake.bundle import parts
 from vdmbake.errors import InputError
 
 from .. import gl
 from .billboards_hier import HierBillboards
-from .boards import (ALBEDO_MAPS_UNIT, BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS, albedo_maps,
-                     coarse_draws, infinite_far)
-from .raster import Passes, RasterPasses
-from .shadowmap import ShadowMap, translation
+from ..passes.boards import (BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS,
+                             albedo_maps, coarse_draws, infinite_far)
+from ..passes.raster import Passes, RasterPasses
+from ..passes.shadowmap import ShadowMap, translation
 
 METHODS = ("thesis", "improved")
 
@@ -66,24 +66,21 @@ def surface_points(b) -> np.ndarray:
 
 class Billboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, method: str = "improved",
-                 hit_range: float = 0.01, coarse=None, bounds=None, steps_per_texel: float = 1.0):
-        """boards: vdmbake.parts.Billboard (origin, axes, size, alpha, depth, normal maps); bordered: their
-        vdmbake.parts.BorderedMaps; coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of
+                 hit_range: float = 0.01, coarse=None, bounds=None):
+        """boards: vdmbake.bundle.parts.Billboard (origin, axes, size, alpha, depth, normal maps); bordered: their
+        vdmbake.bundle.parts.BorderedMaps; coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of
         the model, which fits the shadow map (default: the box of the covered texels' points, and of the
-        coarse mesh); steps_per_texel: the improved march's step density (its cost and quality knob; 1: a
-        step per texel)."""
+        coarse mesh)."""
         if method not in METHODS:
             raise InputError(f"billboards: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
         if not hit_range > 0:
             raise InputError(f"billboards: hit_range = {hit_range}; it must be > 0.")
-        if not steps_per_texel > 0:
-            raise InputError(f"billboards: steps_per_texel = {steps_per_texel}; it must be > 0.")
         boards = list(boards)
         sizes = {np.asarray(b.alpha).shape for b in boards}
         if len(sizes) > 1 or any(s[0] != s[1] for s in sizes):
             raise InputError(f"billboards: the maps must all be square and of one size; got {sorted(sizes)}.")
         self.ctx, self.light, self.material, self.method = ctx, light, material, method
-        self.hit_range, self.steps_per_texel = float(hit_range), float(steps_per_texel)
+        self.hit_range = float(hit_range)
         self.faces = len(coarse.faces) if coarse is not None else 0
         if bounds is None:
             pts = [surface_points(b) for b in boards] + ([coarse.vertices] if coarse is not None else [])
@@ -150,19 +147,16 @@ class Billboards(Passes):
                                else self.coarse.uniform_albedo)
                 # The coarse mesh, known to within `behind` of the surface, looks its shadow up that much further out.
                 offset = NORMAL_OFFSET_TEXELS * self.shadow.texel + (self.behind if kind == "mesh" else 0.0)
-                self.shadow.bind(prog, unit=0, normal_offset=offset)
+                self.shadow.bind(prog, normal_offset=offset)
             if kind == "boards":
-                self.maps.use(1)
-                self.alpha.use(2)
-                march = ({"u_hit_range": self.hit_range} if self.method == "thesis"
-                         else {"u_steps_per_texel": self.steps_per_texel})
+                gl.bind_textures(prog, u_maps=self.maps, u_alpha=self.alpha)
+                march = {"u_hit_range": self.hit_range} if self.method == "thesis" else {}
                 if stage == "frame":   # the frame's shadow lookup offset (billboard.frag)
                     march.update(u_board_texels=BOARD_TEXELS,
                                  u_tolerance=2 * self.hit_range if self.method == "thesis" else 0.0)
                     if self.albedo_maps is not None:
-                        self.albedo_maps.use(ALBEDO_MAPS_UNIT)
-                        march.update(u_albedo_maps=ALBEDO_MAPS_UNIT)
-                gl.set_uniforms(prog, u_maps=1, u_alpha=2, u_raster=raster, **march, u_view_proj=view_proj,
+                        gl.bind_textures(prog, u_albedo_maps=self.albedo_maps)
+                gl.set_uniforms(prog, u_raster=raster, **march, u_view_proj=view_proj,
                                 u_inv_view_proj=np.linalg.inv(view_proj),
                                 u_viewport=tuple(float(x) for x in viewport), **uniforms)
                 ctx.enable(moderngl.CULL_FACE)

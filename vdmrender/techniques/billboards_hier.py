@@ -6,7 +6,7 @@ per texel, shades n hits and keeps the nearest by the depth test, which writing 
 rejecting anything early on llvmpipe. Here a frame is:
   1. the shadow map: the shadow mesh (the coarse mesh) rasterised, pushed away from the light by
      COARSE_BEHIND so that it does not shadow the billboard surface it approximates; without a shadow
-     mesh, the billboards traced into it by pass 4 from the light's camera (docs/billboards-speed-notes.md
+     mesh, the billboards traced into it by pass 4 from the light's camera (docs/impostors.md
      has the cost and the error of both);
   2. with hole filling (Vichitvejpaisal2005 §3.4), the coarse mesh's depth, pushed back as in pass 5: no ray needs to go
      past it, since what lies behind would lose the depth test against the coarse mesh anyway;
@@ -16,7 +16,7 @@ rejecting anything early on llvmpipe. Here a frame is:
   4. one screen triangle scissored to the boxes' screen rectangle (billboard_hier.frag): per pixel, the ray
      through the billboards it meets in 3, each from its entry to its box's exit, to the depth of 2 and to
      the nearest hit so far, traced exactly and two-sided through the billboard's min/max pyramid (include
-     heightfield_trace.glsl, pyramid baked by vdmbake/billboard_maps.py); the nearest hit shaded once
+     heightfield_trace.glsl, pyramid baked by vdmbake/kernels/billboard_maps.py); the nearest hit shaded once
      (from behind if it was met from below), its exact depth written;
   5. with hole filling, the coarse mesh shaded and depth-tested as if COARSE_BEHIND farther than it is
      (as techniques/billboards.py), so that it fills only the pixels no billboard hit; drawn after the
@@ -27,14 +27,14 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from vdmbake import pyramid
+from vdmbake.common import pyramid
 from vdmbake.errors import InputError
 
 from .. import gl
-from .boards import (ALBEDO_MAPS_UNIT, BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS, albedo_maps,
-                     coarse_draws, infinite_far)
-from .raster import Passes, RasterPasses
-from .shadowmap import ShadowMap, translation
+from ..passes.boards import (BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS,
+                             albedo_maps, coarse_draws, infinite_far)
+from ..passes.raster import Passes, RasterPasses
+from ..passes.shadowmap import ShadowMap, translation
 
 OCCUPANCY_LEVEL = 4   # pass 3 draws the boxes of the non-empty pyramid cells of this level (16^2 texels)
 MAX_TEXTURE = 16384   # pass 3's tiles share one texture of at most this side
@@ -44,8 +44,8 @@ LEVELS = 16           # pyramid levels the shader's origin table holds (maps up 
 class HierBillboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, coarse=None, bounds=None,
                  shadow_mesh=None):
-        """boards: vdmbake.parts.Billboard (their boxes: origin, axes, size); bordered: their
-        vdmbake.parts.BorderedMaps with pyramids; coarse: an optional TriMesh that fills holes (Vichitvejpaisal2005 §3.4);
+        """boards: vdmbake.bundle.parts.Billboard (their boxes: origin, axes, size); bordered: their
+        vdmbake.bundle.parts.BorderedMaps with pyramids; coarse: an optional TriMesh that fills holes (Vichitvejpaisal2005 §3.4);
         shadow_mesh: the TriMesh that casts the shadows (None: the billboards do); bounds: (centre, radius)
         of the model."""
         boards, bordered = list(boards), list(bordered)
@@ -225,13 +225,11 @@ class HierBillboards(Passes):
         target.begin()
         prog, _ = self.draws["billboards"]
         if self.depth is not None and "u_coarse_depth" in prog:
-            self.depth.use(3)
-            gl.set_uniforms(prog, u_coarse_depth=3)
+            gl.bind_textures(prog, u_coarse_depth=self.depth)
         gl.set_shading(prog, self.light, self.material, self.albedo_maps is None)
         if self.albedo_maps is not None:
-            self.albedo_maps.use(ALBEDO_MAPS_UNIT)
-            gl.set_uniforms(prog, u_albedo_maps=ALBEDO_MAPS_UNIT)
-        self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
+            gl.bind_textures(prog, u_albedo_maps=self.albedo_maps)
+        self.shadow.bind(prog, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
         self._boards("billboards", view_proj, eye, target.size, self._rect(view_proj, target.size), occupancy,
                      u_eye=tuple(eye))
 
@@ -241,7 +239,7 @@ class HierBillboards(Passes):
         self.coarse.bind(prog)
         gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(eye))
         # known to within `behind` of the surface, it looks its shadow up that much further out
-        self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel + self.behind)
+        self.shadow.bind(prog, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel + self.behind)
         vao.render()
 
     def _boards(self, stage: str, view_proj, viewer, viewport, rect, occupancy, **uniforms) -> None:
@@ -250,17 +248,16 @@ class HierBillboards(Passes):
         triangle scissored to rect; occupancy: pass 3's (tiles, off)."""
         prog, vao = self.draws[stage]
         order = np.argsort(np.linalg.norm(self.centres - viewer, axis=1), kind="stable")
-        gl.set_uniforms(prog, u_pyramids=1, u_maps=2, u_occupancy=4, u_view_proj=view_proj,
+        gl.set_uniforms(prog, u_view_proj=view_proj,
                         u_inv_view_proj=np.linalg.inv(view_proj), u_viewport=tuple(float(x) for x in viewport),
                         u_board_texels=BOARD_TEXELS, **self.hf, **uniforms)
         arrays = {"u_level_origin": self.level_origin, "u_to_box": self.to_box[order].transpose(0, 2, 1),
                   "u_layer": order, "u_texel": self.texel[order]}
         if occupancy is not None:
             arrays.update(u_tile=occupancy[0][order], u_occ_off=occupancy[1][order])
-            self.occupancy.use(4)
+            gl.bind_textures(prog, u_occupancy=self.occupancy)
         gl.set_uniforms(prog, **arrays)
-        self.pyramids.use(1)
-        self.maps.use(2)
+        gl.bind_textures(prog, u_pyramids=self.pyramids, u_maps=self.maps)
         self.ctx.scissor = rect
         vao.render(moderngl.TRIANGLES, vertices=3)
         self.ctx.scissor = None

@@ -1,7 +1,7 @@
 """Renderer of `bump`: the base mesh shaded with the mesostructure's normals (shaders/bump.frag)."""
 from __future__ import annotations
 
-from .mesostructure import MesostructurePass
+from ..passes.mesostructure import MesostructurePass
 
 
 def build(ctx, src, value):

@@ -1,7 +1,7 @@
 """Renderer of `coarse`: one simplified mesh (baked by vdmbake) per ratio, rasterised like `mesh`."""
 from __future__ import annotations
 
-from .raster import RasterMesh
+from ..passes.raster import RasterMesh
 
 
 def build(ctx, src, ratio):

@@ -2,10 +2,10 @@
 albedo, if any, read at the interpolated tile coordinate as `mesh` reads an asset's albedo map)."""
 from __future__ import annotations
 
-from vdmbake import parts
+from vdmbake.bundle import parts
 
-from .mesostructure import textured
-from .raster import RasterMesh
+from ..passes.mesostructure import textured
+from ..passes.raster import RasterMesh
 
 
 def build(ctx, src, level):

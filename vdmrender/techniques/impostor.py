@@ -7,11 +7,11 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from vdmbake import parts
+from vdmbake.bundle import parts
 
 from .. import gl
-from .raster import Passes
-from .shadowmap import ShadowMap, translation
+from ..passes.raster import Passes
+from ..passes.shadowmap import ShadowMap, translation
 
 NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels: less gives
                              # acne, more detaches shadows (docs/tuning.md)
@@ -98,10 +98,9 @@ class Impostors(Passes):
             target.begin()
             p = self.deferred
             gl.set_shading(p, self.light, self.material, albedo=False)   # albedo from the G-buffer
-            self.shadow.bind(p, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
-            normal_mu.use(1)
-            albedo.use(2)
-            gl.set_uniforms(p, u_normal_mu=1, u_albedo_cov=2, u_eye=eye, u_view_proj=view_proj,
+            self.shadow.bind(p, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
+            gl.bind_textures(p, u_normal_mu=normal_mu, u_albedo_cov=albedo)
+            gl.set_uniforms(p, u_eye=eye, u_view_proj=view_proj,
                             u_inv_view_proj=np.linalg.inv(view_proj), u_viewport=tuple(float(x) for x in target.size),
                             u_near_far=(camera.near, camera.far), u_silhouette=self.silhouette, u_crease=self.crease)
             self.fullscreen.render(moderngl.TRIANGLES, vertices=3)

@@ -3,8 +3,8 @@ with a colour tile, the base surface textured by it (plain texture mapping: the 
 flat baseline)."""
 from __future__ import annotations
 
-from .mesostructure import textured
-from .raster import RasterMesh
+from ..passes.mesostructure import textured
+from ..passes.raster import RasterMesh
 
 
 def build(ctx, src, value):

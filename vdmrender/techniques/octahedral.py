@@ -1,7 +1,7 @@
 """Technique `octahedral`: octahedral impostors, the render side (Brucks 2018, "Octahedral Impostors";
 Unreal's impostor baker as used in Fortnite, Amplify Impostors).
 
-The bake (vdmbake.octahedral) holds N x N orthographic views of the object, on the lattice of an
+The bake (vdmbake.kernels.octahedral) holds N x N orthographic views of the object, on the lattice of an
 octahedral map of directions (full sphere or upper hemisphere), in one atlas of normal, depth and
 coverage. Each object is drawn as ONE screen-aligned quad over its bounding sphere (octahedral.vert).
 Per pixel (octahedral.frag, shaders/include/octahedral.glsl): the ray's direction picks the lattice
@@ -26,7 +26,7 @@ texels (the surface is known to about a texel, and the light's views are not the
 
 Texture: one 2-D texture, RGBA16 unorm by default (rg: the normal's octahedral code in its view's
 frame, b: depth, a: coverage), linear filtering, no mipmaps; the bake extrapolated the empty texels near
-covered ones from them (vdmbake.octahedral.to_part), so filtering at a silhouette follows the surface. The
+covered ones from them (vdmbake.kernels.octahedral.to_part), so filtering at a silhouette follows the surface. The
 bake leaves EMPTY empty rings around every tile, so nothing crosses from one view into another.
 For an asset with its own colours, a second texture of the same layout holds the surface's linear albedo
 (RGB16F, as the bundle stores it), read at each view's hit and blended like the normal (ALBEDO_ATLAS);
@@ -37,15 +37,14 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from vdmbake import parts
+from vdmbake.bundle import parts
 from vdmbake.errors import InputError
 
 from .. import gl
-from .raster import Passes
-from .shadowmap import ShadowMap, translation
+from ..passes.raster import Passes
+from ..passes.shadowmap import ShadowMap, translation
 
 METHODS = ("march", "virtual")
-ALBEDO_UNIT = 2              # texture unit of the albedo atlas (unit 0: shadow map, 1: the atlas)
 TEXTURE_DTYPES = {"nu2": 2, "f4": 4}   # RGBA16 unorm (default), RGBA32F: bytes per channel
 NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels (as impostors) ...
 ATLAS_TEXELS = 0.5           # ... plus this many atlas texels (the surface is known to about half a texel)
@@ -55,7 +54,7 @@ CLIP_TEXELS = 2.0            # rays are clipped to the bounding sphere grown by 
 
 def atlas_texels(a) -> np.ndarray:
     """(N R, N R, 4) float32 in [0, 1]: normal code / 2 + 1/2, depth, coverage (the bake extrapolated
-    code and depth around the silhouettes: vdmbake.octahedral.to_part)."""
+    code and depth around the silhouettes: vdmbake.kernels.octahedral.to_part)."""
     return np.clip(np.concatenate([np.asarray(a.normal, np.float32) * 0.5 + 0.5, np.asarray(a.depth, np.float32)[..., None],
                                    np.asarray(a.coverage, np.float32)[..., None]], -1), 0.0, 1.0)
 
@@ -63,7 +62,7 @@ def atlas_texels(a) -> np.ndarray:
 class Octahedral(Passes):
     def __init__(self, ctx, atlas, light, material, shadow_size: int, method: str = "march",
                  steps_per_texel: float = 1.0, dtype: str = "nu2"):
-        """atlas: vdmbake.parts.OctahedralAtlas; method: "march" or "virtual"; steps_per_texel: the
+        """atlas: vdmbake.bundle.parts.OctahedralAtlas; method: "march" or "virtual"; steps_per_texel: the
         march's step density; dtype: the atlas texture's channel type ("nu2": 16-bit unorm, "f4":
         float32)."""
         if method not in METHODS:
@@ -103,8 +102,8 @@ class Octahedral(Passes):
 
     def _draw(self, stage: str, view_proj, viewport, **uniforms) -> None:
         prog, vao = self.draws[stage]
-        self.texture.use(1)
-        gl.set_uniforms(prog, u_atlas=1, u_views=self.views, u_capture=self.capture, u_radius=self.clip,
+        gl.bind_textures(prog, u_atlas=self.texture)
+        gl.set_uniforms(prog, u_views=self.views, u_capture=self.capture, u_radius=self.clip,
                         u_steps_per_texel=self.steps_per_texel, u_view_proj=view_proj,
                         u_inv_view_proj=np.linalg.inv(view_proj), u_viewport=tuple(float(x) for x in viewport),
                         u_basis=self.basis.T, **uniforms)   # GLSL mat3 is column-major: M = basis (map = M world)
@@ -121,9 +120,8 @@ class Octahedral(Passes):
             prog = self.draws["frame"][0]
             gl.set_shading(prog, self.light, self.material, self.albedo is None)
             if self.albedo is not None:
-                self.albedo.use(ALBEDO_UNIT)
-                gl.set_uniforms(prog, u_albedo_atlas=ALBEDO_UNIT)
-            self.shadow.bind(prog, unit=0, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
+                gl.bind_textures(prog, u_albedo_atlas=self.albedo)
+            self.shadow.bind(prog, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
             self._draw("frame", camera.projection() @ camera.view() @ translation(self.anchor), target.size,
                        u_eye=tuple(camera.eye - self.anchor), u_atlas_texels=ATLAS_TEXELS)
         return [("shadow", shadow), ("frame", frame)]

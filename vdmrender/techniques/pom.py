@@ -1,7 +1,7 @@
 """Renderer of `pom`: parallax occlusion mapping per pixel over the base mesh (shaders/pom.frag)."""
 from __future__ import annotations
 
-from .mesostructure import MesostructurePass
+from ..passes.mesostructure import MesostructurePass
 
 
 def build(ctx, src, steps):

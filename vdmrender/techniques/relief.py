@@ -2,10 +2,10 @@
 shaders/include/heightfield_trace.glsl) through the baked pyramid, at most `iterations` cell visits per ray."""
 from __future__ import annotations
 
-from vdmbake import parts
+from vdmbake.bundle import parts
 
-from .. import hftrace
-from .mesostructure import MesostructurePass
+from ..passes import hftrace
+from ..passes.mesostructure import MesostructurePass
 
 
 class ReliefPass(MesostructurePass):

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from vdmbake import geometry, parts
+from vdmbake.common import geometry
+from vdmbake.bundle import parts
 
-from .raster import RasterPasses
+from ..passes.raster import RasterPasses
 
 
 class Tessellated(RasterPasses):
@@ -27,11 +28,8 @@ class Tessellated(RasterPasses):
                 continue
             vbo, nbo, ibo, inst = (ctx.buffer(np.ascontiguousarray(a, dt).tobytes()) for a, dt in
                                    ((mesh.vertices, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4"), (data, "f4")))
-            # The depth pass reads no normal or colour: the instance layout pads them ("x" bytes).
-            depth_layout = layout.replace("3f/i", "12x/i") if names[-1] == "in_rgb" else layout
             self.add("instanced.vert", defines, [vbo, nbo, ibo, inst],
-                     [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal"), (inst, layout, *names)],
-                     [(vbo, "3f", "in_pos"), (inst, depth_layout, *names[:-1])], ibo, len(data))
+                     [(vbo, "3f", "in_pos"), (nbo, "3f", "in_normal"), (inst, layout, *names)], ibo, len(data))
 
 
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from vdmbake import parts
+from vdmbake.bundle import parts
 from vdmbake.errors import InputError
 
-from .mesostructure import MesostructurePass, texture
+from ..passes.mesostructure import MesostructurePass, texture
 
 # VDM's shadow test (Wang2003 §3.2 step 3): P' is lit unless d_L < h / cos(theta_L) - eps, with eps this many
 # mesostructure depths plus this many texels: the tables' angular sampling and the flat shadow test put the
@@ -15,7 +15,7 @@ from .mesostructure import MesostructurePass, texture
 SHADOW_EPS_DEPTH, SHADOW_EPS_TEXELS = 0.2, 2.0
 # Refined VDM: the height field is searched within this fraction of the depth (along the ray's descent)
 # on either side of the lookup's hit: wide enough for the tables' interpolation error, narrow enough
-# that a few samples still resolve a brick's edge (docs/vdm-render-notes.md has the sweep).
+# that a few samples still resolve a brick's edge (docs/mesostructure.md has the sweep).
 REFINE_WINDOW = 0.25
 
 

@@ -1,0 +1,278 @@
+"""Triangle meshes: the in-memory form, loading, validation, transforms and normals."""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..common.colour import srgb8_to_linear, to_srgb8
+from ..errors import InputError
+
+
+@dataclass
+class SurfaceFrame:
+    """Per-vertex differential geometry for mapping mesostructure onto a surface (Wang2003 §3.2):
+    the texture tangents and the principal curvatures and directions."""
+    dpdu: np.ndarray    # (V, 3) world-space derivative of position along texture u
+    dpdv: np.ndarray    # (V, 3) ... along texture v
+    k1: np.ndarray      # (V,) principal curvature along d1, 1 / world units, > 0 where the surface
+    k2: np.ndarray      # (V,) ... along d2 = normal x d1      bends away from its normal (convex)
+    d1: np.ndarray      # (V, 3) unit principal direction of k1
+
+    @staticmethod
+    def concatenate(parts: list["SurfaceFrame"]) -> "SurfaceFrame":
+        return SurfaceFrame(*(np.concatenate([getattr(p, f) for p in parts])
+                              for f in ("dpdu", "dpdv", "k1", "k2", "d1")))
+
+
+@dataclass
+class TriMesh:
+    vertices: np.ndarray            # (V, 3) float64
+    faces: np.ndarray               # (F, 3) int64, counter-clockwise seen from outside
+    normals: np.ndarray             # (V, 3) float64, unit
+    uvs: np.ndarray | None = None   # (V, 2) float64
+    frame: SurfaceFrame | None = None
+    colors: np.ndarray | None = None   # (V, 3) linear RGB albedo per vertex (the asset's own), or None
+    texture: np.ndarray | None = None  # the asset's albedo map (vdmbake.common.texture: (H, W, 3) uint8 sRGB, row 0
+                                       # at v = 0), read at `uvs`; None where it has none
+
+    @staticmethod
+    def concatenate(parts: list["TriMesh"]) -> "TriMesh":
+        offsets = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
+        uvs, frames, colors = [p.uvs for p in parts], [p.frame for p in parts], [p.colors for p in parts]
+        return TriMesh(np.concatenate([p.vertices for p in parts]),
+                       np.concatenate([p.faces + o for p, o in zip(parts, offsets)]),
+                       np.concatenate([p.normals for p in parts]),
+                       None if any(u is None for u in uvs) else np.concatenate(uvs),
+                       None if any(f is None for f in frames) else SurfaceFrame.concatenate(frames),
+                       None if any(c is None for c in colors) else np.concatenate(colors),
+                       parts[0].texture if all(p.texture is parts[0].texture for p in parts) else None)
+
+    def bounding_sphere(self) -> tuple[np.ndarray, float]:
+        """Centre of the bounding box and the radius that encloses every vertex."""
+        lo, hi = self.vertices.min(0), self.vertices.max(0)
+        centre = 0.5 * (lo + hi)
+        return centre, float(np.linalg.norm(self.vertices - centre, axis=1).max())
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted vertex normals (the sum of the incident faces' cross products)."""
+    tri = vertices[faces]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(n, faces[:, k], fn)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    # A vertex used only by degenerate faces has no normal; give it +Z rather than NaN.
+    return np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
+
+
+def crease_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float = 60.0):
+    """Vertex normals that keep sharp edges sharp: at each corner of a face, the area-weighted sum of the
+    normals of the faces around its vertex that turn less than `crease_deg` from that face (a smoothing
+    group, as DCC tools' auto-smooth); a vertex whose corners get different normals is split. Returns
+    vertices, faces, normals and, per output vertex, the input vertex it copies."""
+    tri = vertices[faces]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = np.linalg.norm(fn, axis=1, keepdims=True)
+    unit = fn / np.maximum(area, 1e-300)
+    corner_v = faces.ravel()
+    corner_f = np.repeat(np.arange(len(faces)), 3)
+    order = np.argsort(corner_v, kind="stable")
+    sv, sf = corner_v[order], corner_f[order]
+    start = np.searchsorted(sv, sv, side="left")
+    count = np.searchsorted(sv, sv, side="right") - start
+    # every pair (corner, corner of the same vertex): a corner's group is the faces within the crease angle
+    a = np.repeat(np.arange(len(sv)), count)
+    b = start[a] + (np.arange(len(a)) - np.repeat(np.cumsum(count) - count, count))
+    # a face without area has no direction: it joins every group around its vertices
+    flat = area[:, 0] <= 0
+    near = (np.einsum("ij,ij->i", unit[sf[a]], unit[sf[b]]) >= np.cos(np.radians(crease_deg))) | flat[sf[a]] | flat[sf[b]]
+    n = np.zeros((len(sv), 3))
+    np.add.at(n, a[near], fn[sf[b[near]]])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
+    corner_n = np.empty_like(n)
+    corner_n[order] = n
+    key = np.column_stack([corner_v, np.round(corner_n * 1e6)])
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    return vertices[corner_v[first]], inv.reshape(-1, 3), corner_n[first], corner_v[first]
+
+
+def weld(vertices: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
+    """(V,) int64 position ids: vertices within rel_tol of the bounding radius share an id (they are one
+    point of the surface, split only for their texture coordinates, e.g. at a UV seam). Ids are
+    numbered in order of first appearance, so the first vertex of each id can stand for it."""
+    centre = 0.5 * (vertices.min(0) + vertices.max(0))
+    scale = max(float(np.abs(vertices - centre).max()), 1e-300) * rel_tol
+    _, first, inv = np.unique(np.round((vertices - centre) / scale), axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return rank[inv.ravel()]
+
+
+def merge_vertices(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, rgb8: np.ndarray | None = None,
+                   rel_tol: float = 1e-9):
+    """Coincident vertices merged (STL and OBJ split them), tolerance relative to the mesh's size and
+    about its centre, so that a mesh keeps its vertices at any scale and offset (an absolute tolerance
+    welds a sphere 1e-8 across into a few points); vertices with different texture coordinates (UV
+    seams) or colours stay apart. Returns vertices, faces, UVs and colours (None where none), first
+    appearances kept in order."""
+    key = weld(vertices, rel_tol)[:, None].astype(np.float64)
+    if uvs is not None:
+        lo = np.nanmin(uvs, 0) if np.isfinite(uvs).any() else np.zeros(2)
+        span = max(float(np.nanmax(np.abs(uvs - lo))) if np.isfinite(uvs).any() else 0.0, 1e-300)
+        key = np.column_stack([key, np.round((uvs - lo) / (span * rel_tol))])
+    if rgb8 is not None:
+        key = np.column_stack([key, rgb8.astype(np.float64)])
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    keep = first[order]
+    return (vertices[keep], rank[inv.ravel()][faces], None if uvs is None else uvs[keep],
+            None if rgb8 is None else rgb8[keep])
+
+
+def rotation_xyz(degrees) -> np.ndarray:
+    """Rotation about X, then Y, then Z (extrinsic), angles in degrees."""
+    ax, ay, az = np.radians(degrees)
+    cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def transformed(mesh: TriMesh, transform) -> TriMesh:
+    """Scale, rotate, translate (a scene Transform); normals by the inverse transpose, re-normalised."""
+    m = rotation_xyz(transform.rotate_deg) @ np.diag(transform.scale)
+    n = mesh.normals @ np.linalg.inv(m)  # row vectors: n' = (M^-T n)^T = n^T M^-1
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    faces = mesh.faces if np.linalg.det(m) > 0 else mesh.faces[:, ::-1].copy()  # a mirror flips winding
+    frame = None
+    sx, sy, sz = transform.scale
+    if mesh.frame is not None and sx == sy == sz:   # a non-uniform scale changes curvatures otherwise: dropped
+        f = mesh.frame
+        frame = SurfaceFrame(f.dpdu @ m.T, f.dpdv @ m.T, f.k1 / sx, f.k2 / sx, f.d1 @ rotation_xyz(transform.rotate_deg).T)
+    return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs, frame, mesh.colors,
+                   mesh.texture)
+
+
+def validate(mesh: TriMesh, origin: str) -> TriMesh:
+    """Reject what no technique can render: no faces, non-finite data, bad indices."""
+    if len(mesh.faces) == 0 or len(mesh.vertices) == 0:
+        raise InputError(f"{origin}: the mesh is empty ({len(mesh.vertices)} vertices, {len(mesh.faces)} faces); "
+                         "a mesh needs at least one triangle.")
+    bad = ~np.isfinite(mesh.vertices).all(1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{origin}: {int(bad.sum())} vertices have NaN or Inf coordinates "
+                         f"(first: vertex {i} = {mesh.vertices[i].tolist()}); every coordinate must be finite.")
+    if mesh.faces.min() < 0 or mesh.faces.max() >= len(mesh.vertices):
+        raise InputError(f"{origin}: face indices reach {int(mesh.faces.max())} but the mesh has "
+                         f"{len(mesh.vertices)} vertices.")
+    # Nothing to draw: every vertex at one point, or every face without area (collinear corners).
+    v = mesh.vertices - 0.5 * (mesh.vertices.min(0) + mesh.vertices.max(0))
+    r = float(np.abs(v).max())
+    tri = v[mesh.faces] / (r or 1.0)
+    if r == 0 or not (np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) > 1e-12).any():
+        raise InputError(f"{origin}: the mesh has no area (every vertex at one point, or every face a line); "
+                         "nothing of it could be drawn.")
+    return mesh
+
+
+def resolve_path(spec: str, base: Path) -> Path:
+    """An input file's path relative to the scene file, or pkg:PACKAGE/PATH for a file shipped in a package."""
+    if spec.startswith("pkg:"):
+        package, _, inner = spec[4:].partition("/")
+        # find_spec locates the package without importing it (some data-carrying packages
+        # import heavy dependencies that the data does not need).
+        found = importlib.util.find_spec(package) if package.isidentifier() else None
+        if found is None or not found.submodule_search_locations:
+            raise InputError(f"'{spec}': Python package '{package}' is not installed "
+                             f"(pkg:PACKAGE/PATH names a file inside an installed package).")
+        path = Path(next(iter(found.submodule_search_locations))) / inner
+    else:
+        path = (base / spec) if not Path(spec).is_absolute() else Path(spec)
+    if not path.is_file():
+        raise InputError(f"'{spec}': file not found (looked at {path}).")
+    return path
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def load_mesh_file(path: Path) -> TriMesh:
+    """Any format trimesh reads, merged to one triangle mesh with area-weighted vertex normals."""
+    import trimesh  # imported here: only scenes with mesh files pay for it
+
+    try:
+        loaded = trimesh.load(str(path), force="mesh", process=False)
+    except ImportError as e:  # trimesh reads some formats through optional packages
+        raise InputError(f"{path}: format not supported here: install the Python package "
+                         f"{e.name or 'that trimesh needs for it'} ({e}).") from None
+    except Exception as e:  # trimesh raises many types for unreadable files
+        raise InputError(f"{path}: cannot read the mesh ({type(e).__name__}: {e}).") from None
+    vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
+    faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+    validate(TriMesh(vertices, faces, np.zeros_like(vertices)), str(path))
+    # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces; vertices
+    # with different texture coordinates stay apart (UV seams), and the UVs are kept.
+    visual = getattr(loaded, "visual", None)
+    uv = getattr(visual, "uv", None)
+    uv = np.asarray(uv, np.float64) if uv is not None and len(uv) == len(vertices) else None
+    rgb8 = vertex_colors(visual, len(vertices))
+    # vertices that differ in colour stay apart too: the colour is an attribute like the UV
+    v, f, uvs, rgb8 = merge_vertices(vertices, faces, uv, rgb8)
+    colors = None if rgb8 is None else srgb8_to_linear(rgb8)
+    # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
+    # of all its faces on both sides, so shading and displacement agree across the seam.
+    w = weld(v)
+    albedo_map = base_colour_map(visual) if uvs is not None else None
+    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs, colors=colors,
+                   texture=albedo_map)
+
+
+def base_colour_map(visual) -> np.ndarray | None:
+    """The asset's base-colour texture as an albedo map (vdmbake.common.texture), or None: OBJ's `map_Kd` as it is
+    (as MeshLab and Blender show it: exporters write a default Kd beside a map), glTF's baseColorTexture
+    times its baseColorFactor (glTF 2.0 sec. 3.9.2)."""
+    from ..common import texture
+
+    material = getattr(visual, "material", None)
+    image = getattr(material, "baseColorTexture", None)
+    factor = np.ones(3)
+    if image is not None:
+        bcf = getattr(material, "baseColorFactor", None)
+        if bcf is not None:   # trimesh gives it as uint8 (0..255) or as floats (0..1)
+            bcf = np.asarray(bcf)
+            factor = bcf[:3] / (255.0 if bcf.dtype == np.uint8 else 1.0)
+    else:
+        image = getattr(material, "image", None)
+        if image is not None and image.format is None and not image.info:
+            image = None   # made by trimesh for an OBJ with UVs and no material (a 2x2 grey), not the asset's
+    if image is None:
+        return None
+    rgb = texture.from_image(image)
+    if not np.allclose(factor, 1.0):   # the factor multiplies linear colour: applied once, re-encoded to 8 bits
+        rgb = to_srgb8(texture.linear(rgb) * factor)
+    return rgb
+
+
+def vertex_colors(visual, count: int) -> np.ndarray | None:
+    """(V, 3) uint8 sRGB per-vertex colours when the file has them (trimesh's vertex-kind visual, e.g. a
+    PLY's red/green/blue properties or OBJ's `v x y z r g b`), else None."""
+    if visual is None or getattr(visual, "kind", None) != "vertex":
+        return None
+    rgb = np.asarray(visual.vertex_colors)[:, :3]
+    return rgb.astype(np.uint8) if len(rgb) == count else None

@@ -1,0 +1,92 @@
+"""What every part kind is (a name, a file suffix, pack and unpack, the metadata's schema) and the
+checks the kinds share: unreadable or incomplete EXR tables, non-finite numbers, shapes that disagree
+with the manifest, colour maps."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from ...errors import InputError
+from ...formats import exr
+from ...schema import Integer, Invalid, Type, Vector
+
+
+COUNT = Integer(0, 2**31 - 1)   # element counts: PLY and EXR index with 32-bit integers
+
+
+@dataclass(frozen=True)
+class PartKind:
+    name: str
+    suffix: str
+    pack: Callable[[Any], tuple[bytes, dict]]        # value -> (file bytes, manifest metadata)
+    unpack: Callable[[bytes, dict, str], Any]        # (file bytes, manifest metadata, origin) -> value;
+                                                     # checks the value against the metadata, finite numbers
+                                                     # and index ranges, raising InputError
+    meta: type | None = None                         # the metadata's schema (vdmbake.schema dataclass)
+
+
+def channels(data: bytes, origin: str) -> dict[str, dict[str, np.ndarray]]:
+    try:
+        exr.check_size(data)
+        return exr.read(data)
+    except Exception as e:  # the binding raises RuntimeError and others for malformed files
+        raise InputError(f"{origin}: unreadable EXR ({e}).") from None
+
+
+def bad(origin: str, what: str):
+    raise InputError(f"{origin}: {what}; the part does not match its manifest entry. Re-bake with vdmbake --force.")
+
+
+def finite(origin: str, **arrays) -> None:
+    for name, a in arrays.items():
+        if a is not None and not np.isfinite(a).all():
+            bad(origin, f"{name} holds NaN or Inf")
+
+
+def check_shape(origin: str, name: str, a: np.ndarray, shape: tuple) -> None:
+    if a.shape != shape:
+        bad(origin, f"{name} has shape {a.shape}, expected {shape}")
+
+
+def need(parts: dict, part: str, channels, origin: str) -> list[np.ndarray]:
+    if part not in parts or any(c not in parts[part] for c in channels):
+        raise InputError(f"{origin}: EXR part {part!r} with channels {', '.join(channels)} is missing.")
+    return [parts[part][c] for c in channels]
+
+
+class Matrix(Type):
+    """rows x cols finite numbers, as nested lists."""
+
+    def __init__(self, rows: int, cols: int):
+        self.row, self.rows = Vector(cols), rows
+        self.text = f"a list of {rows} rows of {cols} finite numbers"
+
+    def parse(self, raw):
+        if not isinstance(raw, list) or len(raw) != self.rows:
+            raise Invalid
+        return tuple(self.row.parse(r) for r in raw)
+
+
+def albedo_channels(albedo: np.ndarray | None) -> dict:
+    """A colour map as EXR channels: linear RGB in HALF, EXR's usual colour type (an 8-bit sRGB texture or
+    vertex colour loses nothing visible there); none at all for an asset without colours."""
+    return {} if albedo is None else {f"albedo.{c}": albedo[..., k].astype(np.float16) for k, c in enumerate("RGB")}
+
+
+def albedo_meta(values) -> dict:
+    """The manifest's `albedo: true` when the maps carry colour (left out otherwise: uncoloured parts unchanged)."""
+    values = list(values)
+    if any(a is not None for a in values) and any(a is None for a in values):
+        raise ValueError("colour maps for some maps only")
+    return {"albedo": True} if values and values[0] is not None else {}
+
+
+def unpack_albedo(tables, name: str, meta, shape: tuple, origin: str) -> np.ndarray | None:
+    if not meta.get("albedo"):
+        return None
+    a = np.stack(need(tables, name, [f"albedo.{c}" for c in "RGB"], origin), -1).astype(np.float32)
+    check_shape(origin, f"{name} albedo", a, shape + (3,))
+    finite(origin, **{f"{name} albedo": a})
+    return a
