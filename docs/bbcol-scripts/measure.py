@@ -33,7 +33,7 @@ def plain_assets(out: Path) -> str:
     it; returns the scene's path."""
     import trimesh
 
-    from vdmbake.meshes import resolve_path
+    from vdmbake.assets.meshes import resolve_path
 
     for name, spec in (("bunny", "bunny10k_textured.obj"), ("airplane", "colored_airplane.ply")):
         m = trimesh.load(resolve_path(f"pkg:pymeshlab/tests/sample_meshes/{spec}", Path(".")), process=False, force="mesh")
@@ -60,9 +60,9 @@ def sizes(bundle: Path) -> dict:
 
 def interleaved(bundle_path: Path, render_dir: Path) -> dict:
     from bench import interleave
-    from vdmbake import parts
-    from vdmbake.bundle import Bundle
-    from vdmbake.meshes import TriMesh
+    from vdmbake.bundle import parts
+    from vdmbake.bundle.directory import Bundle
+    from vdmbake.assets.meshes import TriMesh
     from vdmrender import gl
     from vdmrender.camera import cameras_for
     from vdmrender.techniques import Source

@@ -1,5 +1,5 @@
 """Frame time and error of the mesostructure techniques with and without the tile albedo, interleaved in one
-process (docs/meso-albedo-notes.md). Modes per variant: `plain` (the entry without mesostructure_albedo: the
+process (docs/mesostructure.md, the colour tile section). Modes per variant: `plain` (the entry without mesostructure_albedo: the
 material's u_albedo, as before), `srgb8` (the tile as gl.albedo_texture uploads it, GL_SRGB8), `f16` (the same
 tile decoded on the CPU and uploaded as linear RGBA16F: a measurement of llvmpipe's sRGB decode, not in the
 product). Per round (the order reversed every other round) every (variant, mode) renders every camera once untimed, once timed (process CPU time and
@@ -15,9 +15,10 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
-from vdmbake import exr, parts
-from vdmbake.bundle import Bundle
-from vdmbake.colour import srgb8_to_linear
+from vdmbake.formats import exr
+from vdmbake.bundle import parts
+from vdmbake.bundle.directory import Bundle
+from vdmbake.common.colour import srgb8_to_linear
 from vdmrender import gl, images, metrics
 from vdmrender.camera import cameras_for
 from vdmrender.techniques import variants

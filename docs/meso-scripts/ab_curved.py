@@ -1,7 +1,8 @@
 """Old vs new per-curvature resampling and MVM, interleaved in one process (A, B, A, B, ...)."""
 import time, types, statistics, numpy as np
-from vdmbake import heightfields, vdm as new
-src = open("/tmp/meso/old/vdmbake/vdm.py").read().replace("from .embree import", "from vdmbake.embree import")
+from vdmbake.assets import heightfields
+from vdmbake.kernels import vdm as new
+src = open("/tmp/meso/old/vdmbake/vdm.py").read().replace("from .embree import", "from vdmbake.common.embree import")
 import sys; old = types.ModuleType("old_vdm"); sys.modules["old_vdm"] = old; exec(compile(src, "old_vdm", "exec"), old.__dict__)
 h = heightfields.pattern("bricks", 128); depth = 0.06
 s = new.Sampling(128, 32, 8, new.curvature_samples(-2.0, 3.0, 16))

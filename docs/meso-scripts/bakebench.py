@@ -1,7 +1,8 @@
 """The timed part of bench.vdm.paper_bake, runnable against either tree."""
 import json, os, sys, time
 import numpy as np
-from vdmbake import heightfields, vdm
+from vdmbake.assets import heightfields
+from vdmbake.kernels import vdm
 tag = sys.argv[1]
 load0 = os.getloadavg()[0]
 h = heightfields.pattern("bricks", 128); depth = 0.06

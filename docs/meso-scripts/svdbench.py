@@ -2,7 +2,8 @@
 Run with OPENBLAS_NUM_THREADS=1 on a loaded machine: spinning BLAS threads otherwise swamp the figure."""
 import json, sys, time
 import numpy as np
-from vdmbake import heightfields, vdm
+from vdmbake.assets import heightfields
+from vdmbake.kernels import vdm
 if len(sys.argv) > 3:
     t, m = np.load(sys.argv[2]), np.load(sys.argv[3])
 else:

@@ -2,8 +2,10 @@
 (bricks 128, 4 x 4 tiles on a plane seen at 45 and 70 degrees), view ray + shadow ray per pixel."""
 import sys, time, statistics
 import numpy as np, moderngl
-from vdmbake import pyramid as P, heightfields
-from vdmrender import gl, hftrace
+from vdmbake.common import pyramid as P
+from vdmbake.assets import heightfields
+from vdmrender import gl
+from vdmrender.passes import hftrace
 
 FS = """#version 430
 {defines}
