@@ -145,7 +145,7 @@ def safe_normalize_inputs(extreme=False):
     d = r.normal(size=(200, 3))
     scale = 10.0 ** r.uniform(-15, 15, (200, 1))           # within float32's squares
     hard = [[0.0, 0.0, 0.0], [1e-15, 0, 0], [3e-16, -2e-16, 1e-16], [1e15, 1e15, -1e15], [0, 0, -1e-10]]
-    if extreme:     # what shading.glsl's 1e-20 threshold promises but float32's squares cannot hold
+    if extreme:     # squares below FLT_MIN or above FLT_MAX
         hard = [[1e-19, 0, 0], [3e-20, 3e-20, 0], [2e19, 0, 0], [1e25, -1e25, 1e25], [1e-30, 0, 0]]
         return {"v": np.array(hard)}
     return {"v": np.concatenate([d * scale, hard])}
@@ -447,11 +447,10 @@ TABLE = [
     # unit normals, s_n and curvatures through J^T J's inverse: cond(J^T J) <= 40 times a few float32 ulps
     # (measured 4.4e-5 absolute on curvatures of ~1e3, 0.044 of the tolerance)
     Twin("mesostructure frame", ["mesostructure.glsl"], MESO_BODY, meso_twin, meso_inputs, (2e-5, 2e-5), MESO_SETUP),
-    xfail(Twin("mesostructure frame, tiny tiles", ["mesostructure.glsl"], MESO_BODY, meso_twin,
-               lambda: meso_inputs("tiny"), (2e-5, 2e-5), MESO_SETUP),
-          "finding: tiles of 1e-9..1e-7 world units: surface_frame's determinant floor has an absolute 1e-30 "
-          "(det ~ |J|^4 < 1e-30 there), texspace's only the relative 1e-12: s_n 148x too large relative, texture "
-          "curvature off by up to 99% (191 texture units); normals agree (2.4e-7)"),
+    # tiles of 1e-9..1e-7 world units: surface_frame forms J^T J from J scaled to unit size, so the same
+    # bound holds as for ordinary tiles (before: an absolute 1e-30 floor on det ~ |J|^4 gave s_n 148x too large)
+    Twin("mesostructure frame, tiny tiles", ["mesostructure.glsl"], MESO_BODY, meso_twin,
+         lambda: meso_inputs("tiny"), (2e-5, 2e-5), MESO_SETUP),
     xfail(Twin("mesostructure frame, degenerate map", ["mesostructure.glsl"], MESO_BODY, meso_twin,
                lambda: meso_inputs("degenerate"), (2e-5, 2e-5), MESO_SETUP),
           "finding: a degenerate map (dP/du = 0, dP/dv = 0, or parallel tangents): texspace gives s_n = 0 "
@@ -462,11 +461,10 @@ TABLE = [
     # rounded texels and float32 weights (measured 2.2e-4)
     Twin("albedo sample", ["albedo.glsl"], "out0 = vec4(albedo_map(uv.xy), 0.0);", albedo_twin, albedo_inputs,
          (5e-4, 0.0), albedo_setup),
-    xfail(Twin("safe_normalize, extreme magnitudes", ["shading.glsl"], "out0 = vec4(safe_normalize(v.xyz), 0.0);",
-               safe_normalize_twin, lambda: safe_normalize_inputs(extreme=True), (5e-7, 0.0)),
-          "finding: shading.glsl's safe_normalize squares in float32: |v| < ~1e-19 (square below FLT_MIN) and "
-          "|v| > ~1.8e19 (square overflows) give the zero vector where shading.py gives a unit one (max diff 1.0); "
-          "its 1e-20 threshold cannot be reached in float32"),
+    # magnitudes whose squares leave float32 (|v| < 1e-19 or > 1.8e19): safe_normalize scales by the largest
+    # component first (before: the zero vector there, where the twin gives a unit one)
+    Twin("safe_normalize, extreme magnitudes", ["shading.glsl"], "out0 = vec4(safe_normalize(v.xyz), 0.0);",
+         safe_normalize_twin, lambda: safe_normalize_inputs(extreme=True), (5e-7, 0.0)),
 ]
 
 

@@ -24,6 +24,7 @@ def shade(albedo, normals, to_eye, lit, light, material) -> np.ndarray:
 
 
 def safe_normalize(v: np.ndarray) -> np.ndarray:
-    """Unit rows; a zero row stays zero (as safe_normalize in shading.glsl)."""
+    """Unit rows of any finite magnitude; a zero row stays zero (as safe_normalize in shading.glsl, which
+    scales by the largest component first so that float32's squares hold)."""
     length = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.where(length > 1e-20, v / np.where(length > 1e-20, length, 1.0), 0.0)
+    return np.where(length > 0, v / np.where(length > 0, length, 1.0), 0.0)

@@ -26,17 +26,22 @@ struct Frame {
 };
 
 // The interpolated frame, re-orthonormalised (interpolation shortens and tilts the vectors).
-// A degenerate map (e.g. at a pole, J^T J singular) keeps finite values through the clamped determinant.
+// J^T J and its determinant (~|J|^4) are formed from J scaled to unit size, so tiles of any world size
+// stay inside float32's range; the determinant's clamp is relative (a degenerate map, e.g. at a pole,
+// keeps finite values), as texspace.world_normals's.
 Frame surface_frame(vec3 N) {
     Frame F;
     F.N = N;
     F.Ju = (v_dpdu - dot(v_dpdu, N) * N) / u_tiling.x;
     F.Jv = (v_dpdv - dot(v_dpdv, N) * N) / u_tiling.y;
-    float a = dot(F.Ju, F.Ju), b = dot(F.Ju, F.Jv), c = dot(F.Jv, F.Jv);
-    float det = max(a * c - b * b, 1e-12 * (a + c) * (a + c) + 1e-30);
-    F.Iu = (c * F.Ju - b * F.Jv) / det;
-    F.Iv = (a * F.Jv - b * F.Ju) / det;
-    F.sn = sqrt(sqrt(det));
+    vec3 m3 = max(abs(F.Ju), abs(F.Jv));
+    float m = max(max(max(m3.x, m3.y), m3.z), 1e-30);
+    vec3 ju = F.Ju / m, jv = F.Jv / m;
+    float a = dot(ju, ju), b = dot(ju, jv), c = dot(jv, jv);
+    float det = max(a * c - b * b, 1e-12 * (a + c) * (a + c) + 1e-30);   // of J / m: the true one is det m^4
+    F.Iu = (c * ju - b * jv) / (det * m);
+    F.Iv = (a * jv - b * ju) / (det * m);
+    F.sn = sqrt(sqrt(det)) * m;
     vec3 d1 = v_d1 - dot(v_d1, N) * N;
     F.d1 = dot(d1, d1) > 1e-12 ? normalize(d1) : normalize(F.Ju + 1e-30);
     F.d2 = cross(N, F.d1);

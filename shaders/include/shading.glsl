@@ -11,8 +11,9 @@ uniform float u_shininess;
 
 // A zero vector (e.g. opposite normals interpolated across a triangle) stays zero, not NaN.
 vec3 safe_normalize(vec3 v) {
-    float l = length(v);
-    return l > 1e-20 ? v / l : vec3(0.0);
+    float m = max(max(abs(v.x), abs(v.y)), abs(v.z));
+    vec3 s = v / max(m, 1e-37);   // largest component +-1: its square neither underflows nor overflows
+    return m > 0.0 ? s / length(s) : vec3(0.0);
 }
 
 // N: unit normal facing the viewer; V: unit vector to the eye; lit: 0 in shadow, 1 lit.

@@ -35,7 +35,8 @@ def world_normals(J: np.ndarray, N: np.ndarray, n_tex: np.ndarray) -> np.ndarray
     """(V, 3) unit world normals of texture-space normals n_tex (V, 3): M^-T n = J+^T n_xy + N n_z / s_n
     (J in the tangent plane of the unit normals N)."""
     G = np.einsum("vki,vkj->vij", J, J)
-    det = np.maximum(G[:, 0, 0] * G[:, 1, 1] - G[:, 0, 1] ** 2, 1e-30)
+    # clamped relative to |J|^4 (as surface_frame in mesostructure.glsl): scale-free, finite when degenerate
+    det = np.maximum(G[:, 0, 0] * G[:, 1, 1] - G[:, 0, 1] ** 2, 1e-12 * (G[:, 0, 0] + G[:, 1, 1]) ** 2 + 1e-300)
     inv = np.stack([np.stack([G[:, 1, 1], -G[:, 0, 1]], -1), np.stack([-G[:, 0, 1], G[:, 0, 0]], -1)], -2) / det[:, None, None]
     pinv = np.einsum("vij,vkj->vik", inv, J)                  # (V, 2, 3): rows of J+
     n = np.einsum("vik,vi->vk", pinv, n_tex[:, :2]) + N * (n_tex[:, 2] / np.sqrt(np.sqrt(det)))[:, None]
