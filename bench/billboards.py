@@ -9,7 +9,7 @@ its billboard count and storage for comparison.
 
 Then, on the bunny, in one process (issue 9's closing measurements):
   * interleaved timing: full mesh, coarse mesh, hit0.01+coarse, improved+coarse, hier, hier+coarse,
-    ROUNDS rounds of one frame each per resolution, every pass timed (ctx.finish() after each): the
+    ROUNDS rounds of one frame each per resolution, every pass timed by its own timer query: the
     median frame and its shadow pass share; the ratio to the full mesh of the same round;
   * march cost, instrumented (vdmrender/counters.py): fragments, texture fetches, march steps (cell visits
     for hier) and searches per covered pixel, improved against hier, at 800x600.
@@ -71,10 +71,11 @@ def _builders(bundle_path: Path, width: int, height: int):
 
 def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> list[dict]:
     """Interleaved timing in one GL context: per resolution, `rounds` rounds of one frame of each label
-    (after one untimed frame each), every pass timed with ctx.finish() after it: wall time and the
-    process's CPU time (llvmpipe's threads are the process's own: the work done, much less disturbed
-    by other processes on a shared machine than wall time)."""
+    (after one untimed frame each), every pass in its own timer query (vdmrender/timing.py: GPU time, as
+    vdmrender reports it), and the frame's process CPU time (llvmpipe's threads are the process's own: the
+    work done, much less disturbed by other processes on a shared machine than wall time)."""
     from vdmrender import gl
+    from vdmrender.timing import FrameTimer
 
     ctx = gl.create_context()
     rows = []
@@ -82,20 +83,15 @@ def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> l
         for w, h in resolutions:
             cam, builds, _ = _builders(bundle_path, w, h)
             target = gl.Target(ctx, w, h)
+            timer = FrameTimer(ctx, target)
             renderers = {k: builds[k](ctx) for k in labels}
             wall, cpu = {k: [] for k in labels}, {k: [] for k in labels}
             for r in renderers.values():
-                r.render(cam, target)
-                ctx.finish()
+                timer.frame(r, cam)
             for _ in range(rounds):
                 for k, r in renderers.items():
-                    passes, c0 = {}, time.process_time()
-                    for name, run in r.passes(cam, target):
-                        t0 = time.perf_counter()
-                        run()
-                        ctx.finish()
-                        passes[name] = (time.perf_counter() - t0) * 1e3
-                    wall[k].append(passes)
+                    c0 = time.process_time()
+                    wall[k].append(timer.frame(r, cam).passes)
                     cpu[k].append((time.process_time() - c0) * 1e3)
             for k, r in renderers.items():
                 r.release()

@@ -1,7 +1,8 @@
 """Alternatives measured against each other in one process, interleaved (A, B, C, A, B, C, ...), for
 the benchmarks: on a shared machine a sequential run gives each variant different neighbours. Per frame,
-wall time and the process's CPU time (llvmpipe's rasteriser threads are the process's own, so CPU
-time is the work done, much less disturbed by other processes than wall time), and each variant's
+the GPU time of its passes by timer queries (vdmrender/timing.py, as vdmrender reports it), the wall
+time and the process's CPU time (llvmpipe's rasteriser threads are the process's own, so CPU time is
+the work done, much less disturbed by other processes than wall time), and each variant's
 error against the reference frames of a previous vdmrender run. Also each variant's device-independent
 costs (vdmrender/counters.py: fragments, texture fetches, search steps and searches)."""
 from __future__ import annotations
@@ -17,6 +18,7 @@ from vdmbake.formats import exr
 from vdmbake.bundle.directory import Bundle
 
 from vdmrender import counters, gl, images
+from vdmrender.timing import FrameTimer
 from vdmrender.camera import cameras_for
 from vdmrender.metrics import compare
 
@@ -44,21 +46,20 @@ def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: in
     """Each build(ctx) -> renderer, warmed up once per camera, then `rounds` rounds of every variant on
     every camera; medians over all timed frames, error over all frames (thesis eq. 2.2)."""
     target = gl.Target(ctx, cams[0].width, cams[0].height)
+    timer = FrameTimer(ctx, target)
     renderers = {k: b(ctx) for k, b in builds.items()}
-    wall = {k: [] for k in builds}
-    cpu = {k: [] for k in builds}
+    gpu, wall, cpu = ({k: [] for k in builds} for _ in range(3))
     for r in renderers.values():
         for cam in cams:
-            r.render(cam, target)
-            ctx.finish()
+            timer.frame(r, cam)
     for _ in range(rounds):
         for k, r in renderers.items():
             for cam in cams:
-                c0, t0 = time.process_time(), time.perf_counter()
-                r.render(cam, target)
-                ctx.finish()
-                wall[k].append((time.perf_counter() - t0) * 1e3)
+                c0 = time.process_time()
+                s = timer.frame(r, cam)
                 cpu[k].append((time.process_time() - c0) * 1e3)
+                gpu[k].append(s.gpu_ms)
+                wall[k].append(s.wall_ms)
     rows = {}
     for k, r in renderers.items():
         dists, ious = [], []
@@ -68,7 +69,8 @@ def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: in
             dists.append(c["values"])
             ious.append(c["iou"])
         d = np.concatenate(dists)
-        rows[k] = {"median_ms": round(statistics.median(wall[k]), 2), "min_ms": round(min(wall[k]), 2),
+        rows[k] = {"median_ms": round(statistics.median(gpu[k]), 2), "min_ms": round(min(gpu[k]), 2),
+                   "median_wall_ms": round(statistics.median(wall[k]), 2),
                    "median_cpu_ms": round(statistics.median(cpu[k]), 2),
                    "mean_dluv": round(float(d.mean()), 4), "p95_dluv": round(float(np.percentile(d, 95)), 3),
                    "iou": round(float(np.mean(ious)), 5)}

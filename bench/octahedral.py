@@ -10,7 +10,7 @@ maps, pyramid atlases, coarse mesh and occupancy-box buffers; not the per-frame 
 targets, reported apart) fix the octahedral atlases: N x N views of R^2 texels at 8 bytes a texel (RGBA16)
 with 8 N^2 R^2 as close as possible to the billboards' bytes, for N = 5, 9, 13, and N = 9 at a quarter
 of them. All variants of a model are timed interleaved (per camera: one render
-each, in turn) after one warm-up render, with ctx.finish() inside the timed region; the shadow map pass
+each, in turn) after one warm-up render, each pass in its own timer query (vdmrender/timing.py); the shadow map pass
 is part of every frame (billboards: the scene's 1024^2 map of the coarse mesh; octahedral: its own, shadow_scale 2, and one
 row with the scene's 1024^2 map for a like-for-like comparison). Octahedral rows also give the frame pass's
 texture fetches (atlas lookups, the albedo atlas's, the shadow map's) and search steps per covered pixel
@@ -38,6 +38,7 @@ from vdmrender import counters, gl, images, reference, techniques
 from vdmrender.camera import cameras_for
 from vdmrender.metrics import compare
 from vdmrender.techniques import octahedral
+from vdmrender.timing import FrameTimer
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
           ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]
@@ -197,10 +198,10 @@ def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[d
     refs = [images.encode(ref.render(c), bg) for c in cams]
     renderers = {label: b(ctx) for label, (b, _, _) in builds.items()}
     target = gl.Target(ctx, w, h)
+    timer = FrameTimer(ctx, target)
     try:
         for r in renderers.values():          # warm-up: shader compilation and first-use costs
-            r.render(cams[0], target)
-            ctx.finish()
+            timer.frame(r, cams[0])
         ms = {k: [] for k in renderers}
         cpu = {k: [] for k in renderers}
         shadow_ms = {k: [] for k in renderers if k.startswith("octahedral")}
@@ -208,10 +209,9 @@ def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[d
         dists = {k: [] for k in renderers}
         for cam, r8 in zip(cams, refs):
             for label, r in renderers.items():   # interleaved: every variant on this camera, in turn
-                t0, c0 = time.perf_counter(), time.process_time()
-                r.render(cam, target)
-                ctx.finish()
-                ms[label].append((time.perf_counter() - t0) * 1e3)
+                c0 = time.process_time()
+                s = timer.frame(r, cam)
+                ms[label].append(s.gpu_ms)
                 cpu[label].append((time.process_time() - c0) * 1e3)
                 frame = target.read()
                 c = compare(images.encode(frame, bg), r8)
@@ -219,11 +219,7 @@ def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[d
                                        "nonfinite": int((~np.isfinite(frame)).any(-1).sum())})
                 dists[label].append(c["values"])
                 if label in shadow_ms:
-                    shadow_pass = dict(r.passes(cam, target))["shadow"]
-                    t0 = time.perf_counter()
-                    shadow_pass()
-                    ctx.finish()
-                    shadow_ms[label].append((time.perf_counter() - t0) * 1e3)
+                    shadow_ms[label].append(s.passes["shadow"])
         rows = []
         for label, r in renderers.items():
             d = np.concatenate(dists[label])
