@@ -164,8 +164,8 @@ def _markdown(rows: list[dict], bakes: dict, prof: list[dict], cost: dict, devic
                      f"{r['mean_dluv']:.3f} | {ref} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
     if prof:
         lines += ["", f"## {model}, interleaved ({rounds} rounds, every pass timed)", "",
-                  "| variant | resolution | median ms (wall) | x full mesh | median CPU ms | x full mesh (CPU) | "
-                  "shadow pass share | passes (median wall ms) |",
+                  "| variant | resolution | median GPU ms | x full mesh | median CPU ms | x full mesh (CPU) | "
+                  "shadow pass share | passes (median GPU ms) |",
                   "|---|---|---:|---:|---:|---:|---:|---|"]
         for p in prof:
             passes = ", ".join(f"{k} {v:.1f}" for k, v in p["passes_ms"].items())

@@ -273,13 +273,13 @@ def _category(r: dict, pick) -> tuple[float, float, float] | None:
 def _markdown(rows: list[dict], device: str) -> str:
     cats = [("outside", lambda lab: lab != "inside")] + CATEGORIES
     lines = [f"# Octahedral impostors against enhanced billboards ({device})", "",
-             "Mean ΔLuv over all cameras (union of coverage masks); median wall ms and CPU ms per frame (shadow pass "
+             "Mean ΔLuv over all cameras (union of coverage masks); median GPU ms (timer queries) and CPU ms per frame (shadow pass "
              "included; CPU: the process's time over all its threads, llvmpipe's included, which other processes on "
-             "the machine barely inflate); shadow ms: the octahedral shadow pass alone (wall); "
+             "the machine barely inflate); shadow ms: the octahedral shadow pass alone (GPU); "
              "asset MB: the textures and buffers a variant uploads (maps, pyramid atlases, coverage, coarse mesh, "
              "occupancy boxes, the octahedral atlas); target MB: what it renders into every frame besides the "
              "frame and its shadow map (the billboards' depth pre-pass and occupancy targets); bake seconds.", "",
-             "| model | resolution | variant | asset MB | target MB | bake s | wall ms | CPU ms | shadow ms | fetches/px | "
+             "| model | resolution | variant | asset MB | target MB | bake s | GPU ms | CPU ms | shadow ms | fetches/px | "
              "steps/px | "
              "mean ΔLuv | p95 | IoU |",
              "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
