@@ -13,7 +13,7 @@ import vdmbake
 import vdmrender
 from vdmbake.scene import REGISTRY
 
-RENDER_MAY_IMPORT = {"vdmbake", "vdmbake.scene", "vdmbake.errors"}
+RENDER_MAY_IMPORT = {"vdmbake", "vdmbake.scene", "vdmbake.schema", "vdmbake.errors"}
 # rooms of the baker the renderer may read from: the bundle format, the file formats, and the neutral
 # pure numpy (geometry, sRGB, the pyramid, the albedo lookup: the reference's twins of GL code)
 RENDER_MAY_IMPORT_ROOMS = ("vdmbake.bundle", "vdmbake.formats", "vdmbake.common")

@@ -21,9 +21,11 @@ from . import __version__, code_fingerprint, package_modules
 from .kernels import curvature, quadric_mesh, quadrics, vdm
 from .assets import heightfields, meso_albedo, primitives
 from .bundle import parts, staging
+from .bundle.parts.mesostructure import check_reference
 from .bundle.directory import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter
 from .errors import InputError
 from .assets.meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
+from .assets.references import reached_files
 from .scene import Object, Scene, load_scene
 from .techniques import REGISTRY
 
@@ -33,7 +35,7 @@ def object_mesh(obj: Object, base: Path) -> TriMesh:
     if obj.primitive:
         mesh = primitives.build(obj.primitive, obj.params)
     else:
-        mesh = load_mesh_file(resolve_path(obj.mesh, base))
+        mesh = load_mesh_file(resolve_path(obj.mesh, base), obj.textures == "use")
     world = transformed(mesh, obj.transform)
     return validate(world, f"object {obj.name!r}")
 
@@ -58,12 +60,17 @@ def bake_code() -> str:
 
 def input_hash(scene: Scene, base: Path, code: str | None = None) -> tuple[str, dict]:
     """One hash over the resolved scene, the input files' contents, the format/tool versions and
-    the bake code's fingerprint (`code`, bake_code() by default)."""
-    files = [f for o in scene.objects for f in (o.mesh, o.molecule) if f]
+    the bake code's fingerprint (`code`, bake_code() by default). The input files include what each mesh file
+    reaches (its MTL, textures, glTF buffers), keyed by the chain of names that reaches them
+    (`bunny.obj > bunny.mtl > bunny.png`)."""
+    files = [o.molecule for o in scene.objects if o.molecule]
     for m in (o.mesostructure for o in scene.objects if o.mesostructure):   # height and albedo pictures
         files += [spec for spec, patterns in ((m.height, heightfields.PATTERNS), (m.albedo, meso_albedo.PATTERNS))
                   if spec and _is_file(spec, patterns)]
     inputs = {f: file_sha256(resolve_path(f, base)) for f in files}
+    for o in (o for o in scene.objects if o.mesh):
+        for chain, f in reached_files(resolve_path(o.mesh, base), o.mesh, o.textures == "use").items():
+            inputs[" > ".join(chain)] = hashlib.sha256(f.data).hexdigest()
     key = json.dumps({"format_version": FORMAT_VERSION, "tool_version": __version__, "code": code or bake_code(),
                       "scene": scene.to_dict(), "inputs": inputs}, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest(), inputs
@@ -175,6 +182,8 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
                                           if mesh.texture is not None else ""))
         if obj.mesostructure:
             m = obj.mesostructure
+            # the reference vdmrender traces for it (every mesostructure technique's) must be one it builds
+            check_reference(parts.stored(parts.MESH, mesh), m.size, m.tiling, f"object {obj.name!r}")
             heights = heightfields.from_spec(m.height, m.size, base).astype(np.float32)
             maps = parts.MesostructureMaps(heights, vdm.height_normals(heights.astype(np.float64), m.depth)
                                            .astype(np.float32))

@@ -1,9 +1,21 @@
 """The one error type the command-line tools turn into exit code 2, and the wrapper that gives every
-way a command ends its exit code (README "Command-line conventions")."""
+way a command ends its exit code (README "Command-line conventions"). Every message is printed as one
+paragraph, whatever it quotes: a path may hold a newline, and a library's reason (gemmi's parse errors)
+may run over several lines and quote control characters."""
 
 
 class InputError(Exception):
     """Bad usage or bad input: the message names the file, the key or value, and what is allowed."""
+
+
+def escaped(text: str) -> str:
+    """`text` with every unprintable character escaped as Python writes it (\\n, \\x1b): a quoted path."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def paragraph(text: str) -> str:
+    """`text` on one line: its lines joined by spaces, every other unprintable character escaped."""
+    return escaped(" ".join(line.strip() for line in text.splitlines() if line.strip()))
 
 
 def fail(e: InputError, debug: bool):
@@ -14,7 +26,7 @@ def fail(e: InputError, debug: bool):
         import traceback
 
         traceback.print_exception(e)
-    click.echo(f"error: {e}", err=True)
+    click.echo(f"error: {paragraph(str(e))}", err=True)
     raise SystemExit(2)
 
 
@@ -37,5 +49,5 @@ def guarded(work, debug: bool):
         click.echo(f"interrupted{f' ({e})' if str(e) else ''}; nothing was written", err=True)
         raise SystemExit(signals.exit_code(e)) from None
     except OSError as e:
-        fail(InputError(f"{e.filename + ': ' if e.filename else ''}{e.strerror or e} "
+        fail(InputError(f"{escaped(str(e.filename)) + ': ' if e.filename else ''}{e.strerror or e} "
                         f"({type(e).__name__}); nothing was written."), debug)

@@ -160,6 +160,11 @@ class Object:
     """One object; exactly one source: mesh, primitive, molecule, or spheres/cylinders."""
     name: str = setting(REQUIRED, _NAME, "unique name (output folders, report rows)")
     mesh: str | None = setting(None, _PATH, "a mesh file trimesh reads (OBJ, PLY, STL, glTF, ...)")
+    textures: str = setting("use", Choice("use", "ignore"),
+                            "the mesh file's own texture (OBJ `map_Kd` through its `mtllib`, glTF base colour, PLY "
+                            "`TextureFile`): `use` it as the albedo (a texture that cannot be read is an error, exit "
+                            "2), or `ignore` it (the material's albedo applies; neither the texture nor an OBJ's MTL "
+                            "is read)")
     primitive: str | None = setting(None, Choice(*PRIMITIVES), "a built-in shape")
     params: object = setting(None, Custom("a table (see the primitives below)"), "the primitive's parameters")
     molecule: str | None = setting(None, _PATH, "a PDB or mmCIF file (gzipped too)")

@@ -371,6 +371,12 @@ def _toml(v) -> str:
     return str(v)
 
 
+def shortest(value: float) -> str:
+    """The fewest significant digits that read back as `value` (0.5, 0.5000001, 1): a knob value in a
+    label or a part's file name."""
+    return next(s for s in (f"{value:.{p}g}" for p in range(1, 18)) if float(s) == value)
+
+
 @dataclasses.dataclass(frozen=True)
 class Technique:
     """A rendering technique, declared once in its module of vdmbake/techniques/: the objects it
@@ -401,7 +407,9 @@ class Technique:
         return getattr(options, k.name) if k else (None,)
 
     def label(self, value) -> str:
-        """A variant's name in reports: technique@value (technique alone without a knob)."""
+        """A variant's name in reports: technique@value (technique alone without a knob); a number as
+        `shortest` spells it, so two distinct values of a knob (ListOf refuses equal ones) never share a
+        label or a folder."""
         if value is None:
             return self.name
-        return f"{self.name}@{value:g}" if isinstance(value, float) else f"{self.name}@{value}"
+        return f"{self.name}@{shortest(value) if isinstance(value, float) else value}"

@@ -7,6 +7,11 @@ fails the run (exit 1) only where the slowdown also exceeds the two runs' combin
 within-camera interquartile range), so two runs of the same bundle pass under noise. Times are compared
 only between reports of the same device and time source (GPU timer queries) unless asked; counters
 count work, not time, so any change is reported. Pure data in, data out: no GL, no rendering.
+
+The earlier report is input like any other: load() reads it through the regular-file guard and checks
+every key compare() uses against a schema before the run renders anything, so a report that is damaged,
+hand-edited or hostile ends the run at once with one message naming the row and key, never with a
+traceback after the whole render.
 """
 from __future__ import annotations
 
@@ -15,29 +20,62 @@ import io
 import json
 from pathlib import Path
 
-from vdmbake.errors import InputError
+from vdmbake.errors import InputError, escaped
+from vdmbake.formats.safeio import read_regular
+from vdmbake.schema import REQUIRED, Integer, Invalid, Number, Reader, Text, Type, Vector
 
 COLUMNS = ["object", "label", "status", "old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv",
            "new_p95_dluv", "d_p95_dluv", "old_flip", "new_flip", "d_flip", "old_ms", "new_ms", "time_ratio",
            "noise_ms", "counters_changed", "exceeds"]
 
+MAX_BYTES = 64 << 20     # a report of 1000 variants x 100 cameras is about 30 MB
+COUNT = Integer(0, 2**63 - 1)
+NAME = Text("1-200 printable characters", r"[^\x00-\x1f\x7f]{1,200}")
+TIME, VALUE = Number(0.0, 1e300), Number(-1e300, 1e300)   # finite, and their differences too
+
+
+class Counts(Type):
+    """A row's cost counters: {name: count}."""
+    text = "a table of counter names (printable, 1-64 characters) to integers in [0, 2^63)"
+
+    def parse(self, raw):
+        if not isinstance(raw, dict) or not all(0 < len(k) <= 64 and k.isprintable() for k in raw):
+            raise Invalid
+        return {k: COUNT.parse(v) for k, v in raw.items()}
+
+
+# The keys of a baseline report that compare() reads: (type, default where absent or null).
+TOP = {"time": (NAME, None), "device": (NAME, None), "resolution": (Vector(2, 1, 2**31 - 1, integer=True), None)}
+ROW = {"object": (NAME, REQUIRED), "label": (NAME, REQUIRED), "median_ms": (TIME, REQUIRED), "spread_ms": (TIME, None),
+       "mean_dluv": (VALUE, None), "p95_dluv": (VALUE, None), "flip_mean": (VALUE, None), "counters": (Counts(), None)}
+
 
 def load(path: Path) -> dict:
-    """A previous run's report, checked enough to compare with: rows naming object and label."""
-    path = Path(path)
+    """A previous run's report, read and checked before any rendering: a regular file of at most MAX_BYTES
+    (never a FIFO or device), JSON the parser reads without running out of stack, and every key compare()
+    reads of its type in TOP and ROW (finite numbers, integers within int64). Returns just those keys; an
+    error names the row and the key."""
+    shown = escaped(str(path))
     try:
-        report = json.loads(path.read_text())
+        data = read_regular(Path(path), "--baseline report", limit=MAX_BYTES)
     except FileNotFoundError:
-        raise InputError(f"--baseline {path}: file not found; give the report.json of an earlier vdmrender run.") \
-            from None
-    except (OSError, ValueError) as e:
-        raise InputError(f"--baseline {path}: not a readable JSON report ({e}).") from None
-    rows = report.get("rows") if isinstance(report, dict) else None
-    if not isinstance(rows, list) or not all(isinstance(r, dict) and {"object", "label", "mean_dluv", "median_ms"}
-                                             <= r.keys() for r in rows):
-        raise InputError(f"--baseline {path}: not a vdmrender report.json (it needs 'rows', each with object, "
-                         "label, mean_dluv and median_ms).")
-    return report
+        raise InputError(f"--baseline {shown}: file not found; give the report.json of an earlier vdmrender "
+                         "run.") from None
+    try:
+        report = json.loads(data)
+    except RecursionError:     # the parser's own bound, about 1000 levels (a report nests 5 deep)
+        raise InputError(f"--baseline {shown}: JSON nested more than a report's few levels; not a vdmrender "
+                         "report.json.") from None
+    except ValueError as e:
+        raise InputError(f"--baseline {shown}: not a readable JSON report ({e}).") from None
+    top = Reader(report, "", f"--baseline {shown}: not a vdmrender report.json")
+    rows = top.data.get("rows")
+    if not isinstance(rows, list):
+        top.fail("rows", rows, "a list of tables, one per object and variant")
+    old = {key: top.value(key, type_, default) for key, (type_, default) in TOP.items()}
+    old["rows"] = [{key: row.value(key, type_, default) for key, (type_, default) in ROW.items()}
+                   for row in (Reader(r, f"rows[{i}]", top.origin) for i, r in enumerate(rows))]
+    return {**old, "resolution": old["resolution"] and list(old["resolution"])}
 
 
 def _diff(new, old):

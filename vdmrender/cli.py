@@ -96,8 +96,8 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
     OUTPUT/baseline.md, baseline.csv         with --baseline: the change per variant
 
     Exit codes: 0 done; 1 done but a threshold was exceeded (--max-error, --max-error-increase,
-    --max-slowdown); 2 bad usage or bad input, or a variant with no covered pixel in any frame
-    (unless the object sets expect_empty = true), also under --debug, which adds the traceback;
+    --max-slowdown); 2 bad usage or bad input, or a variant or composite set with no covered pixel in
+    any frame (unless its objects set expect_empty = true), also under --debug, which adds the traceback;
     128 + N stopped by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). --debug also makes GL strict: a uniform or
     vertex attribute a shader does not have is an error instead of being skipped.
 
@@ -121,7 +121,7 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
         gl.STRICT = True
     result = guarded(lambda: run(bundle, out, opts, log), debug)
     if as_json:
-        click.echo(json.dumps(result, indent=1))
+        click.echo(json.dumps(result, indent=1, allow_nan=False))
     else:
         click.echo(f"report: {out / 'report.json'}  plot: {out / 'error_vs_time.png'}  "
                    f"overview: {out / 'overview'}/  ({result['device']})")
@@ -134,12 +134,16 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
         click.echo(baseline_table(block), err=True)
         for name in block["failed"]:
             click.echo(f"{name}: exceeds the baseline thresholds", err=True)
-    empty = [r for r in rows if r["empty_frames"] == r["frames"] and not r["expect_empty"]]
-    for r in empty:
-        click.echo(f"error: {r['object']}: {r['label']}: no frame has a pixel to score (neither the variant nor the "
-                   "reference draws anything, or every pixel drawn sees an open border or the surface from inside, "
-                   "which are scored apart), so there is nothing to measure; aim the cameras at the object, or "
-                   "set expect_empty = true on it if that is the point.", err=True)
+    drawn = ("neither the variant nor the reference draws anything, or every pixel drawn sees an open border or "
+             "the surface from inside, which are scored apart")
+    empty = [(f"{r['object']}: {r['label']}", drawn, "aim the cameras at the object, or set expect_empty = true on it")
+             for r in rows if r["empty_frames"] == r["frames"] and not r["expect_empty"]]
+    empty += [(f"composite set {r['set']} ({r['label']})", "neither its variants nor the reference draw anything",
+               "aim the cameras at the objects, or set expect_empty = true on every object")
+              for r in result.get("composite", []) if r["empty_frames"] == r["frames"] and not r["expect_empty"]]
+    for name, why, advice in empty:
+        click.echo(f"error: {name}: no frame has a pixel to score ({why}), so there is nothing to measure; "
+                   f"{advice} if that is the point.", err=True)
     sys.exit(2 if empty else 1 if worst or (block and block["failed"]) else 0)
 
 

@@ -120,7 +120,8 @@ def reference_frames(out, bundle, scene, cams, log):
 
 def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[dict]:
     """Every variant set of render.composite (those whose techniques --technique keeps): timed, scored against
-    the composite reference, written under OUT/composite/; one report row per set."""
+    the composite reference, written under OUT/composite/; one report row per set. A set none of whose frames
+    has a pixel to score is an error (vdmrender.cli) unless every object sets expect_empty."""
     sets = [s for s in scene.render.composite if only is None or all(v.split("@")[0] in only for v in s.values())]
     if not sets:
         return []
@@ -144,7 +145,8 @@ def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[di
         scores, heats, enc = scoring.score_frames(frames, ref8, [None] * len(frames), out, f"{FOLDER}/frames/{k}",
                                           f"{FOLDER}/heatmaps/{k}", opts.heat_max, scene.render.background, opts.flip,
                                           f"composite {k} scoring")
-        row = {"set": k, "label": label, "variants": dict(chosen), "frames": len(cams), **cost,
+        row = {"set": k, "label": label, "variants": dict(chosen), "frames": len(cams),
+               "expect_empty": all(o.expect_empty for o in scene.objects), **cost,
                **summarise(scores), "device": device, "reference_cached": ref_info["cached"]}
         rows.append(row)
         sheet += [(f"{k}: {label}", enc), (f"{k}: error", heats)]

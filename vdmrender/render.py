@@ -149,6 +149,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
             result["baseline"] = {"report": str(opts.baseline),
                                   **baseline.compare(old, result, opts.max_error_increase, opts.max_slowdown,
                                                      opts.compare_devices)}
+        result = report.finite(result)
         report.write(out.tmp, result)
         out.commit()
     except BaseException:

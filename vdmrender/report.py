@@ -1,9 +1,11 @@
 """The error-against-time report: report.json, report.csv and error_vs_time.png (and with --baseline,
-baseline.md and baseline.csv: the change against an earlier run)."""
+baseline.md and baseline.csv: the change against an earlier run). report.json is strict JSON, which has
+no NaN or Infinity: a number that is not finite is written as null and its path listed in `non_finite`."""
 from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 
 from . import baseline
@@ -29,8 +31,27 @@ def add_baseline_ratios(rows: list[dict]) -> None:
             r["ratio_to_baseline"] = round(r["median_ms"] / base["median_ms"], 4) if base["median_ms"] > 0 else None
 
 
+def finite(report: dict) -> dict:
+    """The report with every non-finite number replaced by None and `non_finite` listing where each was
+    ("rows[2].mean_dluv"), so that json.dumps(..., allow_nan=False) writes it (report.json, --json)."""
+    where = []
+
+    def clean(v, path):
+        if isinstance(v, float) and not math.isfinite(v):
+            where.append(path)
+            return None
+        if isinstance(v, dict):
+            return {k: clean(x, f"{path}.{k}" if path else k) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x, f"{path}[{i}]") for i, x in enumerate(v)]
+        return v
+
+    return {**clean(report, ""), "non_finite": where}
+
+
 def write(folder: Path, report: dict) -> None:
-    (folder / "report.json").write_text(json.dumps(report, indent=1) + "\n")
+    """The report's files; `report` as finite() gives it."""
+    (folder / "report.json").write_text(json.dumps(report, indent=1, allow_nan=False) + "\n")
     with open(folder / "report.csv", "w", newline="") as f:
         w = csv.DictWriter(f, COLUMNS, extrasaction="ignore")
         w.writeheader()
@@ -95,7 +116,8 @@ def figure(report: dict):
     for ax, (obj, together, mine) in zip(axes.ravel(), groups):
         points = []
         for tech in dict.fromkeys(t for t, _ in mine):
-            pts = [r for t, r in mine if t == tech and r["mean_dluv"] is not None]   # in knob order
+            pts = [r for t, r in mine   # in knob order; an error or time that was not finite is null
+                   if t == tech and r["mean_dluv"] is not None and r["median_ms"]]
             ax.plot([r["median_ms"] for r in pts], [r["mean_dluv"] for r in pts], "o-", label=tech)
             points += pts
         ax.set_xscale("log")

@@ -1,15 +1,21 @@
-"""Triangle meshes: the in-memory form, loading, validation, transforms and normals."""
+"""Triangle meshes: the in-memory form, loading (through assets/references.py: every file a mesh file
+reaches is read and checked before trimesh sees its bytes), validation, transforms and normals."""
 from __future__ import annotations
 
 import hashlib
 import importlib.util
+import io
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..common import texture
 from ..common.colour import srgb8_to_linear, to_srgb8
 from ..errors import InputError
+from ..schema import printable
+from .references import check_picture, described, reached_files
 
 
 @dataclass
@@ -124,8 +130,9 @@ def merge_vertices(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | No
     appearances kept in order."""
     key = weld(vertices, rel_tol)[:, None].astype(np.float64)
     if uvs is not None:
-        lo = np.nanmin(uvs, 0) if np.isfinite(uvs).any() else np.zeros(2)
-        span = max(float(np.nanmax(np.abs(uvs - lo))) if np.isfinite(uvs).any() else 0.0, 1e-300)
+        finite = uvs[np.isfinite(uvs).all(1)]    # NaN and Inf (refused or dropped later) set no scale
+        lo = finite.min(0) if len(finite) else np.zeros(2)
+        span = max(float(np.abs(finite - lo).max()) if len(finite) else 0.0, 1e-300)
         key = np.column_stack([key, np.round((uvs - lo) / (span * rel_tol))])
     if rgb8 is not None:
         key = np.column_stack([key, rgb8.astype(np.float64)])
@@ -194,13 +201,13 @@ def resolve_path(spec: str, base: Path) -> Path:
         # import heavy dependencies that the data does not need).
         found = importlib.util.find_spec(package) if package.isidentifier() else None
         if found is None or not found.submodule_search_locations:
-            raise InputError(f"'{spec}': Python package '{package}' is not installed "
+            raise InputError(f"'{printable(spec)}': Python package '{printable(package)}' is not installed "
                              f"(pkg:PACKAGE/PATH names a file inside an installed package).")
         path = Path(next(iter(found.submodule_search_locations))) / inner
     else:
         path = (base / spec) if not Path(spec).is_absolute() else Path(spec)
     if not path.is_file():
-        raise InputError(f"'{spec}': file not found (looked at {path}).")
+        raise InputError(f"'{printable(spec)}': file not found (looked at {printable(str(path))}).")
     return path
 
 
@@ -212,25 +219,48 @@ def file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def load_mesh_file(path: Path) -> TriMesh:
-    """Any format trimesh reads, merged to one triangle mesh with area-weighted vertex normals."""
+def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
+    """Any format trimesh reads, merged to one triangle mesh with area-weighted vertex normals, and with its
+    texture as an albedo map if `textures` and it has one. trimesh reads only the bytes of
+    `references.reached_files`, through a resolver, and each texture file is checked first
+    (`references.check_picture`); an embedded picture (a GLB's) over texture.MAX_PIXELS is left out undecoded."""
     import trimesh  # imported here: only scenes with mesh files pay for it
+    from PIL import Image
 
+    shown = printable(str(path))
+    files = reached_files(path, str(path), textures)
+    for chain, f in files.items():
+        if f.what == "texture":
+            check_picture(f.data, f"{printable(str(f.path))} (the {described(chain, f.what)})")
+    resolver = {chain[-1]: f.data for chain, f in files.items() if len(chain) > 1}
+    limit = Image.MAX_IMAGE_PIXELS
     try:
-        loaded = trimesh.load(str(path), force="mesh", process=False)
+        Image.MAX_IMAGE_PIXELS = texture.MAX_PIXELS
+        with warnings.catch_warnings():   # a picture over the limit: refused, not decoded with a warning
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            loaded = trimesh.load(io.BytesIO(files[(str(path),)].data), resolver=resolver, force="mesh",
+                                  file_type=trimesh.util.split_extension(path.name, special=["tar.gz", "tar.bz2"]),
+                                  process=False, skip_materials=not textures)
     except ImportError as e:  # trimesh reads some formats through optional packages
-        raise InputError(f"{path}: format not supported here: install the Python package "
-                         f"{e.name or 'that trimesh needs for it'} ({e}).") from None
+        raise InputError(f"{shown}: format not supported here: install the Python package "
+                         f"{e.name or 'that trimesh needs for it'} ({printable(str(e))}).") from None
     except Exception as e:  # trimesh raises many types for unreadable files
-        raise InputError(f"{path}: cannot read the mesh ({type(e).__name__}: {e}).") from None
+        raise InputError(f"{shown}: cannot read the mesh ({type(e).__name__}: {printable(str(e))}).") from None
+    finally:
+        Image.MAX_IMAGE_PIXELS = limit
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
-    validate(TriMesh(vertices, faces, np.zeros_like(vertices)), str(path))
+    validate(TriMesh(vertices, faces, np.zeros_like(vertices)), shown)
     # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces; vertices
     # with different texture coordinates stay apart (UV seams), and the UVs are kept.
     visual = getattr(loaded, "visual", None)
     uv = getattr(visual, "uv", None)
     uv = np.asarray(uv, np.float64) if uv is not None and len(uv) == len(vertices) else None
+    albedo_map = base_colour_map(visual) if uv is not None else None
+    if albedo_map is not None and not np.isfinite(uv).all():
+        raise InputError(f"{shown}: {int((~np.isfinite(uv)).any(1).sum())} vertices have NaN or Inf texture "
+                         'coordinates, where its texture is read; fix the UVs, or set textures = "ignore" on the '
+                         "object.")
     rgb8 = vertex_colors(visual, len(vertices))
     # vertices that differ in colour stay apart too: the colour is an attribute like the UV
     v, f, uvs, rgb8 = merge_vertices(vertices, faces, uv, rgb8)
@@ -238,7 +268,6 @@ def load_mesh_file(path: Path) -> TriMesh:
     # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
     # of all its faces on both sides, so shading and displacement agree across the seam.
     w = weld(v)
-    albedo_map = base_colour_map(visual) if uvs is not None else None
     return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs, colors=colors,
                    texture=albedo_map)
 

@@ -33,8 +33,6 @@ SKIMAGE_COLOUR = {
 }
 SKIMAGE_NAMES = {**heightfields.SKIMAGE_PHOTOS, **SKIMAGE_COLOUR}
 
-MAX_PIXELS = 8192 * 8192   # the largest albedo picture (384 MiB of half-float texels once uploaded)
-
 # `bricks`: sRGB8 colours of the mortar and of the brick tops at their lowest and highest, per course.
 MORTAR = (186, 180, 168)
 BRICKS = (((118, 46, 34), (172, 76, 52)),     # course 0 (v in [0, 1/2)): dark, light
@@ -61,15 +59,15 @@ PATTERNS = tuple(_MAKERS)
 
 def load_image(path: Path) -> np.ndarray:
     """An image file as an albedo map (vdmbake.common.texture.from_image), refused with a clear message where
-    Pillow cannot read it or it is larger than MAX_PIXELS."""
+    Pillow cannot read it or it is larger than texture.MAX_PIXELS."""
     from PIL import Image
 
     try:
         Image.MAX_IMAGE_PIXELS = None   # our own limit applies, with a message that says what to do
         with Image.open(path) as im:
-            if im.size[0] * im.size[1] > MAX_PIXELS:
+            if im.size[0] * im.size[1] > texture.MAX_PIXELS:
                 raise InputError(f"{path}: an albedo picture of {im.size[0]} x {im.size[1]} pixels, more than the "
-                                 f"{MAX_PIXELS} (8192 x 8192) accepted; scale it down.")
+                                 f"{texture.MAX_PIXELS} (8192 x 8192) accepted; scale it down.")
             im.load()
             if im.mode in ("I", "I;16", "I;16B", "I;16L", "I;16N"):    # 16-bit grey: full scale 65535
                 im = Image.fromarray(np.round(np.asarray(im, np.float64) / 257.0).clip(0, 255).astype(np.uint8))

@@ -6,7 +6,8 @@ the directory is renamed into place, so an interrupted bake never leaves a bundl
 looks valid. Each part is read back through its kind's checks before it is listed, so a bake
 never commits a bundle the renderer would refuse. Reading checks the format version, then the
 whole manifest (vdmbake.bundle.manifest) before any part; each part is read once, a regular file of the
-size listed, and its sha256, kind and contents are checked on the very bytes that are parsed.
+size listed, and its sha256, kind and contents are checked on the very bytes that are parsed. The manifest
+and the parts are found the same way (part_path): nothing is read through a symbolic link out of the bundle.
 """
 from __future__ import annotations
 
@@ -71,9 +72,9 @@ class Bundle:
 
     def __init__(self, path: Path):
         self.path = Path(path)
-        mf = self.path / MANIFEST
-        if not mf.is_file():
+        if not (self.path / MANIFEST).is_file():
             raise InputError(f"{self.path}: not a bundle ({MANIFEST} missing); make one with vdmbake.")
+        mf = self.part_path(MANIFEST)
         try:
             self.manifest = json.loads(read_regular(mf, "manifest", limit=MAX_MANIFEST_BYTES))
         except (OSError, ValueError, RecursionError) as e:
@@ -94,12 +95,14 @@ class Bundle:
             self.part_path(rel)
 
     def part_path(self, rel: str) -> Path:
+        """The file at `rel` in the bundle (the manifest, a part), resolved: refused if its path or a symbolic link
+        on the way leads out of the bundle."""
         pure = PurePosixPath(rel)
         if pure.is_absolute() or ".." in pure.parts or not pure.parts:
             raise InputError(f"{self.path / MANIFEST}: part path {rel!r} leaves the bundle; refusing to read it.")
         p = (self.path / pure).resolve()
         if not p.is_relative_to(self.path.resolve()):
-            raise InputError(f"{self.path / MANIFEST}: part path {rel!r} resolves outside the bundle; refusing it.")
+            raise InputError(f"{self.path}: {rel!r} resolves outside the bundle (to {p}); refusing to read it.")
         return p
 
     def read_bytes(self, rel: str) -> bytes:

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from ..errors import InputError
 from .parts import KINDS
+from .parts.kind import check_extent
 from ..schema import REQUIRED, printable, Choice, Custom, Integer, Number, Reader, Text, Vector, read, setting
 
 _PATH = Text("a part path listed in 'parts'")
@@ -26,8 +27,8 @@ class PartEntry:
 @dataclass(frozen=True, kw_only=True)
 class ObjectEntry:
     kind: str = setting(REQUIRED, Choice("surface", "quadrics"), "what draws it")
-    centre: tuple = setting(REQUIRED, Vector(3, -1e30, 1e30), "bounding sphere centre")
-    radius: float = setting(REQUIRED, Number(0.0, 1e30, open_lo=True), "bounding sphere radius")
+    centre: tuple = setting(REQUIRED, Vector(3), "bounding sphere centre")            # in range: check_extent
+    radius: float = setting(REQUIRED, Number(0.0, open_lo=True), "bounding sphere radius")
     mesh: str | None = setting(None, _PATH, "surfaces: the full mesh")
     quadrics: str | None = setting(None, _PATH, "quadrics: the spheres and cylinders")
     mesostructure: str | None = setting(None, _PATH, "the height field and normal map")
@@ -37,6 +38,11 @@ class ObjectEntry:
     spheres_dropped: int = setting(0, Integer(0, 2**53), "spheres without volume left out")
     cylinders_dropped: int = setting(0, Integer(0, 2**53), "cylinders without volume left out")
     techniques: dict = setting(REQUIRED, Custom("a table of technique entries"), "each baking technique's parts")
+
+
+# The kind of part each path of an object entry names.
+_PATH_KINDS = {"mesh": "mesh", "quadrics": "quadrics", "mesostructure": "mesostructure", "viewer_mesh": "viewer-mesh",
+               "albedo_map": "albedo-map", "mesostructure_albedo": "albedo-map"}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -97,12 +103,14 @@ def validate(manifest, origin: str):
             Reader({}, where, origin).fail("techniques", e.techniques, "a table of technique entries")
         if e.kind != obj.kind:
             Reader({}, where, origin).fail("kind", e.kind, repr(obj.kind) + " (the scene's object)")
+        check_extent(f"{origin}: key '{where}'", e.centre, e.radius)
+        for key, kind in _PATH_KINDS.items():      # every part the entry names, whether the object reads it or not
+            if getattr(e, key) is not None:
+                part(f"{where}.{key}", getattr(e, key), KINDS[kind])
         part(f"{where}.{'mesh' if obj.kind == 'surface' else 'quadrics'}",
              e.mesh if obj.kind == "surface" else e.quadrics, KINDS["mesh" if obj.kind == "surface" else "quadrics"])
         if obj.viewer_mesh is not None:
             part(f"{where}.viewer_mesh", e.viewer_mesh, KINDS["viewer-mesh"])
-        if e.albedo_map is not None:
-            part(f"{where}.albedo_map", e.albedo_map, KINDS["albedo-map"])
         if obj.mesostructure:
             part(f"{where}.mesostructure", e.mesostructure, KINDS["mesostructure"])
             if parts[e.mesostructure]["size"] != obj.mesostructure.size:
@@ -112,8 +120,6 @@ def validate(manifest, origin: str):
                 raise InputError(f"{origin}: key '{where}.mesostructure_albedo' is "
                                  f"{'missing' if e.mesostructure_albedo is None else 'present'} but the scene's "
                                  f"mesostructure has {'an' if obj.mesostructure.albedo else 'no'} albedo; re-bake.")
-            if e.mesostructure_albedo is not None:
-                part(f"{where}.mesostructure_albedo", e.mesostructure_albedo, KINDS["albedo-map"])
         for name, options in obj.techniques.items():
             t = REGISTRY[name]
             if t.reads is None:

@@ -195,10 +195,28 @@ def to_parts(p: Pyramid) -> dict[str, dict[str, np.ndarray]]:
 
 
 def from_parts(parts: dict[str, dict[str, np.ndarray]], mode: str) -> Pyramid:
-    """The Pyramid that to_parts wrote."""
-    levels = tuple(np.stack([parts[k]["min.Z"], parts[k]["max.Z"]], -1).astype(np.float32)
-                   for k in sorted(k for k in parts if k.startswith("L")))
-    return Pyramid(np.asarray(parts["samples"]["depth.Z"], np.float32), mode, levels)
+    """The Pyramid that to_parts wrote. ValueError unless its levels are the ones its samples make in `mode`:
+    L00, L01, ... up to the single texel, each ceil(n / 2^L) cells per axis (not a level missing, out of
+    order, or built in the other mode)."""
+    s = np.asarray(parts["samples"]["depth.Z"], np.float32)
+    if mode not in MODES or s.ndim != 2 or min(s.shape) < (1 if mode == WRAP else 2):
+        raise ValueError(f"samples of shape {s.shape} make no {mode!r} pyramid")
+    ny, nx = s.shape if mode == WRAP else (s.shape[0] - 1, s.shape[1] - 1)
+    top = (max(ny, nx) - 1).bit_length()                 # levels until one texel: ceil(log2(n))
+    names = sorted(k for k in parts if k.startswith("L"))
+    if names != [f"L{L:02d}" for L in range(top + 1)]:
+        raise ValueError(f"levels {', '.join(names)} where {mode} samples of {s.shape[0]} x {s.shape[1]} make "
+                         f"L00 to L{top:02d}")
+    levels = []
+    for L, k in enumerate(names):
+        if not {"min.Z", "max.Z"} <= set(parts[k]):
+            raise ValueError(f"level {k} lacks its min.Z or max.Z channel")
+        a = np.stack([parts[k]["min.Z"], parts[k]["max.Z"]], -1).astype(np.float32)
+        if a.shape[:2] != (-(-ny >> L), -(-nx >> L)):
+            raise ValueError(f"level {k} has {a.shape[0]} x {a.shape[1]} cells where {mode} samples of "
+                             f"{s.shape[0]} x {s.shape[1]} make {-(-ny >> L)} x {-(-nx >> L)}")
+        levels.append(a)
+    return Pyramid(s, mode, tuple(levels))
 
 
 # ------------------------------------------------------------------------------------------ the exact patch

@@ -15,6 +15,8 @@ import numpy as np
 
 from .colour import srgb8_to_linear
 
+MAX_PIXELS = 8192 * 8192   # the largest albedo picture, an asset's or a tile's (384 MiB of half-float texels)
+
 _LINEAR = srgb8_to_linear(np.arange(256))   # the decode as a table: 256 values, exact per texel
 
 

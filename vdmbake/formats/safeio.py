@@ -22,11 +22,12 @@ def read_regular(path: Path, what: str, size: int | None = None, limit: int | No
         raise
     except OSError as e:
         raise InputError(f"{shown}: cannot read the {what} ({e.strerror or e}).") from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode):   # before fdopen, which refuses a directory with an error of its own
+        os.close(fd)
+        raise InputError(f"{shown}: the {what} is not a regular file (a FIFO, device or directory); refusing "
+                         "to read it.")
     with os.fdopen(fd, "rb") as f:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise InputError(f"{shown}: the {what} is not a regular file (a FIFO, device or directory); refusing "
-                             "to read it.")
         if size is not None and st.st_size != size:
             raise InputError(f"{shown}: the {what} has {st.st_size} bytes where the manifest records {size} (the "
                              "bundle is damaged or being rewritten); re-bake with vdmbake --force.")

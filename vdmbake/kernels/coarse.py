@@ -21,15 +21,17 @@ CREASE_DEG = 60.0   # faces meeting at a larger angle do not share a vertex norm
 
 
 def simplify(mesh: TriMesh, ratio: float) -> TriMesh:
-    """Keep about `ratio` of the faces (at least one) of the surface welded by position (`surface`); vertex
-    normals are recomputed over the simplified surface with sharp edges kept sharp, per-vertex colours
-    carried (`collapsed_colors`), and for an asset with an albedo map its UVs (`transferred_uvs`) and the
-    map; other UVs are dropped (no other technique reads a coarse mesh's)."""
+    """Keep about `ratio` of the faces (at least one, none if the weld leaves none) of the surface welded by
+    position (`surface`); vertex normals are recomputed over the simplified surface with sharp edges kept
+    sharp, per-vertex colours carried (`collapsed_colors`), and for an asset with an albedo map its UVs
+    (`transferred_uvs`) and the map; other UVs are dropped (no other technique reads a coarse mesh's)."""
     textured = mesh.texture is not None
     if ratio >= 1.0:
         return TriMesh(mesh.vertices, mesh.faces, mesh.normals, mesh.uvs if textured else None,
                        colors=mesh.colors, texture=mesh.texture)
     v, f, colors, lineage = surface(mesh, ratio)
+    if not len(f):                                     # nothing left: the caller names the setting
+        return TriMesh(v[:0], f, v[:0])
     # Welding joined the faces across sharp edges too (a cone's rim): normals are smoothed only within
     # CREASE_DEG, so an edge sharp in the input stays sharp in the shading.
     v, f, n, source = crease_normals(v, f, CREASE_DEG)
@@ -140,9 +142,11 @@ def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.nda
     faces = ids[mesh.faces]
     whole = np.flatnonzero((faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0]))
     faces = faces[whole]
+    if not len(faces):      # every face's corners weld into one point or a line: no surface to simplify
+        return points[:0], faces, None, None
     # Simplify about the centre: quadric errors of a far-off mesh lose digits otherwise.
     centre = 0.5 * (points.min(0) + points.max(0))
-    target = max(1, int(round(ratio * len(mesh.faces))))
+    target = min(len(faces), max(1, int(round(ratio * len(mesh.faces)))))   # the weld may leave fewer
     v, f, collapses = fast_simplification.simplify(points - centre, faces, target_count=target, return_collapses=True)
     v = np.asarray(v, np.float64) + centre
     f = np.asarray(f, np.int64).reshape(-1, 3)

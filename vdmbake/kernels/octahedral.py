@@ -45,6 +45,7 @@ deterministic (independent of thread scheduling).
 """
 from __future__ import annotations
 
+import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -52,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import billboard_maps
-from ..bundle import parts
+from ..bundle import budget, parts
 from ..common import texture
 from ..common.embree import RayScene
 from ..errors import InputError
@@ -61,6 +62,10 @@ from ..assets.meshes import TriMesh, validate
 EMPTY = 3            # rings of texels around every tile that the object never covers (see capture)
 MIN_RESOLUTION = 16  # below this the empty rings take over the tile
 MAX_ATLAS = 16384    # the atlas side N R, at most GL_MAX_TEXTURE_SIZE of common drivers (llvmpipe: 16384)
+BAND_RAYS = 1 << 20  # rays one task of the bake casts at most: its arrays stay near 200 MB whatever N and R
+# Peak bytes per atlas texel, without and with colour, while the part is padded, packed and read back, and while
+# it is cast; and per ray in flight (bake_bytes; measured on 16 M texels: 62 to 69 and 94 bytes, 208 a ray).
+PART_BYTES, CAST_BYTES, RAY_BYTES = (72, 96), (16, 28), 210
 
 
 @dataclass(frozen=True)
@@ -192,6 +197,14 @@ def _check(s: Settings):
                          f"{s.views * s.resolution} texels per atlas side; at most {MAX_ATLAS}.")
 
 
+def bake_bytes(settings: Settings, coloured: bool = False) -> int:
+    """The peak memory of bake, to_part and the bundle's read-back of the part, estimated (vdmbake.bundle.budget):
+    the larger of the part's phase and the casting's, whose tasks in flight are one per CPU."""
+    texels = (settings.views * settings.resolution) ** 2
+    return max(texels * PART_BYTES[coloured],
+               texels * CAST_BYTES[coloured] + (os.cpu_count() or 1) * BAND_RAYS * RAY_BYTES)
+
+
 def capture_half(radius: float, resolution: int) -> float:
     """Half side of every view's square: the bounding sphere plus EMPTY rings of texels."""
     return radius * resolution / (resolution - 2 * EMPTY)
@@ -204,6 +217,11 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), up=(0.0, 0.0, 1.0), log
     _check(settings)
     validate(mesh, "octahedral")
     n, res = settings.views, settings.resolution
+    coloured = texture.has_albedo(mesh)
+    colour = " with colour" if coloured else ""
+    budget.check(bake_bytes(settings, coloured), f"octahedral {'hemi' if settings.hemi else 'full'}-{n}x{res} (an "
+                 f"atlas of {n * res}^2 texels{colour})", f"use fewer views or texels per view (an atlas{colour} of "
+                 f"N R up to {math.isqrt(budget.BUDGET // PART_BYTES[coloured])} fits)")
     centre, radius = mesh.bounding_sphere()
     radius = radius if radius > 0 else 1.0
     cap = capture_half(radius, res)
@@ -215,14 +233,20 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), up=(0.0, 0.0, 1.0), log
     g = (np.arange(res) + 0.5) / res * 2.0 - 1.0
     gx, gy = np.meshgrid(g * cap, g * cap)                           # [b, a]: texel row b, column a
 
-    coloured = texture.has_albedo(mesh)
+    side = n * res
+    atlas = Atlas(settings, centre, float(radius), float(cap), basis, np.zeros((side, side, 2), np.float32),
+                  np.ones((side, side), np.float32), np.zeros((side, side), np.float32), 1 + side * side,
+                  np.zeros((side, side, 3), np.float32) if coloured else None)
+    band = max(1, min(res, BAND_RAYS // side))                      # texel rows per task
 
-    def row(j):
-        """The N tiles of view row j: (R, N R) normal code, depth, coverage and albedo (or None)."""
+    def cast(task):
+        """Texel rows b0 .. b0 + band of the N tiles of view row j, into the atlas."""
+        j, b0 = task
+        rows = min(band, res - b0)
         e, u, vv = (f[j] for f in frames)                           # (N, 3) each
-        origin = (cap * e[:, None, None] + gx[None, ..., None] * u[:, None, None]
-                  + gy[None, ..., None] * vv[:, None, None]).reshape(-1, 3)
-        w = np.broadcast_to(-e[:, None, None], (n, res, res, 3)).reshape(-1, 3)
+        origin = (cap * e[:, None, None] + gx[None, b0:b0 + rows, :, None] * u[:, None, None]
+                  + gy[None, b0:b0 + rows, :, None] * vv[:, None, None]).reshape(-1, 3)
+        w = np.broadcast_to(-e[:, None, None], (n, rows, res, 3)).reshape(-1, 3)
         hits = scene.intersect(origin, w, 2.0 * cap)
         hit = hits.prim >= 0
         tri = mesh.faces[hits.prim[hit]]
@@ -233,31 +257,28 @@ def bake(mesh: TriMesh, settings: Settings = Settings(), up=(0.0, 0.0, 1.0), log
         # Faces seen from behind show their other side, as in the reference (geometric normal . ray > 0).
         back = np.einsum("hc,hc->h", hits.ng[hit], w[hit]) > 0
         nrm[back] = -nrm[back]
-        view = np.repeat(np.arange(n), res * res)[hit]
+        view = np.repeat(np.arange(n), rows * res)[hit]
         local = np.stack([np.einsum("hc,hc->h", nrm, u[view]), np.einsum("hc,hc->h", nrm, vv[view]),
                           np.einsum("hc,hc->h", nrm, e[view])], -1)
-        code = np.zeros((n * res * res, 2))
+        code = np.zeros((len(w), 2))
         code[hit] = encode(local)
-        depth = np.ones(n * res * res)
+        depth = np.ones(len(w))
         depth[hit] = np.clip(hits.t[hit] / (2.0 * cap), 0.0, 1.0)
-        tiles = lambda a: a.reshape(n, res, res, -1).transpose(1, 0, 2, 3).reshape(res, n * res, -1)
-        albedo = None
+        at = slice(j * res + b0, j * res + b0 + rows)
+        tiles = lambda a: a.reshape(n, rows, res, -1).transpose(1, 0, 2, 3).reshape(rows, side, -1)
+        atlas.normal[at] = tiles(code)
+        atlas.depth[at] = tiles(depth[:, None])[..., 0]
+        atlas.coverage[at] = tiles(hit[:, None])[..., 0]
         if coloured:
-            albedo = np.zeros((n * res * res, 3))
+            albedo = np.zeros((len(w), 3))
             albedo[hit] = texture.surface_albedo(mesh, hits.prim[hit], bary, None)
-            albedo = tiles(albedo)
-        return tiles(code), tiles(depth[:, None])[..., 0], tiles(hit[:, None].astype(np.float64))[..., 0], albedo
+            atlas.albedo[at] = tiles(albedo)
 
     with ThreadPoolExecutor(os.cpu_count() or 1) as pool:
-        rows = list(pool.map(row, range(n)))
-    rays = 1 + n * n * res * res
+        list(pool.map(cast, [(j, b0) for j in range(n) for b0 in range(0, res, band)]))
     log(f"{n}x{n} views ({'upper hemisphere' if settings.hemi else 'full sphere'}) of {res}^2 texels, "
-        f"atlas {n * res}^2, {rays:,} rays")
-    return Atlas(settings, centre, float(radius), float(cap), basis,
-                 np.concatenate([r[0] for r in rows]).astype(np.float32),
-                 np.concatenate([r[1] for r in rows]).astype(np.float32),
-                 np.concatenate([r[2] for r in rows]).astype(np.float32), rays,
-                 np.concatenate([r[3] for r in rows]).astype(np.float32) if coloured else None)
+        f"atlas {side}^2, {atlas.rays:,} rays")
+    return atlas
 
 
 def to_part(a: Atlas) -> parts.OctahedralAtlas:
@@ -266,10 +287,17 @@ def to_part(a: Atlas) -> parts.OctahedralAtlas:
     extrapolated from them (billboard_maps.pad), clamped to their ranges, so that filtering at a
     silhouette follows the surface instead of bending it to depth 1; the albedo there is the covered
     neighbours' mean (pad, linear=False: a colour does not continue a slope). The EMPTY rings around every
-    tile keep the extrapolation inside its view."""
-    covered = a.coverage > 0.5
-    values = billboard_maps.pad(np.concatenate([a.normal, a.depth[..., None]], -1), covered)
-    albedo = None if a.albedo is None else billboard_maps.pad(a.albedo, covered, linear=False)
+    tile keep the extrapolation inside its view, so each tile is padded on its own (one tile's temporaries at
+    a time)."""
+    covered, res = a.coverage > 0.5, a.settings.resolution
+    values = np.concatenate([a.normal, a.depth[..., None]], -1)
+    albedo = None if a.albedo is None else a.albedo.copy()
+    lo, hi = np.array([-1, -1, 0], np.float32), np.array([1, 1, 1], np.float32)   # code and depth ranges
+    for r in range(0, len(covered), res):                   # tile by tile: a tile's padding stays in it
+        for c in range(0, len(covered), res):
+            t = np.s_[r:r + res, c:c + res]
+            values[t] = np.clip(billboard_maps.pad(values[t], covered[t]), lo, hi)
+            if albedo is not None:
+                albedo[t] = billboard_maps.pad(albedo[t], covered[t], linear=False)
     return parts.OctahedralAtlas(a.settings.views, a.settings.hemi, a.basis, a.centre, a.radius, a.capture,
-                                 np.clip(values[..., :2], -1.0, 1.0), np.clip(values[..., 2], 0.0, 1.0),
-                                 a.coverage, a.rays, albedo)
+                                 values[..., :2], values[..., 2], a.coverage, a.rays, albedo)

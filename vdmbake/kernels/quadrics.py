@@ -34,9 +34,10 @@ class QuadricSet:
         lo = np.concatenate([s[:, :3] - s[:, 3:], c[:, :3] - c[:, 6:], c[:, 3:6] - c[:, 6:]]).min(0)
         hi = np.concatenate([s[:, :3] + s[:, 3:], c[:, :3] + c[:, 6:], c[:, 3:6] + c[:, 6:]]).max(0)
         centre = 0.5 * (lo + hi)
-        reach = np.concatenate([np.linalg.norm(s[:, :3] - centre, axis=1) + s[:, 3],
-                                np.linalg.norm(c[:, :3] - centre, axis=1) + c[:, 6],
-                                np.linalg.norm(c[:, 3:6] - centre, axis=1) + c[:, 6]])
+        with np.errstate(over="ignore"):   # quadrics near 1e300: an infinite radius, which parts.check_extent refuses
+            reach = np.concatenate([np.linalg.norm(s[:, :3] - centre, axis=1) + s[:, 3],
+                                    np.linalg.norm(c[:, :3] - centre, axis=1) + c[:, 6],
+                                    np.linalg.norm(c[:, 3:6] - centre, axis=1) + c[:, 6]])
         return centre, float(reach.max())
 
 

@@ -289,6 +289,17 @@ def mvm_slice(vdm_c: np.ndarray, sampling: Sampling, horizon: np.ndarray | None 
 ERROR_BLOCK_ROWS = 16384   # rows of A per block of the reconstruction-error pass
 
 
+def bake_bytes(size: int, n_phi: int, n_theta: int, n_c: int, k: int | str) -> int:
+    """The peak memory of bake_tables, compress and the storage choice for k eigenfunctions ("all": every
+    column), estimated (vdmbake.bundle.budget): 3 bytes per byte of the float32 table plus 3 more for the
+    weights of every column kept, and 128 MiB besides (measured: 2.75 bytes per table byte at k = 4 of 144
+    columns, 5.8 with all of them, on a 268 MB table; 128 MiB for the rest of the process)."""
+    table = size * size * n_phi * n_theta * n_c * 4
+    columns = n_theta * n_c + n_c
+    kept = 1.0 if k == "all" else min(k, columns) / columns
+    return int(table * (3 + 3 * kept)) + (128 << 20)
+
+
 @dataclass
 class Compressed:
     W: np.ndarray        # (N, N, n_phi, k) weights of the eigenfunctions

@@ -40,7 +40,8 @@ def _variant(m) -> Variant:
     return v
 
 
-VARIANT = Parsed(r"(full|hemi)-(\d+)x(\d+)-(march|virtual)", _variant,
+# N and R of at most 5 digits: a longer number is out of range, and int() refuses one of more than 4300
+VARIANT = Parsed(r"(full|hemi)-([0-9]{1,5})x([0-9]{1,5})-(march|virtual)", _variant,
                  "LAYOUT-NxR-METHOD: 'full-' or 'hemi-', then NxR (views per side N in [2, 64], texels per view "
                  f"R in [{octahedral.MIN_RESOLUTION}, 4096], N R <= {octahedral.MAX_ATLAS}), then '-march' or '-virtual'")
 
@@ -61,10 +62,11 @@ def bake(job) -> dict:
         if v.atlas in out:
             continue
         t0 = time.perf_counter()
-        a = octahedral.bake(job.mesh, octahedral.Settings(v.views, v.resolution, v.layout == "hemi"), UP,
-                            log=lambda m, key=v.atlas: job.log(f"octahedral {key}: {m}"))
+        settings = octahedral.Settings(v.views, v.resolution, v.layout == "hemi")
+        part = octahedral.to_part(octahedral.bake(job.mesh, settings, UP,
+                                                  log=lambda m, key=v.atlas: job.log(f"octahedral {key}: {m}")))
         job.steps[f"octahedral_{v.atlas}_s"] = round(time.perf_counter() - t0, 3)
-        out[v.atlas] = job.write(f"octahedral-{v.atlas}", parts.OCTAHEDRAL, octahedral.to_part(a))
+        out[v.atlas] = job.write(f"octahedral-{v.atlas}", parts.OCTAHEDRAL, part)   # the bare atlas freed first
         job.log(f"octahedral {v.atlas}: atlas {v.views * v.resolution}^2, "
                 f"{job.writer.parts[out[v.atlas]]['bytes'] / 2**20:.2f} MB")
     return out

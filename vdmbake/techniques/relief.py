@@ -24,8 +24,9 @@ class Options:
 
 def bake(job) -> dict:
     """The min/max pyramid of the depth field depth * (1 - h) (texture units, float32), tiled."""
+    m = job.obj.mesostructure
     t0 = time.perf_counter()
-    depth = job.obj.mesostructure.depth * (1.0 - job.maps.heights.astype(np.float64))
+    depth = m.depth * (1.0 - job.maps.heights.astype(np.float64))
     p = pyramid.build(depth.astype(np.float32), pyramid.WRAP)
     job.steps["relief_pyramid_s"] = round(time.perf_counter() - t0, 4)
     job.log(f"relief pyramid {p.top + 1} levels, {p.nbytes / 2**10:.0f} KB")

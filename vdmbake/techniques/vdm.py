@@ -7,14 +7,12 @@ per-pixel algorithm, R > 0 finishes the view ray's hit and the self-shadow on th
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import dataclass
 
-from ..bundle import parts
+from ..bundle import budget, parts
 from ..common import texspace
 from ..kernels import vdm, vdm_storage
-from ..errors import InputError
 from ..schema import Choice, Either, Integer, ListOf, Technique, setting
 
 
@@ -46,32 +44,24 @@ def variants(options: Options) -> list[Variant]:
     return [Variant(k, r) for r in options.refine for k in options.k]
 
 
-# Peak bake memory per byte of the float32 VDM table (size^2 x phi x theta x curvatures), with about 2x
-# headroom: peak RSS grew 3.5 bytes per table byte from size 64 to 128 (phi 16, theta 8, 8 curvatures).
-BAKE_BYTES_PER_TABLE_BYTE = 8
-
-
-def check_memory(m, origin: str, available: int | None = None) -> None:
-    """Refuse, before the bake starts, VDM tables whose bake would not fit in memory."""
-    if available is None:
-        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+def check_memory(m, origin: str, available: int | None = None, k: int | str = "all") -> None:
+    """Refuse, before the bake starts, VDM tables whose bake (k eigenfunctions) would not fit `available` bytes
+    (the budget, vdmbake.bundle.budget.BUDGET)."""
     table = m.size ** 2 * m.phi * m.theta * m.curvatures * 4
-    if table * BAKE_BYTES_PER_TABLE_BYTE > 0.8 * available:
-        raise InputError(f"{origin}: the VDM table of mesostructure size {m.size}, phi {m.phi}, theta {m.theta}, "
-                         f"curvatures {m.curvatures} ({table / 2**30:.1f} GiB) needs about "
-                         f"{table * BAKE_BYTES_PER_TABLE_BYTE / 2**30:.1f} GiB to bake, more than 80% of the "
-                         f"{available / 2**30:.1f} GiB available; lower mesostructure.size, phi, theta or curvatures.")
+    budget.check(vdm.bake_bytes(m.size, m.phi, m.theta, m.curvatures, k),
+                 f"{origin}: the VDM table of mesostructure size {m.size}, phi {m.phi}, theta {m.theta}, curvatures "
+                 f"{m.curvatures} ({table / 2**30:.1f} GiB, k = {k})",
+                 "lower mesostructure.size, phi, theta or curvatures, or k", available)
 
 
 def bake(job) -> dict:
-    m, mesh = job.obj.mesostructure, job.mesh
-    check_memory(m, f"object {job.obj.name!r}")
+    m, mesh, ks = job.obj.mesostructure, job.mesh, job.options.k
+    check_memory(m, f"object {job.obj.name!r}", k="all" if "all" in ks else max(ks))
     lo, hi = texspace.curvature_range(mesh.frame, mesh.normals, m.tiling)
     sampling = vdm.Sampling(m.size, m.phi, m.theta, vdm.curvature_samples(lo, hi, m.curvatures))
     t0 = time.perf_counter()
     table, theta_mvm, rays = vdm.bake_tables(job.maps.heights.astype("f8"), m.depth, sampling)
     t1 = time.perf_counter()
-    ks = job.options.k
     k = table.shape[3] * table.shape[4] + table.shape[4] if "all" in ks else max(ks)
     comp = vdm.compress(table, theta_mvm, k, report=[x for x in ks if x != "all"])
     t2 = time.perf_counter()

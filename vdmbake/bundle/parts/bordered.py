@@ -8,7 +8,8 @@ import numpy as np
 from ...common import pyramid
 from ...formats import exr
 from ...schema import REQUIRED, Boolean, Choice, setting
-from .kind import COUNT, PartKind, albedo_channels, albedo_meta, channels, finite, need, unpack_albedo
+from .kind import COUNT, PartKind, albedo_channels, albedo_meta, bad, channels, finite, need, unpack_albedo
+from .pyramid import read as read_pyramid
 
 
 @dataclass
@@ -44,8 +45,9 @@ def _unpack_bordered(data, meta, origin) -> list[BorderedMaps]:
         pyr = None
         if meta["pyramids"]:
             sub = {k[len(name) + 1:]: v for k, v in tables.items() if k.startswith(name + ".")}
-            need(sub, "samples", ["depth.Z"], f"{origin} ({name})")
-            pyr = pyramid.from_parts(sub, meta["mode"])
+            pyr = read_pyramid(sub, meta["mode"], f"{origin} ({name})")
+            if pyr.samples.shape != maps.shape[:2]:
+                bad(origin, f"{name}'s pyramid samples {pyr.samples.shape} where its maps are {maps.shape[:2]}")
         finite(origin, **{name: maps})
         out.append(BorderedMaps(maps.astype(np.float32), pyr, unpack_albedo(tables, name, meta, maps.shape[:2], origin)))
     return out
@@ -55,7 +57,7 @@ def _unpack_bordered(data, meta, origin) -> list[BorderedMaps]:
 class BorderedMeta:
     boards: int = setting(REQUIRED, COUNT, "billboards")
     pyramids: bool = setting(REQUIRED, Boolean(), "every billboard has its pyramid")
-    mode: str = setting(REQUIRED, Choice(*pyramid.MODES), "the pyramids' addressing")
+    mode: str = setting(REQUIRED, Choice(pyramid.CLAMP), "the pyramids' addressing")
     albedo: bool = setting(False, Boolean(), "every billboard has a colour map")
 
 

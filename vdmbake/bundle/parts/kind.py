@@ -14,6 +14,7 @@ from ...schema import Integer, Invalid, Type, Vector
 
 
 COUNT = Integer(0, 2**31 - 1)   # element counts: PLY and EXR index with 32-bit integers
+EXTENT = 1e30   # scene units: a bounding sphere lies within this of the origin, its radius in [1 / EXTENT, EXTENT]
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,19 @@ def finite(origin: str, **arrays) -> None:
     for name, a in arrays.items():
         if a is not None and not np.isfinite(a).all():
             bad(origin, f"{name} holds NaN or Inf")
+
+
+def check_extent(origin: str, centre, radius: float) -> None:
+    """The one check of an object's size and place, wherever a bounding sphere is read: the geometry parts (mesh,
+    quadrics, as the bake writes them and the renderer reads them) and the manifest's object entries. vdmrender
+    places its cameras and clip planes around the sphere; beyond EXTENT (or under 1 / EXTENT) their distances
+    and depth ranges overflow (or vanish in) the float32 the GL pipeline computes in."""
+    centre = np.asarray(centre, np.float64)
+    if not (np.isfinite(centre).all() and np.abs(centre).max() <= EXTENT and 1 / EXTENT <= radius <= EXTENT):
+        raise InputError(f"{origin}: the bounding sphere (centre {np.round(centre, 6).tolist()}, radius {radius:.6g}) "
+                         f"is out of range: vdmrender draws objects within {EXTENT:g} of the origin, of radius "
+                         f"{1 / EXTENT:g} to {EXTENT:g} scene units; scale or move the object (transform) or its "
+                         "model.")
 
 
 def check_shape(origin: str, name: str, a: np.ndarray, shape: tuple) -> None:

@@ -7,7 +7,7 @@ import numpy as np
 
 from ...formats import ply
 from ...schema import REQUIRED, Integer, setting
-from .kind import PartKind, bad, finite
+from .kind import PartKind, bad, check_extent, finite
 
 
 @dataclass(frozen=True)
@@ -28,6 +28,8 @@ def _unpack_mesh(data, meta, origin):
     f = m.frame
     finite(origin, vertices=m.vertices, normals=m.normals, uvs=m.uvs,
             frame=None if f is None else np.concatenate([f.dpdu, f.dpdv, f.k1[:, None], f.k2[:, None], f.d1], 1))
+    with np.errstate(over="ignore", invalid="ignore"):   # a sphere too large to measure is out of range too
+        check_extent(origin, *m.bounding_sphere())
     return m
 
 

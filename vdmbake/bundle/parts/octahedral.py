@@ -51,7 +51,7 @@ def _unpack_octahedral(data, meta, origin) -> OctahedralAtlas:
     for name, x in (("normal.U", nu), ("normal.V", nv), ("depth.Z", d), ("A", a)):
         check_shape(origin, f"atlas {name} (the manifest says {meta['views']} views of {meta['resolution']}^2)", x,
                (side, side))
-    finite(origin, atlas=np.stack([nu, nv, d, a]))
+    finite(origin, **{f"atlas {name}": x for name, x in (("normal.U", nu), ("normal.V", nv), ("depth.Z", d), ("A", a))})
     if abs(np.linalg.det(np.asarray(meta["basis"], np.float64)) - 1) > 1e-3:
         bad(origin, "basis not a right-handed orthonormal frame")
     return OctahedralAtlas(int(meta["views"]), bool(meta["hemi"]), np.asarray(meta["basis"], np.float64),

@@ -13,16 +13,22 @@ def _pack_pyramid(p: pyramid.Pyramid):
     return exr.to_bytes(pyramid.to_parts(p)), {"mode": p.mode, "levels": p.top + 1}
 
 
-def _unpack_pyramid(data, meta, origin):
-    tables = channels(data, origin)
+def read(tables: dict, mode: str, origin: str) -> pyramid.Pyramid:
+    """A pyramid from its EXR parts (`samples`, `L00`, ...), refused unless its levels are the ones its samples
+    make in `mode` (vdmbake.common.pyramid.from_parts): the relief part and each billboard's in a bordered part."""
     need(tables, "samples", ["depth.Z"], origin)
-    levels = sorted(k for k in tables if k.startswith("L"))
-    if len(levels) != meta["levels"]:
-        bad(origin, f"{len(levels)} levels where the manifest says {meta['levels']}")
-    for k in levels:
-        need(tables, k, ["min.Z", "max.Z"], origin)
-    p = pyramid.from_parts(tables, meta["mode"])
-    finite(origin, samples=p.samples)
+    try:
+        p = pyramid.from_parts(tables, mode)
+    except ValueError as e:
+        bad(origin, str(e))
+    finite(origin, samples=p.samples, **{f"L{L:02d}": a for L, a in enumerate(p.levels)})
+    return p
+
+
+def _unpack_pyramid(data, meta, origin):
+    p = read(channels(data, origin), meta["mode"], origin)
+    if p.top + 1 != meta["levels"]:
+        bad(origin, f"{p.top + 1} levels where the manifest says {meta['levels']}")
     return p
 
 

@@ -1,0 +1,126 @@
+"""The files a mesh file reaches: an OBJ its MTL (`mtllib`) and the MTL its texture (`map_Kd`), a glTF its
+buffers and images by URI, a PLY its texture (`comment TextureFile`). They are inputs as much as the mesh
+file: `reached_files` reads each once with the checks of the scene's own files (a regular file of bounded
+size, so a FIFO is refused instead of waited on), for the input hash and for loading (meshes.load_mesh_file
+hands trimesh only these bytes). A texture that cannot be used is an error naming it and the file that
+named it, not a mesh silently baked without it."""
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from urllib.parse import unquote
+
+from ..common import texture
+from ..errors import InputError
+from ..formats.safeio import read_regular
+from ..schema import printable
+
+MAX_FILE_BYTES = 2 << 30   # the largest mesh file or file it names (an OBJ of 16 M faces is about 1 GB)
+
+
+def references(kind: str, data: bytes, textures: bool, origin: str) -> list[tuple[str, str]]:
+    """The files a file names, as trimesh asks for them: (the name as written, what it is). `kind` is the
+    file's type: a mesh file's suffix (obj, gltf, glb, ply) or `mtl`. OBJ: its first `mtllib` (the one trimesh
+    reads); MTL: every `map_Kd` (the one map trimesh reads); glTF: `buffers[].uri` and `images[].uri` that are not
+    data: URIs (a GLB's own buffer is inside it); PLY: its `comment TextureFile`. Textures, and the MTL that
+    only names textures, are listed only if `textures`; then a glTF material whose base colour names no image
+    of the file is an InputError naming `origin`. A file too malformed to list is left to trimesh to refuse."""
+    if kind in ("obj", "mtl") and textures:
+        key = "mtllib" if kind == "obj" else "map_kd"
+        text = data.decode("utf-8-sig", "replace")   # a byte-order mark is not part of the first statement
+        lines = [line.split(None, 1) for line in (text.split("\n") if kind == "obj" else text.splitlines())]
+        names = [words[1].strip() for words in lines if len(words) == 2 and words[0].lower() == key]
+        return [(n, "material library") for n in names[:1]] if kind == "obj" else [(n, "texture") for n in names]
+    if kind == "ply" and textures:
+        header = data.partition(b"end_header")[0].decode("utf-8", "replace")
+        names = [line[line.lower().index("texturefile") + 11:].strip() for line in header.splitlines()
+                 if "texturefile" in line.lower()]
+        return [(names[-1], "texture")] if names and names[-1] else []
+    if kind in ("gltf", "glb"):
+        if kind == "glb":   # the JSON chunk: after the 12-byte header, its length and type
+            data = data[20:20 + int.from_bytes(data[12:16], "little")] if data[16:20] == b"JSON" else b""
+        try:
+            return _gltf_references(json.loads(data), textures, origin)
+        except (ValueError, RecursionError, AttributeError, TypeError, KeyError):
+            return []
+    return []
+
+
+def _gltf_references(tree: dict, textures: bool, origin: str) -> list[tuple[str, str]]:
+    named = [(b["uri"], "buffer") for b in tree.get("buffers", []) if "uri" in b]
+    if textures:
+        named += [(image["uri"], "texture") for image in tree.get("images", []) if "uri" in image]
+        listed, images = tree.get("textures", []), tree.get("images", [])
+        for i, material in enumerate(tree.get("materials", [])):
+            index = material.get("pbrMetallicRoughness", {}).get("baseColorTexture", {}).get("index")
+            if index is None:
+                continue
+            texture = listed[index] if isinstance(index, int) and 0 <= index < len(listed) else {}
+            source = texture.get("source", 0)   # none: an extension names the image
+            if not texture or not (isinstance(source, int) and 0 <= source < len(images)):
+                raise InputError(f"{origin}: material {i}'s base colour is texture {printable(repr(index))}, which "
+                                 f"names no image of the file ({len(listed)} textures, {len(images)} images); fix "
+                                 'the file, or set textures = "ignore" on the object.')
+    return [(uri, what) for uri, what in named if isinstance(uri, str) and not uri.startswith("data:")]
+
+
+@dataclass(frozen=True)
+class Reached:
+    """A mesh file, or a file it reaches, as read: what it is, where, its bytes."""
+    what: str          # "mesh file", "material library", "texture" or "buffer"
+    path: Path
+    data: bytes
+
+
+def described(chain: tuple[str, ...], what: str) -> str:
+    """`the texture named by quad.obj > m.mtl`: a reached file's part in an error message."""
+    return f"{what} named by {printable(' > '.join(chain[:-1]))}" if len(chain) > 1 else what
+
+
+def reached_files(path: Path, spec: str, textures: bool = True) -> dict[tuple[str, ...], Reached]:
+    """The mesh file at `path` (named `spec` in the scene) and every file it reaches (`references`), each read
+    once through safeio (a regular file of at most MAX_FILE_BYTES), keyed by the chain of names that reaches
+    it: (spec,), (spec, "m.mtl"), (spec, "m.mtl", "tex.png"). Names are relative to the mesh file's folder,
+    as trimesh resolves them (a glTF URI percent-decoded); a missing file is an InputError naming it and the
+    file that named it."""
+    found, todo = {}, [((spec,), path, "mesh file")]
+    while todo:
+        chain, file, what = todo.pop(0)
+        if chain in found:
+            continue
+        try:
+            data = read_regular(file, described(chain, what), limit=MAX_FILE_BYTES)
+        except FileNotFoundError:
+            raise InputError(f"{printable(str(file))}: the {described(chain, what)} is not found (a name in a mesh "
+                             "file is relative to the mesh file's folder).") from None
+        found[chain] = Reached(what, file, data)
+        kind = path.suffix[1:].lower() if len(chain) == 1 else "mtl" if what == "material library" else ""
+        for name, named in references(kind, data, textures, printable(" > ".join(chain))):
+            todo.append((chain + (name,), path.parent / (unquote(name) if kind in ("gltf", "glb") else name), named))
+    return found
+
+
+def check_picture(data: bytes, shown: str) -> None:
+    """Refuse a texture no albedo map can come from: one PIL cannot read, one without pixels, or one of more
+    than texture.MAX_PIXELS (checked from its header, before a pixel is decoded). `shown` names it."""
+    from PIL import Image
+
+    limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None   # the bound below, with a message that helps
+    try:
+        with Image.open(io.BytesIO(data)) as im:
+            width, height = im.size
+            if not 0 < width * height <= texture.MAX_PIXELS:
+                raise InputError(f"{shown} is a picture of {width} x {height} pixels; accepted: at least 1 and at most "
+                                 f"{texture.MAX_PIXELS} pixels; scale it down, or set textures = \"ignore\" on the object.")
+            im.load()
+    except InputError:
+        raise
+    except Exception as e:  # PIL raises OSError, SyntaxError, ValueError, ... for what it cannot read
+        reason = ("no picture format Pillow reads" if isinstance(e, Image.UnidentifiedImageError)
+                  else f"{type(e).__name__}: {printable(str(e))}")
+        raise InputError(f"{shown}: cannot read the picture ({reason}); allowed: a picture Pillow reads (PNG, JPEG, "
+                         '...), or set textures = "ignore" on the object.') from None
+    finally:
+        Image.MAX_IMAGE_PIXELS = limit
