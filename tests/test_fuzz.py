@@ -1,5 +1,7 @@
-"""The fuzzer (tests/fuzz_inputs.py) over scene files and manifests, a few hundred examples inside
-`make test` (derandomised, so the suite is reproducible); `make fuzz` runs 1000+ of each, randomised."""
+"""The fuzzer (tests/fuzz_inputs.py) over scene files and manifests and, since issue 21, over textured meshes
+(OBJ + MTL + PNG, glTF + .bin + PNG), baseline reports, composite sets and octahedral and pyramid parts: a few
+hundred examples of each inside `make test` (derandomised, so the suite is reproducible; each target well
+under 60 s on 2 cores); `make fuzz` runs 1000+ of each, randomised (VDM_FUZZ_EXAMPLES)."""
 from __future__ import annotations
 
 import tomllib
@@ -9,7 +11,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fuzz_inputs import SETTINGS, check_manifest, check_scene_data, check_scene_text, mutated
+from fuzz_inputs import (SETTINGS, TEXTURES_SETTING, DamagedPart, Quiet, baseline_text, check_baseline,
+                         check_composite_bake, check_manifest, check_part, check_scene_data, check_scene_text,
+                         check_textured_bake, composite_sets, examples, gltf_case, mutated, obj_case, part_case)
 from test_bad_input import bake, write_scene
 from scenes import TINY_HEAD
 
@@ -77,3 +81,138 @@ def test_fuzz_manifest(fuzz_bundle, tmp_path_factory, data):
 def test_fuzz_bundle_is_accepted_unmutated(fuzz_bundle):
     bundle, manifest = fuzz_bundle
     check_manifest(bundle, manifest)
+
+
+# ------------------------------------------------------------------ issue 21: textures and references
+
+@given(case=obj_case(), textures=TEXTURES_SETTING)
+@examples(200)
+def test_fuzz_textured_obj(tmp_path_factory, case, textures):
+    files, touched = case
+    check_textured_bake(tmp_path_factory.mktemp("obj"), "quad.obj", files, touched, textures)
+
+
+@given(case=gltf_case(), textures=TEXTURES_SETTING)
+@examples(200)
+def test_fuzz_textured_gltf(tmp_path_factory, case, textures):
+    files, touched = case
+    check_textured_bake(tmp_path_factory.mktemp("gltf"), "quad.gltf", files, touched, textures)
+
+
+@pytest.mark.parametrize("textures", [None, '"ignore"'])
+@pytest.mark.parametrize("mesh", ["quad.obj", "quad.gltf"])
+def test_fuzz_textured_assets_are_accepted_unmutated(tmp_path, mesh, textures):
+    """The assets the texture fuzzer starts from bake, with their picture's texels as the albedo map (or, ignored,
+    without one): every rule of check_textured_bake holds for them."""
+    import json
+
+    from fuzz_assets import BIN, GLTF, MTL, OBJ, PNG
+
+    files = {"quad.obj": OBJ, "m.mtl": MTL} if mesh == "quad.obj" else {"quad.gltf": json.dumps(GLTF), "quad.bin": BIN}
+    check_textured_bake(tmp_path, mesh, {**files, "tex.png": PNG}, {"png"}, textures)
+
+
+# --------------------------------------------------------------------------------- issue 21: baselines
+
+BASELINE_SCENE = TINY_HEAD + """
+[[objects]]
+name = "ball"
+primitive = "sphere"
+params = { segments = 12, rings = 6 }
+techniques = { mesh = {}, coarse = { ratios = [0.5] } }
+"""
+
+
+@pytest.fixture(scope="session")
+def fuzz_report(tmp_path_factory) -> dict:
+    """The report.json of one tiny render (once per session): what the baseline fuzzer damages."""
+    import json
+
+    from scenes import bake_and_render
+    from vdmbake.errors import InputError
+    from vdmrender import gl
+
+    try:
+        gl.create_context(None).release()
+    except InputError as e:
+        pytest.skip(f"no OpenGL 4.3 context through EGL here: {e}")
+    result, out = bake_and_render(tmp_path_factory.mktemp("report"), BASELINE_SCENE, "--no-flip")
+    assert result.exit_code == 0, result.output[-2000:]
+    return Quiet("fuzz_report", (json.loads((out / "report.json").read_text()),))
+
+
+@given(data=st.data())
+@examples(300)
+def test_fuzz_baseline(fuzz_report, tmp_path_factory, data):
+    report, = fuzz_report
+    check_baseline(tmp_path_factory.mktemp("baseline") / "report.json", data.draw(baseline_text(fuzz_report)), report)
+
+
+def test_fuzz_baseline_is_accepted_unmutated(fuzz_report, tmp_path):
+    import json
+
+    from vdmrender import baseline
+
+    report, = fuzz_report
+    (tmp_path / "report.json").write_text(json.dumps(report))
+    assert [r["label"] for r in baseline.load(tmp_path / "report.json")["rows"]] == ["mesh", "coarse@0.5"]
+    check_baseline(tmp_path / "report.json", json.dumps(report), report)
+
+
+# ---------------------------------------------------------------------------- issue 21: composite sets
+
+@given(sets=composite_sets())
+@examples(300)
+def test_fuzz_composite_sets(tmp_path_factory, sets):
+    check_composite_bake(tmp_path_factory.mktemp("composite"), sets)
+
+
+def test_fuzz_composite_scene_is_accepted_unmutated(tmp_path):
+    from fuzz_assets import COMPOSITE_SETS
+
+    check_composite_bake(tmp_path, COMPOSITE_SETS)
+
+
+# --------------------------------------------------------------- issue 21: octahedral and pyramid parts
+
+@pytest.fixture(scope="module")
+def parts_bundle(tmp_path_factory):
+    """A tiny bundle with octahedral atlases (one with colour), a relief pyramid and bordered billboards with
+    pyramids: (manifest, {part: (its EXR tables, its manifest entry)}, {part: the value its kind reads})."""
+    import json
+
+    from fuzz_assets import PARTS_FILES, PARTS_SCENE, parts_under_test, write_files
+    from vdmbake.bundle.directory import Bundle
+    from vdmbake.bundle.parts import KINDS
+    from vdmbake.formats import exr
+
+    d = tmp_path_factory.mktemp("parts")
+    write_files(d, PARTS_FILES)
+    out = d / "parts.bundle"
+    r = bake(write_scene(d, PARTS_SCENE), "-o", out)
+    assert r.exit_code == 0, r.output
+    manifest = json.loads((out / "manifest.json").read_text())
+    b = Bundle(out)
+    rels = parts_under_test(manifest)
+    parts = {rel: (exr.read((out / rel).read_bytes()), manifest["parts"][rel]) for rel in rels}
+    values = {rel: b.read(rel, KINDS[manifest["parts"][rel]["kind"]]) for rel in rels}
+    return Quiet("parts_bundle", (manifest, parts, values))
+
+
+@given(data=st.data())
+@examples(400)
+def test_fuzz_parts(parts_bundle, tmp_path_factory, data):
+    manifest, parts, values = parts_bundle
+    case = data.draw(part_case(parts_bundle))
+    check_part(tmp_path_factory.mktemp("part"), manifest, case, values[case.rel])
+
+
+def test_fuzz_parts_are_accepted_unmutated(parts_bundle, tmp_path_factory):
+    from vdmbake.formats import exr
+
+    manifest, parts, values = parts_bundle
+    assert {m["kind"] for _, m in parts.values()} == {"octahedral", "pyramid", "bordered-billboards"}
+    assert any(m.get("albedo") for _, m in parts.values())
+    for rel, (tables, meta) in parts.items():
+        case = DamagedPart(rel, exr.to_bytes(tables), meta, {}, ["reorder"])
+        check_part(tmp_path_factory.mktemp("part"), manifest, case, values[rel])

@@ -15,7 +15,7 @@ from ..common import texture
 from ..common.colour import srgb8_to_linear, to_srgb8
 from ..errors import InputError
 from ..schema import printable
-from .references import check_picture, described, reached_files
+from .references import check_picture, described, names_texture, reached_files
 
 
 @dataclass
@@ -249,14 +249,21 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
     finally:
         Image.MAX_IMAGE_PIXELS = limit
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise InputError(f"{shown}: vertices of shape {vertices.shape}, not three coordinates each.")
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
     validate(TriMesh(vertices, faces, np.zeros_like(vertices)), shown)
     # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces; vertices
     # with different texture coordinates stay apart (UV seams), and the UVs are kept.
     visual = getattr(loaded, "visual", None)
     uv = getattr(visual, "uv", None)
-    uv = np.asarray(uv, np.float64) if uv is not None and len(uv) == len(vertices) else None
+    uv = np.asarray(uv, np.float64) if uv is not None else None
+    uv = uv if uv is not None and uv.shape == (len(vertices), 2) else None
     albedo_map = base_colour_map(visual) if uv is not None else None
+    if textures and albedo_map is None and names_texture(path.suffix[1:].lower(), files):
+        raise InputError(f"{shown}: its material names a base-colour texture, but the mesh loads without one (no "
+                         "texture coordinates for every vertex, a material trimesh cannot parse, or an embedded "
+                         'picture it cannot decode); fix the file, or set textures = "ignore" on the object.')
     if albedo_map is not None and not np.isfinite(uv).all():
         raise InputError(f"{shown}: {int((~np.isfinite(uv)).any(1).sum())} vertices have NaN or Inf texture "
                          'coordinates, where its texture is read; fix the UVs, or set textures = "ignore" on the '

@@ -27,25 +27,46 @@ def references(kind: str, data: bytes, textures: bool, origin: str) -> list[tupl
     data: URIs (a GLB's own buffer is inside it); PLY: its `comment TextureFile`. Textures, and the MTL that
     only names textures, are listed only if `textures`; then a glTF material whose base colour names no image
     of the file is an InputError naming `origin`. A file too malformed to list is left to trimesh to refuse."""
-    if kind in ("obj", "mtl") and textures:
-        key = "mtllib" if kind == "obj" else "map_kd"
-        text = data.decode("utf-8-sig", "replace")   # a byte-order mark is not part of the first statement
-        lines = [line.split(None, 1) for line in (text.split("\n") if kind == "obj" else text.splitlines())]
-        names = [words[1].strip() for words in lines if len(words) == 2 and words[0].lower() == key]
-        return [(n, "material library") for n in names[:1]] if kind == "obj" else [(n, "texture") for n in names]
+    if kind == "obj" and textures:   # found as trimesh finds it: the first "mtllib" anywhere, to the line's end
+        text = "\n{}\n".format(data.decode("utf-8", "replace").strip().replace("\r\n", "\n")).replace("\\\n", "")
+        at = text.find("mtllib")
+        return [(text[at + 6:text.find("\n", at)].strip(), "material library")] if at >= 0 else []
+    if kind == "mtl" and textures:
+        lines = [line.split(None, 1) for line in data.decode("utf-8", "replace").splitlines()]
+        return [(words[1].strip(), "texture") for words in lines if len(words) == 2 and words[0].lower() == "map_kd"]
     if kind == "ply" and textures:
         header = data.partition(b"end_header")[0].decode("utf-8", "replace")
         names = [line[line.lower().index("texturefile") + 11:].strip() for line in header.splitlines()
                  if "texturefile" in line.lower()]
         return [(names[-1], "texture")] if names and names[-1] else []
     if kind in ("gltf", "glb"):
-        if kind == "glb":   # the JSON chunk: after the 12-byte header, its length and type
-            data = data[20:20 + int.from_bytes(data[12:16], "little")] if data[16:20] == b"JSON" else b""
         try:
-            return _gltf_references(json.loads(data), textures, origin)
+            return _gltf_references(_gltf_json(kind, data), textures, origin)
         except (ValueError, RecursionError, AttributeError, TypeError, KeyError):
             return []
     return []
+
+
+def _gltf_json(kind: str, data: bytes):
+    if kind == "glb":   # the JSON chunk: after the 12-byte header, its length and type
+        data = data[20:20 + int.from_bytes(data[12:16], "little")] if data[16:20] == b"JSON" else b""
+    return json.loads(data)
+
+
+def names_texture(kind: str, files: dict) -> bool:
+    """Whether the mesh file (of `kind`, its suffix) asks for a base-colour texture: a reached texture file (an
+    MTL's map_Kd, a PLY's TextureFile, a glTF image file) or a glTF material's baseColorTexture (its image maybe
+    embedded). Then a mesh that loads without one has lost it."""
+    if any(f.what == "texture" for f in files.values()):
+        return True
+    if kind not in ("gltf", "glb"):
+        return False
+    mesh = next(f for chain, f in files.items() if len(chain) == 1)
+    try:
+        return any("baseColorTexture" in m.get("pbrMetallicRoughness", {}) for m in _gltf_json(kind, mesh.data)
+                   .get("materials", []))
+    except (ValueError, RecursionError, AttributeError, TypeError):
+        return False
 
 
 def _gltf_references(tree: dict, textures: bool, origin: str) -> list[tuple[str, str]]:
@@ -63,7 +84,10 @@ def _gltf_references(tree: dict, textures: bool, origin: str) -> list[tuple[str,
                 raise InputError(f"{origin}: material {i}'s base colour is texture {printable(repr(index))}, which "
                                  f"names no image of the file ({len(listed)} textures, {len(images)} images); fix "
                                  'the file, or set textures = "ignore" on the object.')
-    return [(uri, what) for uri, what in named if isinstance(uri, str) and not uri.startswith("data:")]
+    for uri, what in named:
+        if not isinstance(uri, str):
+            raise InputError(f"{origin}: a {what} uri is {printable(repr(uri))}; glTF 2.0 gives a uri as a string.")
+    return [(uri, what) for uri, what in named if not uri.startswith("data:")]
 
 
 @dataclass(frozen=True)

@@ -194,10 +194,11 @@ def to_parts(p: Pyramid) -> dict[str, dict[str, np.ndarray]]:
     return parts
 
 
-def from_parts(parts: dict[str, dict[str, np.ndarray]], mode: str) -> Pyramid:
+def from_parts(parts: dict[str, dict[str, np.ndarray]], mode: str, empties: bool = False) -> Pyramid:
     """The Pyramid that to_parts wrote. ValueError unless its levels are the ones its samples make in `mode`:
     L00, L01, ... up to the single texel, each ceil(n / 2^L) cells per axis (not a level missing, out of
-    order, or built in the other mode)."""
+    order, or built in the other mode), and unless every interval holds the surface below it (what the
+    tracer relies on to skip a cell). empties: level-0 cells may be marked empty (a billboard's)."""
     s = np.asarray(parts["samples"]["depth.Z"], np.float32)
     if mode not in MODES or s.ndim != 2 or min(s.shape) < (1 if mode == WRAP else 2):
         raise ValueError(f"samples of shape {s.shape} make no {mode!r} pyramid")
@@ -216,6 +217,14 @@ def from_parts(parts: dict[str, dict[str, np.ndarray]], mode: str) -> Pyramid:
             raise ValueError(f"level {k} has {a.shape[0]} x {a.shape[1]} cells where {mode} samples of "
                              f"{s.shape[0]} x {s.shape[1]} make {-(-ny >> L)} x {-(-nx >> L)}")
         levels.append(a)
+    c = corners(s, mode)
+    true = np.stack([c.min(-1), c.max(-1)], -1)
+    if empties:
+        true[levels[0][..., 0] >= HUGE] = (HUGE, -HUGE)
+    for L, a in enumerate(levels):
+        if not (np.all(a[..., 0] <= true[..., 0]) and np.all(a[..., 1] >= true[..., 1])):
+            raise ValueError(f"level L{L:02d} has intervals that do not hold the surface its samples make")
+        true = _reduce(true)
     return Pyramid(s, mode, tuple(levels))
 
 

@@ -7,7 +7,7 @@ import numpy as np
 
 from ...formats import exr
 from ...schema import REQUIRED, Boolean, Tables, Vector, setting
-from .kind import Matrix, PartKind, albedo_channels, albedo_meta, bad, channels, finite, need, unpack_albedo
+from .kind import is_rotation, Matrix, PartKind, albedo_channels, albedo_meta, bad, channels, finite, need, unpack_albedo
 
 
 @dataclass
@@ -40,7 +40,7 @@ def _unpack_billboards(data, meta, origin) -> list[Billboard]:
         a, d, nx, ny, nz = need(parts, f"bb{i:03d}", ["A", "depth.Z", "normal.X", "normal.Y", "normal.Z"], origin)
         axes = np.asarray(b["axes"], np.float64)
         finite(origin, **{f"bb{i:03d}": np.stack([a, d, nx, ny, nz])})
-        if abs(np.linalg.det(axes) - 1) > 1e-3 or (np.asarray(b["size"]) <= 0).any():
+        if not is_rotation(axes) or (np.asarray(b["size"]) <= 0).any():
             bad(origin, f"billboard {i}: axes not a right-handed orthonormal frame or a size not positive")
         out.append(Billboard(np.asarray(b["origin"], np.float64), axes,
                              np.asarray(b["size"], np.float64), a, d, np.stack([nx, ny, nz], -1),

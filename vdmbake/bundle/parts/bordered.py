@@ -45,7 +45,7 @@ def _unpack_bordered(data, meta, origin) -> list[BorderedMaps]:
         pyr = None
         if meta["pyramids"]:
             sub = {k[len(name) + 1:]: v for k, v in tables.items() if k.startswith(name + ".")}
-            pyr = read_pyramid(sub, meta["mode"], f"{origin} ({name})")
+            pyr = read_pyramid(sub, meta["mode"], f"{origin} ({name})", empties=True)
             if pyr.samples.shape != maps.shape[:2]:
                 bad(origin, f"{name}'s pyramid samples {pyr.samples.shape} where its maps are {maps.shape[:2]}")
         finite(origin, **{name: maps})

@@ -7,7 +7,7 @@ import numpy as np
 
 from ...formats import exr
 from ...schema import REQUIRED, Boolean, Integer, Number, Vector, setting
-from .kind import COUNT, Matrix, PartKind, albedo_channels, albedo_meta, bad, channels, check_shape, finite, need, unpack_albedo
+from .kind import is_rotation, COUNT, Matrix, PartKind, albedo_channels, albedo_meta, bad, channels, check_shape, finite, need, unpack_albedo
 
 
 @dataclass
@@ -52,7 +52,7 @@ def _unpack_octahedral(data, meta, origin) -> OctahedralAtlas:
         check_shape(origin, f"atlas {name} (the manifest says {meta['views']} views of {meta['resolution']}^2)", x,
                (side, side))
     finite(origin, **{f"atlas {name}": x for name, x in (("normal.U", nu), ("normal.V", nv), ("depth.Z", d), ("A", a))})
-    if abs(np.linalg.det(np.asarray(meta["basis"], np.float64)) - 1) > 1e-3:
+    if not is_rotation(meta["basis"]):
         bad(origin, "basis not a right-handed orthonormal frame")
     return OctahedralAtlas(int(meta["views"]), bool(meta["hemi"]), np.asarray(meta["basis"], np.float64),
                            np.asarray(meta["centre"], np.float64), float(meta["radius"]), float(meta["capture"]),

@@ -13,12 +13,13 @@ def _pack_pyramid(p: pyramid.Pyramid):
     return exr.to_bytes(pyramid.to_parts(p)), {"mode": p.mode, "levels": p.top + 1}
 
 
-def read(tables: dict, mode: str, origin: str) -> pyramid.Pyramid:
+def read(tables: dict, mode: str, origin: str, empties: bool = False) -> pyramid.Pyramid:
     """A pyramid from its EXR parts (`samples`, `L00`, ...), refused unless its levels are the ones its samples
-    make in `mode` (vdmbake.common.pyramid.from_parts): the relief part and each billboard's in a bordered part."""
+    make in `mode` and hold their surface (vdmbake.common.pyramid.from_parts): the relief part, and each
+    billboard's in a bordered part (`empties`: with its uncovered cells marked)."""
     need(tables, "samples", ["depth.Z"], origin)
     try:
-        p = pyramid.from_parts(tables, mode)
+        p = pyramid.from_parts(tables, mode, empties)
     except ValueError as e:
         bad(origin, str(e))
     finite(origin, samples=p.samples, **{f"L{L:02d}": a for L, a in enumerate(p.levels)})
