@@ -198,7 +198,8 @@ def from_parts(parts: dict[str, dict[str, np.ndarray]], mode: str, empties: bool
     """The Pyramid that to_parts wrote. ValueError unless its levels are the ones its samples make in `mode`:
     L00, L01, ... up to the single texel, each ceil(n / 2^L) cells per axis (not a level missing, out of
     order, or built in the other mode), and unless every interval holds the surface below it (what the
-    tracer relies on to skip a cell). empties: level-0 cells may be marked empty (a billboard's)."""
+    tracer relies on to skip a cell). empties: level-0 cells may be marked empty ([HUGE, -HUGE], a
+    billboard's uncovered texels)."""
     s = np.asarray(parts["samples"]["depth.Z"], np.float32)
     if mode not in MODES or s.ndim != 2 or min(s.shape) < (1 if mode == WRAP else 2):
         raise ValueError(f"samples of shape {s.shape} make no {mode!r} pyramid")
@@ -217,14 +218,22 @@ def from_parts(parts: dict[str, dict[str, np.ndarray]], mode: str, empties: bool
             raise ValueError(f"level {k} has {a.shape[0]} x {a.shape[1]} cells where {mode} samples of "
                              f"{s.shape[0]} x {s.shape[1]} make {-(-ny >> L)} x {-(-nx >> L)}")
         levels.append(a)
-    c = corners(s, mode)
-    true = np.stack([c.min(-1), c.max(-1)], -1)
-    if empties:
-        true[levels[0][..., 0] >= HUGE] = (HUGE, -HUGE)
-    for L, a in enumerate(levels):
-        if not (np.all(a[..., 0] <= true[..., 0]) and np.all(a[..., 1] >= true[..., 1])):
-            raise ValueError(f"level L{L:02d} has intervals that do not hold the surface its samples make")
-        true = _reduce(true)
+    # Level 0 must hold each cell's corner samples, each level above the level below it (then every level holds
+    # the surface, as the tracer assumes when it skips a cell); empty cells hold nothing.
+    if mode == WRAP:
+        right = np.roll(s, -1, 1)
+        four = (s, right, np.roll(s, -1, 0), np.roll(right, -1, 0))
+    else:
+        four = (s[:-1, :-1], s[:-1, 1:], s[1:, :-1], s[1:, 1:])
+    lo, hi = np.minimum(np.minimum(four[0], four[1]), np.minimum(four[2], four[3])), \
+        np.maximum(np.maximum(four[0], four[1]), np.maximum(four[2], four[3]))
+    held = (levels[0][..., 0] <= lo) & (levels[0][..., 1] >= hi)
+    if not (held | (empties & (levels[0][..., 0] >= HUGE))).all():
+        raise ValueError("level L00 has intervals that do not hold the surface its samples make")
+    for L in range(1, len(levels)):
+        below = _reduce(levels[L - 1])
+        if not (np.all(levels[L][..., 0] <= below[..., 0]) and np.all(levels[L][..., 1] >= below[..., 1])):
+            raise ValueError(f"level L{L:02d} has intervals that do not hold the level below it")
     return Pyramid(s, mode, tuple(levels))
 
 
