@@ -62,7 +62,8 @@ def check_extent(origin: str, centre, radius: float) -> None:
 def is_rotation(m) -> bool:
     """Whether the 3x3 rows `m` are a right-handed orthonormal frame (to 1e-3: stored as JSON decimals)."""
     m = np.asarray(m, np.float64)
-    return bool(np.abs(m @ m.T - np.eye(3)).max() <= 1e-3 and np.linalg.det(m) > 0)
+    with np.errstate(over="ignore", invalid="ignore"):   # entries near 1e308: not a rotation, no warning
+        return bool(np.abs(m @ m.T - np.eye(3)).max() <= 1e-3 and np.linalg.det(m) > 0)
 
 
 def check_shape(origin: str, name: str, a: np.ndarray, shape: tuple) -> None:
