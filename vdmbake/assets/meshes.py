@@ -58,10 +58,12 @@ class TriMesh:
                        parts[0].texture if all(p.texture is parts[0].texture for p in parts) else None)
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
-        """Centre of the bounding box and the radius that encloses every vertex."""
+        """Centre of the bounding box and the radius that encloses every vertex (infinite, without a warning,
+        for a mesh too large to measure: parts.check_extent refuses it)."""
         lo, hi = self.vertices.min(0), self.vertices.max(0)
-        centre = 0.5 * (lo + hi)
-        return centre, float(np.linalg.norm(self.vertices - centre, axis=1).max())
+        with np.errstate(over="ignore", invalid="ignore"):
+            centre = 0.5 * (lo + hi)
+            return centre, float(np.linalg.norm(self.vertices - centre, axis=1).max())
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -29,12 +29,13 @@ class QuadricSet:
     cylinder_rgb: np.ndarray   # (M, 3) float32
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
-        """Centre of the bounding box of every quadric and a radius enclosing them all."""
+        """Centre of the bounding box of every quadric and a radius enclosing them all (infinite, without a
+        warning, for quadrics too far out to measure: parts.check_extent refuses them)."""
         s, c = self.spheres, self.cylinders
-        lo = np.concatenate([s[:, :3] - s[:, 3:], c[:, :3] - c[:, 6:], c[:, 3:6] - c[:, 6:]]).min(0)
-        hi = np.concatenate([s[:, :3] + s[:, 3:], c[:, :3] + c[:, 6:], c[:, 3:6] + c[:, 6:]]).max(0)
-        centre = 0.5 * (lo + hi)
-        with np.errstate(over="ignore"):   # quadrics near 1e300: an infinite radius, which parts.check_extent refuses
+        with np.errstate(over="ignore", invalid="ignore"):
+            lo = np.concatenate([s[:, :3] - s[:, 3:], c[:, :3] - c[:, 6:], c[:, 3:6] - c[:, 6:]]).min(0)
+            hi = np.concatenate([s[:, :3] + s[:, 3:], c[:, :3] + c[:, 6:], c[:, 3:6] + c[:, 6:]]).max(0)
+            centre = 0.5 * (lo + hi)
             reach = np.concatenate([np.linalg.norm(s[:, :3] - centre, axis=1) + s[:, 3],
                                     np.linalg.norm(c[:, :3] - centre, axis=1) + c[:, 6],
                                     np.linalg.norm(c[:, 3:6] - centre, axis=1) + c[:, 6]])

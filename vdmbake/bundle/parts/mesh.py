@@ -28,8 +28,7 @@ def _unpack_mesh(data, meta, origin):
     f = m.frame
     finite(origin, vertices=m.vertices, normals=m.normals, uvs=m.uvs,
             frame=None if f is None else np.concatenate([f.dpdu, f.dpdv, f.k1[:, None], f.k2[:, None], f.d1], 1))
-    with np.errstate(over="ignore", invalid="ignore"):   # a sphere too large to measure is out of range too
-        check_extent(origin, *m.bounding_sphere())
+    check_extent(origin, *m.bounding_sphere())
     return m
 
 

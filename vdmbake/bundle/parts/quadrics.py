@@ -25,8 +25,7 @@ def _unpack_quadrics(data, meta, origin):
     if (q.spheres[:, 3] <= 0).any() or (q.cylinders[:, 6] <= 0).any() or (
             np.linalg.norm(q.cylinders[:, 3:6] - q.cylinders[:, :3], axis=1) <= 0).any():
         bad(origin, "a sphere or cylinder has no volume (radius or length 0)")
-    with np.errstate(over="ignore", invalid="ignore"):   # a sphere too large to measure is out of range too
-        check_extent(origin, *q.bounding_sphere())
+    check_extent(origin, *q.bounding_sphere())
     return q
 
 
