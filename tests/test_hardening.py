@@ -499,7 +499,7 @@ def test_full_disk_is_exit_2(tmp_path, monkeypatch):
     def full(self, rel, kind, value):
         raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "x"))
 
-    monkeypatch.setattr(bundle_module.BundleWriter, "add", full)
+    monkeypatch.setattr(bundle_module.BundleWriter, "add_read", full)   # every part is written there
     out = tmp_path / "x.bundle"
     assert_input_error(bake(write_scene(tmp_path, GOOD_SCENE), "-o", out), "No space left", out)
 

@@ -104,6 +104,7 @@ class Job:
     options: Any                            # the technique's settings (its Options dataclass)
     mesh: TriMesh | None                    # surface objects: the full mesh, world space (with its frame
                                             # under a mesostructure)
+    stored_mesh: TriMesh | None             # the same as the bundle holds it (what the renderer reads)
     maps: parts.MesostructureMaps | None    # objects with a mesostructure: as stored in the bundle
     writer: BundleWriter
     log: Callable[[str], None]
@@ -149,7 +150,7 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
 def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict) -> dict:
     """The object's manifest entry: what its reference needs, then each technique's own parts."""
     say = lambda m: log(f"{obj.name}: {m}")  # noqa: E731
-    mesh = maps = None
+    mesh = stored_mesh = maps = None
     if obj.kind == "quadrics":
         q, dropped = object_quadrics(obj, base, lambda m: say(f"warning: {m}"))
         centre, radius = q.bounding_sphere()
@@ -174,8 +175,8 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
             if mesh.frame is None:   # a mesh file, or a primitive under a non-uniform scale: estimated, world space
                 mesh.frame = curvature.estimate_frame(mesh.vertices, mesh.faces, mesh.normals, mesh.uvs)
         centre, radius = mesh.bounding_sphere()
-        entry = {"kind": obj.kind, "centre": centre.tolist(), "radius": radius,
-                 "mesh": writer.add(f"objects/{obj.name}/mesh", parts.MESH, mesh)}
+        rel, stored_mesh = writer.add_read(f"objects/{obj.name}/mesh", parts.MESH, mesh)
+        entry = {"kind": obj.kind, "centre": centre.tolist(), "radius": radius, "mesh": rel}
         if mesh.texture is not None:   # the asset's own colour, read by every technique that shades it
             entry["albedo_map"] = writer.add(f"objects/{obj.name}/albedo", parts.ALBEDO_MAP, mesh.texture)
         say(f"{len(mesh.faces)} faces" + (f", albedo map {mesh.texture.shape[1]}x{mesh.texture.shape[0]}"
@@ -183,7 +184,7 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
         if obj.mesostructure:
             m = obj.mesostructure
             # the reference vdmrender traces for it (every mesostructure technique's) must be one it builds
-            check_reference(parts.stored(parts.MESH, mesh), m.size, m.tiling, f"object {obj.name!r}")
+            check_reference(stored_mesh, m.size, m.tiling, f"object {obj.name!r}")
             heights = heightfields.from_spec(m.height, m.size, base).astype(np.float32)
             maps = parts.MesostructureMaps(heights, vdm.height_normals(heights.astype(np.float64), m.depth)
                                            .astype(np.float32))
@@ -197,5 +198,5 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
     for name, options in obj.techniques.items():
         technique = REGISTRY[name]
         if technique.bake is not None:
-            entry["techniques"][name] = technique.bake(Job(obj, options, mesh, maps, writer, say, steps))
+            entry["techniques"][name] = technique.bake(Job(obj, options, mesh, stored_mesh, maps, writer, say, steps))
     return entry

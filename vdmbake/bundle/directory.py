@@ -46,15 +46,20 @@ class BundleWriter:
 
     def add(self, rel: str, kind: PartKind, value) -> str:
         """Write `value` as a part of `kind` at `rel` (its suffix appended); returns the part's path."""
+        return self.add_read(rel, kind, value)[0]
+
+    def add_read(self, rel: str, kind: PartKind, value):
+        """add, returning also the value as a reader of the bundle gets it (parts.stored's, from the bytes
+        written: float32 rounding included): (the part's path, that value)."""
         rel += kind.suffix
         data, meta = kind.pack(value)
         origin = f"{self.stage.path / rel} (as baked)"
         from .manifest import check_meta
         check_meta(kind, meta, rel, origin)                 # what the renderer will check: the manifest entry
-        kind.unpack(data, meta, origin)                     # and the part
+        read = kind.unpack(data, meta, origin)              # and the part
         self.stage.file(rel).write_bytes(data)
         self.parts[rel] = {"kind": kind.name, "sha256": _sha256(data), "bytes": len(data), **meta}
-        return rel
+        return rel, read
 
     def commit(self, manifest: dict, timing: dict) -> None:
         manifest = {"format": FORMAT, "format_version": FORMAT_VERSION, "tool_version": __version__,

@@ -17,7 +17,7 @@ class Options:
 
 def bake(job) -> dict:
     m = job.obj.mesostructure
-    base = parts.stored(parts.MESH, job.mesh)     # the base mesh the reference displaces too
+    base = job.stored_mesh     # the base mesh the reference displaces too
     meshes = []
     for level in job.options.levels:
         d = geometry.displaced(base, job.maps.heights, job.maps.normals, m.depth, m.tiling, level)
