@@ -29,7 +29,7 @@ KINDS = {k.name: k for k in (MESH, QUADRICS, VIEWER_MESH, ALBEDO_MAP, MESOSTRUCT
 
 
 def stored(kind: PartKind, value):
-    """`value` as a reader of the bundle sees it (float32 rounding included): what is derived from a
-    part at bake time is derived from this, so that it agrees with what the renderer reads."""
+    """`value` as a reader of the bundle sees it (float32 rounding included): a part kind's round trip
+    without a bundle (the bake takes it from BundleWriter.add_read, which reads back what it writes)."""
     data, meta = kind.pack(value)
     return kind.unpack(data, meta, f"stored {kind.name}")
