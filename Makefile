@@ -15,8 +15,17 @@ NAME   := $(basename $(notdir $(SCENE)))
 
 .PHONY: demo test fuzz kill-test bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral sysdeps clean
 
-# Headless OpenGL needs Mesa's EGL and the llvmpipe driver; install them only if missing.
+# The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
+GLTF_VALIDATOR := 2.0.0-dev.3.10
+
+# Headless OpenGL needs Mesa's EGL and the llvmpipe driver, the tests Node.js for the glTF validator;
+# install them only if missing.
 sysdeps:
+	@if ! command -v npm >/dev/null; then \
+	  echo "installing Node.js (apt-get)"; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq nodejs npm >/dev/null; \
+	fi
 	@if ! ldconfig -p | grep -q 'libEGL_mesa.so.0' || ! ls /usr/lib/*/dri/swrast_dri.so >/dev/null 2>&1; then \
 	  echo "installing Mesa EGL/llvmpipe (apt-get)"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
@@ -28,6 +37,7 @@ $(STAMP): pyproject.toml | sysdeps
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e '.[test]'
+	npm install --silent --no-save --prefix $(VENV)/node gltf-validator@$(GLTF_VALIDATOR)
 	@touch $@
 
 demo: $(STAMP)

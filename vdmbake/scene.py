@@ -18,7 +18,8 @@ from .assets.heightfields import PATTERNS, SKIMAGE_PHOTOS
 from .assets import meso_albedo
 from .assets.molecules import STYLES
 from .assets.primitives import PRIMITIVES
-from .schema import (REQUIRED, printable, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, Number, Reader, Table, Tables, Text, Type,
+from .schema import (REQUIRED, printable, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, ListOf, Number, Reader,
+                     Table, Tables, Text, Type,
                      Vector, dump, read, setting)
 from .techniques import REGISTRY
 
@@ -42,6 +43,35 @@ class VariantSets(Type):
 
 
 @dataclass(frozen=True)
+class Thresholds:
+    """One LOD chain's limits (vdmrender.lod): a variant may be chosen at a screen size only if its error there
+    stays under every limit given, over all the views together."""
+    name: str = setting(REQUIRED, Text("1-64 characters from A-Z a-z 0-9 _ -", r"[A-Za-z0-9_-]{1,64}"),
+                        "the chain's name (lod.json, the report)")
+    mean_dluv: float | None = setting(None, Number(0.0, 1e3), "largest mean ΔLuv (eq. 2.2's average)")
+    p95_dluv: float | None = setting(None, Number(0.0, 1e3), "largest 95th percentile of the per-pixel ΔLuv")
+    flip: float | None = setting(None, Number(0.0, 1.0), "largest mean FLIP")
+    iou: float | None = setting(None, Number(0.0, 1.0), "smallest coverage IoU")
+
+    def limits(self) -> dict:
+        """The limits given, by report field (`iou` a lower bound, the others upper bounds)."""
+        fields = {"mean_dluv": "mean_dluv", "p95_dluv": "p95_dluv", "flip": "flip_mean", "iou": "iou"}
+        return {fields[k]: getattr(self, k) for k in fields if getattr(self, k) is not None}
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """Error and cost against screen size (vdmrender.sweep): every view again with the camera moved along its
+    line of sight until the object's bounding sphere spans each size on screen; the frame size stays."""
+    sizes: tuple[int, ...] = setting(REQUIRED, ListOf(Integer(2, 4 * MAX_SIDE)),
+                                     "the bounding sphere's projected diameter in pixels, e.g. [512, 256, 128, 64, 32, "
+                                     "16] (larger than the frame: the object overflows it)")
+    lod: tuple[Thresholds, ...] = setting((), Tables(Thresholds),
+                                          "[[render.sweep.lod]]: LOD chains to pick from the sweep (lod.json), one "
+                                          "per set of limits: per size band the cheapest variant within them")
+
+
+@dataclass(frozen=True)
 class Render:
     resolution: tuple[int, int] = setting((512, 512), Vector(2, 1, MAX_SIDE, integer=True), "[width, height] in pixels")
     background: tuple[float, float, float] = setting((0.02, 0.022, 0.03), Vector(3, 0.0, 1.0),
@@ -57,6 +87,8 @@ class Render:
                                "once per variant set; each set names every object and one of its variants, e.g. "
                                '`[{ bunny = "mesh", torus = "vdm@8" }, { bunny = "coarse@0.1", torus = "pom@32" }]`; '
                                "the reference traces every object together")
+    sweep: Sweep | None = setting(None, Table(Sweep), "[render.sweep]: error and cost against screen size, and LOD "
+                                  "chains from them (`vdmrender --sizes` too)")
 
 
 @dataclass(frozen=True)
@@ -235,6 +267,7 @@ def parse_scene_dict(data: dict, origin: str) -> Scene:
             raise InputError(f"{origin}: two objects are named {n!r}; object names must be unique.")
     render = top.value("render", Table(Render), Render())
     check_composite(render.composite, objs, origin)
+    check_sweep(render.sweep, origin)
     return read(Scene, top, render=render, material=material, objects=objs, camera=_cameras(top.table("camera")))
 
 
@@ -263,6 +296,17 @@ def check_composite(sets: tuple, objects: tuple, origin: str) -> None:
                              "per object.")
         if s in sets[:i]:
             raise InputError(f"{origin}: [{where}] repeats an earlier set.")
+
+
+def check_sweep(sweep: Sweep | None, origin: str) -> None:
+    """Each LOD chain names at least one limit, and chains have distinct names."""
+    names = [t.name for t in (sweep.lod if sweep else ())]
+    for i, t in enumerate(sweep.lod if sweep else ()):
+        if not t.limits():
+            raise InputError(f"{origin}: [render.sweep.lod[{i}]] ({t.name!r}) gives no limit; give at least one of "
+                             "mean_dluv, p95_dluv, flip, iou.")
+        if names.count(t.name) > 1:
+            raise InputError(f"{origin}: two LOD chains in [render.sweep.lod] are named {t.name!r}; names must be unique.")
 
 
 def _cameras(t: Reader) -> Cameras:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .assets.primitives import PRIMITIVES
 from .schema import knob, markdown, settings
-from .scene import Cameras, Light, Material, Mesostructure, Object, Orbit, Pose, Render, Transform
+from .scene import Cameras, Light, Material, Mesostructure, Object, Orbit, Pose, Render, Sweep, Thresholds, Transform
 from .techniques import REGISTRY
 
 BEGIN = "<!-- scene reference: generated from the code by `python -m vdmbake.scenedoc README.md` -->"
@@ -24,6 +24,10 @@ def _table(title: str, rows: list[str], note: str = "") -> list[str]:
 def reference() -> str:
     """The markdown of every scene key, primitive parameter and technique setting."""
     out = _table("`[render]`", markdown(Render))
+    out += _table("`[render.sweep]`", markdown(Sweep)[:1] + markdown(Thresholds, "lod[]."),
+                  "Every view again with the object at each size on screen (vdmrender.sweep), and per "
+                  "`[[render.sweep.lod]]` a LOD chain: per band of sizes the cheapest variant within its limits "
+                  "(`lod.json`; vdmrender.lod).")
     out += _table("`[camera]`", markdown(Cameras)[:1] + markdown(Orbit, "orbit.") + markdown(Pose, "poses[]."),
                   "Without `poses`, or with an `orbit` table beside them, each object gets the orbit cameras, "
                   "framed on its bounding sphere; `[[camera.poses]]` add cameras at absolute positions.")

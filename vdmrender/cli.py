@@ -26,6 +26,16 @@ def _resolution(ctx, param, value):
     return int(m.group(1)), int(m.group(2))
 
 
+def _sizes(ctx, param, value):
+    if value is None:
+        return None
+    parts = value.split(",")
+    if not all(p.strip().isdigit() and 2 <= int(p) <= 4 * MAX_SIDE for p in parts) or len(set(map(int, parts))) < len(parts):
+        raise click.BadParameter(f"{value!r}: expected distinct sizes in pixels, each in [2, {4 * MAX_SIDE}], "
+                                 "separated by commas, e.g. 512,128,32")
+    return tuple(int(p) for p in parts)
+
+
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("bundle", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "out", required=True, type=click.Path(path_type=Path),
@@ -65,11 +75,15 @@ def _resolution(ctx, param, value):
                    "frame on 2 CPU cores).")
 @click.option("--heat-max", type=click.FloatRange(min=1e-3), default=10.0, show_default=True,
               help="ΔLuv at the top of the heat maps' colour scale.")
+@click.option("--sizes", callback=_sizes, metavar="PX,PX,...",
+              help="Also render every view with the object this many pixels across on screen (its bounding sphere's "
+                   "projected diameter; the camera moves, the frame stays), e.g. 512,128,32: error and cost against "
+                   "screen size (sweep.csv, error_vs_size.png, cost_vs_size.png); overrides render.sweep.sizes.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
 def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_s, device, max_error, baseline, max_error_increase,
-         max_slowdown, compare_devices, counters, flip, heat_max, as_json, debug):
+         max_slowdown, compare_devices, counters, flip, heat_max, sizes, as_json, debug):
     """Render BUNDLE (made by vdmbake) into OUTPUT and report error against run time.
 
     For every object, each technique variant (a technique at one value of its quality
@@ -94,6 +108,11 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
                                              overview.png) and OUTPUT/composite.md
     OUTPUT/report.json, report.csv, error_vs_time.png
     OUTPUT/baseline.md, baseline.csv         with --baseline: the change per variant
+    OUTPUT/sizes/NNNpx/...                   with --sizes or render.sweep: frames, heat maps,
+                                             reference and overviews at each screen size
+    OUTPUT/sweep.csv, error_vs_size.png, cost_vs_size.png   the same, against screen size
+    OUTPUT/lod.json, lod.md                  with [[render.sweep.lod]]: per object the cheapest
+                                             variant within the limits per band of screen sizes
 
     Exit codes: 0 done; 1 done but a threshold was exceeded (--max-error, --max-error-increase,
     --max-slowdown); 2 bad usage or bad input, or a variant or composite set with no covered pixel in
@@ -107,6 +126,7 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
       vdmrender out/default.bundle -o out/new --baseline out/default/report.json \\
           --max-error-increase 0.05 --max-slowdown 1.25 --sample-s 1.5
       vdmrender out/default.bundle -o out/gpu --device cuda:0 --warmup-s 2 --sample-s 1
+      vdmrender out/lod-bunny.bundle -o out/lod-bunny --sizes 512,256,128,64,32,16
     """
     if (max_error_increase is not None or max_slowdown is not None) and baseline is None:
         fail(InputError("--max-error-increase and --max-slowdown compare with an earlier run; give its "
@@ -116,7 +136,7 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
                    warmup_s=warmup_s, sample_s=sample_s,
                    device=device, heat_max=heat_max, flip=flip, baseline=baseline,
                    max_error_increase=max_error_increase, max_slowdown=max_slowdown, compare_devices=compare_devices,
-                   counters=counters)
+                   counters=counters, sizes=sizes)
     if debug:
         gl.STRICT = True
     result = guarded(lambda: run(bundle, out, opts, log), debug)

@@ -105,9 +105,10 @@ def load_or_trace(out, folder: str, key: str, cams, trace, background, what: str
     return frames, classes, info
 
 
-def object_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list, list, dict]:
-    """One object's reference frames and, for a mesostructure object, each frame's pixel classes
-    (vdmrender.borders: open border, inside)."""
+def object_frames(out, obj, entry, bundle, scene, cams, log, folder: str | None = None,
+                  what: str | None = None) -> tuple[list, list, dict]:
+    """One object's reference frames (in `folder`, reference/OBJECT by default; logged as `what`) and, for a
+    mesostructure object, each frame's pixel classes (vdmrender.borders: open border, inside)."""
     key = reference_key(reference_geometry(obj, entry, bundle), cams, scene.light, obj.material,
                         scene.render.background, reference_code(obj.mesostructure is not None))
 
@@ -117,4 +118,5 @@ def object_frames(out, obj, entry, bundle, scene, cams, log) -> tuple[list, list
         classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
         return frames, classes, ref.scene.rays_cast
 
-    return load_or_trace(out, f"reference/{obj.name}", key, cams, trace, scene.render.background, obj.name, log)
+    return load_or_trace(out, folder or f"reference/{obj.name}", key, cams, trace, scene.render.background,
+                         what or obj.name, log)

@@ -12,7 +12,7 @@ from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, composite, gl, images, measure, refcache, report, scoring, timing
+from . import baseline, composite, gl, images, lod, measure, refcache, report, scoring, sweep, timing
 from . import device as gpu
 from .camera import cameras_for
 from .metrics import summarise
@@ -60,6 +60,7 @@ class Options:
     max_slowdown: float | None = None
     compare_devices: bool = False                # compare times with a baseline from another device
     counters: bool = True                        # count each variant's work (vdmrender.counters)
+    sizes: tuple[int, ...] | None = None         # screen-size sweep (vdmrender.sweep), overrides render.sweep.sizes
 
 
 def check_memory(width: int, height: int, available: int | None = None, geometry: tuple[int, str] = (0, "")) -> None:
@@ -109,6 +110,12 @@ TIMING = ("GPU time per frame: the sum of the frame's passes' GL timer queries (
           "the baseline row of the same object and run")
 
 
+SWEEP = ("every view again with the camera moved along its line of sight, aimed at the object's bounding-sphere "
+         "centre, to where the sphere's silhouette is size_px pixels across (vdmrender.sweep.distance_for; "
+         "distance_radii: the first view's eye distance in radii); frame size, field of view and timing as the rows'; frames "
+         "under sizes/NNNpx/")
+
+
 def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) -> dict:
     bundle = Bundle(bundle_path)
     scene = bundle.scene
@@ -145,12 +152,27 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                   "heatmap_max_dluv": opts.heat_max, "rows": rows}
         if composite_rows:   # render.composite: every object in one frame, per variant set (vdmrender.composite)
             result["composite"] = composite_rows
+        sizes = opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ())
+        if sizes:
+            rows_by_size = _sweep(harness, out, bundle, scene, only, opts, device, log, sorted(sizes, reverse=True))
+            result["sweep"] = {"sizes_px": sorted(sizes, reverse=True), "how": SWEEP, "rows": rows_by_size}
+            if scene.render.sweep and scene.render.sweep.lod:
+                result["lod"] = lod.chains(rows_by_size, scene.render.sweep.lod, device, (width, height))
+                for c in result["lod"]["chains"]:
+                    for obj, ch in c["objects"].items():
+                        log(f"LOD chain {c['name']} of {obj}: " + ", ".join(
+                            f"{e['variant']} {e['min_px']}-{e['max_px']} px{'' if e['meets'] else ' (over the limits)'}"
+                            for e in ch["entries"]))
         if old is not None:
             result["baseline"] = {"report": str(opts.baseline),
                                   **baseline.compare(old, result, opts.max_error_increase, opts.max_slowdown,
                                                      opts.compare_devices)}
         result = report.finite(result)
         report.write(out.tmp, result)
+        if "sweep" in result:
+            sweep.write(out.tmp, result)
+        if "lod" in result:
+            lod.write(out.tmp, result["lod"])
         out.commit()
     except BaseException:
         out.abort()
@@ -161,19 +183,58 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     return result
 
 
-def _measure(harness, v, cams, ref8, classes, out, obj, opts, background):
+def _measure(harness, v, cams, ref8, classes, out, obj, opts, background, prefix="", what=None):
     """One variant: time it, read its frames back, compare each with the reference, write its
-    frames and heat maps. Returns its report row and the frames and heat maps for the overview.
-    A frame with no pixel to score has no data: it is flagged `empty`, has no error, counts in
+    frames and heat maps (under `prefix`). Returns its report row and the frames and heat maps for the
+    overview. A frame with no pixel to score has no data: it is flagged `empty`, has no error, counts in
     `empty_frames` and stays out of the row's averages (metrics.summarise)."""
-    name = obj.name
-    cost, frames = harness.measure(lambda: v.build(harness.ctx), cams, f"{name}: {v.label}")
-    scores, heats, enc = scoring.score_frames(frames, ref8, classes, out, f"frames/{name}/{v.label}",
-                                      f"heatmaps/{name}/{v.label}", opts.heat_max, background, opts.flip,
-                                      f"{name}: {v.label} scoring")
+    name, what = obj.name, what or obj.name
+    cost, frames = harness.measure(lambda: v.build(harness.ctx), cams, f"{what}: {v.label}")
+    scores, heats, enc = scoring.score_frames(frames, ref8, classes, out, f"{prefix}frames/{name}/{v.label}",
+                                      f"{prefix}heatmaps/{name}/{v.label}", opts.heat_max, background, opts.flip,
+                                      f"{what}: {v.label} scoring")
     row = {"object": name, "technique": v.technique, "knob": v.knob, "value": v.value, "label": v.label,
            "frames": len(cams), "expect_empty": obj.expect_empty, **cost, **summarise(scores)}
     return row, enc, heats
+
+
+def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log, prefix="", what=None) -> list[dict]:
+    """One object's variants from cameras `cams`, against its reference: their report rows; frames, heat maps,
+    reference and overview sheet written under `prefix` (a screen-size sweep's sizes/NNNpx/)."""
+    entry, what = bundle.manifest["objects"][obj.name], what or obj.name
+    ref_frames, ref_classes, ref_info = refcache.object_frames(out, obj, entry, bundle, scene, cams, log,
+                                                               f"{prefix}reference/{obj.name}", what)
+    ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
+    sheet, rows = [("reference", ref8)], []
+    for v in chosen:
+        row, enc, heats = _measure(harness, v, cams, ref8, ref_classes, out, obj, opts, scene.render.background,
+                                   prefix, what)
+        rows.append({**row, "device": device, "reference_cached": ref_info["cached"]})
+        sheet += [(v.label, enc), (f"{v.label} error", heats)]
+        log(f"{what}: {v.label:>14}  {scoring.row_line(row)}"
+            + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")
+            + (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
+    images.overview(sheet, out.file(f"{prefix}overview/{obj.name}.png"))
+    return rows
+
+
+def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> list[dict]:
+    """Every object's variants at each screen size (vdmrender.sweep): rows as _render_all's, with size_px."""
+    width, height = harness.target.size
+    rows = []
+    for obj in scene.objects:
+        entry = bundle.manifest["objects"][obj.name]
+        chosen = variants(obj, entry, bundle, scene, only)
+        if not chosen:
+            continue
+        views = cameras_for(scene.camera, entry["centre"], entry["radius"], width, height)
+        for size in sizes:
+            cams = sweep.sized(views, entry["centre"], entry["radius"], size)
+            distance = round(sweep.distance_for(size, 1.0, views[0].fov_deg, height), 4)
+            rows += [{**r, "size_px": size, "distance_radii": distance}
+                     for r in render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log,
+                                            f"sizes/{size}px/", f"{obj.name} @{size}px")]
+    return rows
 
 
 def _render_all(harness, out, bundle, scene, only, opts, device, log) -> list[dict]:
@@ -181,19 +242,8 @@ def _render_all(harness, out, bundle, scene, only, opts, device, log) -> list[di
     rows = []
     for obj in scene.objects:
         entry = bundle.manifest["objects"][obj.name]
-        cams = cameras_for(scene.camera, entry["centre"], entry["radius"], width, height)
         chosen = variants(obj, entry, bundle, scene, only)
-        if not chosen:
-            continue
-        ref_frames, ref_classes, ref_info = refcache.object_frames(out, obj, entry, bundle, scene, cams, log)
-        ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
-        sheet = [("reference", ref8)]
-        for v in chosen:
-            row, enc, heats = _measure(harness, v, cams, ref8, ref_classes, out, obj, opts, scene.render.background)
-            rows.append({**row, "device": device, "reference_cached": ref_info["cached"]})
-            sheet += [(v.label, enc), (f"{v.label} error", heats)]
-            log(f"{obj.name}: {v.label:>14}  {scoring.row_line(row)}"
-                + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")
-                + (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
-        images.overview(sheet, out.file(f"overview/{obj.name}.png"))
+        if chosen:
+            cams = cameras_for(scene.camera, entry["centre"], entry["radius"], width, height)
+            rows += render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log)
     return rows

@@ -1,0 +1,262 @@
+"""Error and cost against screen size (vdmrender.sweep), LOD chains picked from them (vdmrender.lod), and their
+export for engines (vdmbake.export): glTF 2.0 with MSFT_lod checked by the Khronos validator and read back by an
+independent reader (pygltflib)."""
+import json
+import math
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from scenes import RENDER, bake_and_render
+from vdmbake.bundle.directory import Bundle
+from vdmbake.export.gltf import up_to_y
+from vdmrender import lod
+from vdmrender.sweep import distance_for
+
+ROOT = Path(__file__).parent.parent
+VALIDATOR = ROOT / ".venv" / "node" / "node_modules" / "gltf-validator"
+
+SWEEP = """
+[render.sweep]
+sizes = [48, 16, 6]
+[[render.sweep.lod]]
+name = "strict"
+mean_dluv = 0.5
+[[render.sweep.lod]]
+name = "loose"
+mean_dluv = 50.0
+[camera]
+orbit = { count = 2 }
+"""
+BALL = """
+[[objects]]
+name = "ball"
+primitive = "sphere"
+techniques = { mesh = {}, coarse = { ratios = [0.3, 0.05] } }
+"""
+
+
+def test_the_distance_puts_the_sphere_at_its_size():
+    """The silhouette of a sphere of radius r from distance d is f r / sqrt(d^2 - r^2) pixels in radius."""
+    for size, fov, height in ((512, 40.0, 512), (16, 40.0, 512), (2000, 90.0, 300)):
+        d = distance_for(size, 2.0, fov, height)
+        f = 0.5 * height / math.tan(math.radians(fov) / 2)
+        assert f * 2.0 / math.sqrt(d * d - 4.0) == pytest.approx(size / 2, rel=1e-12)
+
+
+@pytest.mark.gl
+def test_sweep_renders_each_size_and_picks_chains(tmp_path):
+    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[64, 64]") + SWEEP + BALL)
+    assert res.exit_code == 0, res.output
+    report = json.loads((out / "report.json").read_text())
+    rows = report["sweep"]["rows"]
+    assert sorted({(r["size_px"], r["label"]) for r in rows}) == sorted(
+        (s, v) for s in (48, 16, 6) for v in ("mesh", "coarse@0.3", "coarse@0.05"))
+    for size in (48, 16, 6):   # the unit sphere's reference spans `size` pixels (its silhouette, centred)
+        ref = np.asarray(Image.open(out / f"sizes/{size}px/reference/ball/000.png").convert("RGB"), int)
+        ys, xs = np.nonzero(np.abs(ref - ref[0, 0]).sum(-1) > 0)
+        assert xs.max() - xs.min() + 1 == size and ys.max() - ys.min() + 1 == size
+        assert (out / f"sizes/{size}px/frames/ball/coarse@0.05/001.png").is_file()
+    for name in ("sweep.csv", "error_vs_size.png", "cost_vs_size.png", "lod.json", "lod.md"):
+        assert (out / name).is_file(), name
+    chains = {c["name"]: c["objects"]["ball"] for c in json.loads((out / "lod.json").read_text())["chains"]}
+    for e in chains["strict"]["entries"]:   # within the limit wherever it says so, else the least error there
+        for m in e["measured"]:
+            here = [r["mean_dluv"] for r in rows if r["size_px"] == m["size_px"]]
+            assert m["mean_dluv"] <= 0.5 if e["meets"] else m["mean_dluv"] == min(here)
+    for ch in chains.values():    # bands tile (0, 48] from the top down
+        es = ch["entries"]
+        assert es[0]["max_px"] == 48 and es[-1]["min_px"] == 0
+        assert all(a["min_px"] == b["max_px"] for a, b in zip(es, es[1:]))
+    assert not chains["loose"]["unmet_px"]   # 50 ΔLuv: every variant is within it; the cheapest is taken
+    for e in chains["loose"]["entries"]:
+        for m in e["measured"]:
+            here = [r for r in rows if r["size_px"] == m["size_px"]]
+            assert m["median_ms"] <= (1 + lod.NOISE) * min(r["median_ms"] for r in here) + 2 * max(
+                r["spread_ms"] for r in here) + 1e-9
+
+
+def row(label, size, ms, dluv, spread=0.0, technique=None):
+    return {"object": "o", "label": label, "technique": technique or label.split("@")[0], "value": None,
+            "size_px": size, "median_ms": ms, "spread_ms": spread, "mean_dluv": dluv, "p95_dluv": dluv,
+            "flip_mean": 0.01, "iou": 1.0, "empty_frames": 0}
+
+
+def test_chain_takes_the_cheapest_variant_within_the_limits_per_band():
+    rows = [row("mesh", 256, 10.0, 0.1), row("coarse@0.1", 256, 4.0, 2.0), row("boards", 256, 20.0, 0.5),
+            row("mesh", 64, 9.0, 0.1), row("coarse@0.1", 64, 3.0, 0.8), row("boards", 64, 2.0, 0.4),
+            row("mesh", 16, 9.0, 0.1), row("coarse@0.1", 16, 3.0, 0.3), row("boards", 16, 1.0, 0.2)]
+    ch = lod.chain(rows, {"mean_dluv": 1.0}, 512)
+    assert [(e["variant"], e["min_px"], e["max_px"]) for e in ch["entries"]] == [("mesh", 64, 256), ("boards", 0, 64)]
+    assert ch["entries"][1]["screen_coverage"] == [64 / 512, 0.0]
+    assert [m["size_px"] for m in ch["entries"][1]["measured"]] == [64, 16]
+    assert ch["unmet_px"] == []
+    strict = lod.chain(rows, {"mean_dluv": 0.05}, 512)   # nothing within: the least error, flagged
+    assert [(e["variant"], e["meets"]) for e in strict["entries"]] == [("mesh", False)]
+    assert strict["unmet_px"] == [256, 64, 16]
+    iou = lod.chain(rows[:3] + [{**rows[3], "iou": 0.9}], {"iou": 0.95}, 512)   # IoU is a lower bound
+    assert iou["unmet_px"] == [64]
+
+
+def test_costs_within_the_noise_tie_and_the_smaller_error_wins():
+    a, b = row("coarse@0.3", 32, 5.0, 0.9), row("coarse@0.05", 32, 5.0 * (1 + lod.NOISE / 2), 0.4)
+    assert lod.cheapest([a, b])["label"] == "coarse@0.05"
+    far = {**b, "median_ms": 5.0 * (1 + 2 * lod.NOISE)}
+    assert lod.cheapest([a, far])["label"] == "coarse@0.3"
+    noisy = {**far, "spread_ms": 2.0}   # inside the two runs' spreads together
+    assert lod.cheapest([a, noisy])["label"] == "coarse@0.05"
+
+
+def test_meshes_only_chain_leaves_impostors_out():
+    rows = [row("mesh", 64, 9.0, 0.1), row("octahedral@x", 64, 1.0, 0.2), row("coarse@0.1", 64, 3.0, 0.9)]
+    out = lod._object_chains(rows, {"mean_dluv": 1.0}, 128)
+    assert out["entries"][0]["variant"] == "octahedral@x"
+    assert out["meshes_only"]["entries"][0]["variant"] == "coarse@0.1"
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[render.sweep]\nsizes = [64]\n[[render.sweep.lod]]\nname = 'a'\n", "gives no limit"),
+    ("[render.sweep]\nsizes = [64]\n[[render.sweep.lod]]\nname = 'a'\nflip = 0.1\n[[render.sweep.lod]]\nname = 'a'\n"
+     "iou = 0.9\n", "named 'a'"),
+    ("[render.sweep]\nsizes = [64, 64]\n", "distinct"),
+    ("[render.sweep]\nsizes = [1]\n", "render.sweep.sizes"),
+])
+def test_bad_sweeps_are_refused(tmp_path, text, message):
+    from vdmbake.cli import main as bake_main
+
+    scene = tmp_path / "s.toml"
+    scene.write_text(text + BALL)
+    r = CliRunner().invoke(bake_main, [str(scene), "-o", str(tmp_path / "b")])
+    assert r.exit_code == 2 and message in r.output, r.output
+
+
+def test_bad_sizes_flag_is_usage_error(tmp_path):
+    from vdmrender.cli import main as render_main
+
+    for bad in ("64,x", "64,64", "1", ""):
+        r = CliRunner().invoke(render_main, [str(tmp_path), "-o", str(tmp_path / "o"), "--sizes", bad])
+        assert r.exit_code == 2 and "--sizes" in r.output, (bad, r.output)
+
+
+def test_up_to_y_turns_the_scene_up_onto_plus_y():
+    def rotate(q, v):
+        x, y, z, w = q
+        u = np.array([x, y, z])
+        return v + 2 * np.cross(u, np.cross(u, v) + w * v)
+
+    for up in ([0, 0, 1], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0.3, -2, 0.5]):
+        q = up_to_y(up)
+        assert np.linalg.norm(q) == pytest.approx(1.0)
+        assert rotate(q, np.array(up, float) / np.linalg.norm(up)) == pytest.approx([0, 1, 0], abs=1e-12)
+
+
+def validate(path: Path) -> dict:
+    """The Khronos glTF validator's report (npm gltf-validator, installed by make's set-up)."""
+    node = shutil.which("node")
+    assert node and VALIDATOR.is_dir(), "the glTF validator is installed by `make test` (npm gltf-validator)"
+    r = subprocess.run([node, str(ROOT / "tools" / "validate_gltf.cjs"), str(path)], capture_output=True, text=True,
+                       env={**os.environ, "GLTF_VALIDATOR": str(VALIDATOR)})
+    assert r.returncode in (0, 1), r.stderr
+    return json.loads(r.stdout)
+
+
+TEXTURED = """
+[[objects]]
+name = "bunny"
+mesh = "pkg:pymeshlab/tests/sample_meshes/bunny10k_textured.obj"
+techniques = { mesh = {}, coarse = { ratios = [0.3, 0.1] }, octahedral = { variants = ["full-4x32-march"] } }
+"""
+
+
+@pytest.mark.gl
+def test_export_is_valid_gltf_with_msft_lod_and_reads_back(tmp_path):
+    import pygltflib
+
+    from vdmbake.export.cli import main as export_main
+
+    loose = SWEEP.replace("sizes = [48, 16, 6]", "sizes = [48, 16]").replace("mean_dluv = 50.0", "mean_dluv = 1e3")
+    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[48, 48]") + loose + TEXTURED)
+    assert res.exit_code == 0, res.output
+    # the chain as measured, then forced to hold every mesh level: the export writes what lod.json says
+    doc = json.loads((out / "lod.json").read_text())
+    loose_chain = next(c for c in doc["chains"] if c["name"] == "loose")["objects"]["bunny"]
+    levels = [("mesh", 48, 64), ("coarse@0.3", 16, 48), ("coarse@0.1", 0, 16)]
+    loose_chain["meshes_only"]["entries"] = [{**loose_chain["entries"][0], "variant": v, "technique": v.split("@")[0],
+                                              "min_px": lo, "max_px": hi} for v, lo, hi in levels]
+    (out / "lod.json").write_text(json.dumps(doc))
+    r = CliRunner().invoke(export_main, [str(tmp_path / "b.bundle"), "--lod", str(out / "lod.json"), "-o",
+                                         str(tmp_path / "x"), "--chain", "loose"])
+    assert r.exit_code == 0, r.output
+    gltf = tmp_path / "x" / "bunny-loose.gltf"
+    report = validate(gltf)
+    assert report["issues"]["numErrors"] == 0, report["issues"]["messages"]
+    assert report["info"]["hasTextures"]
+
+    g = pygltflib.GLTF2().load(str(gltf))
+    first = g.nodes[g.scenes[0].nodes[0]].children[0]
+    ids = g.nodes[first].extensions["MSFT_lod"]["ids"]
+    assert [g.nodes[i].name.split()[-1] for i in [first, *ids]] == [v for v, _, _ in levels]
+    assert g.nodes[first].extras["MSFT_screencoverage"] == [48 / 48, 16 / 48, 0.0]
+    bundle = Bundle(tmp_path / "b.bundle")
+    entry = bundle.manifest["objects"]["bunny"]
+    blob = (gltf.parent / g.buffers[0].uri).read_bytes()
+
+    def attribute(index, width):
+        acc = g.accessors[index]
+        view = g.bufferViews[acc.bufferView]
+        return np.frombuffer(blob, np.float32, acc.count * width, view.byteOffset).reshape(acc.count, width)
+
+    for node, rel in ((first, entry["mesh"]), (ids[0], entry["techniques"]["coarse"]["meshes"][0]["mesh"])):
+        mesh = bundle.surface(entry, rel)
+        prim = g.meshes[g.nodes[node].mesh].primitives[0]
+        assert np.array_equal(attribute(prim.attributes.POSITION, 3), mesh.vertices.astype(np.float32))
+        st = attribute(prim.attributes.TEXCOORD_0, 2)
+        assert np.array_equal(st[:, 1], (1.0 - mesh.uvs[:, 1]).astype(np.float32))
+    image = np.asarray(Image.open(gltf.parent / g.images[0].uri).convert("RGB"))
+    assert np.array_equal(image[::-1], mesh.texture)   # the image's first row is at t = 0, the map's at v = 0
+
+
+@pytest.mark.gl
+def test_export_writes_the_chains_impostors_with_a_sidecar(tmp_path):
+    from vdmbake.export.cli import main as export_main
+
+    res, out = bake_and_render(tmp_path, RENDER + SWEEP.replace("[48, 16, 6]", "[24, 8]") + TEXTURED)
+    assert res.exit_code == 0, res.output
+    doc = json.loads((out / "lod.json").read_text())
+    ch = next(c for c in doc["chains"] if c["name"] == "loose")["objects"]["bunny"]
+    ch["entries"][-1].update(variant="octahedral@full-4x32-march", technique="octahedral")
+    (out / "lod.json").write_text(json.dumps(doc))
+    r = CliRunner().invoke(export_main, [str(tmp_path / "b.bundle"), "--lod", str(out / "lod.json"), "-o",
+                                         str(tmp_path / "x")])
+    assert r.exit_code == 0, r.output
+    side = json.loads((tmp_path / "x" / "bunny-loose.impostors.json").read_text())
+    (item,) = side["impostors"]
+    (part,) = item["files"]
+    data = (tmp_path / "x" / part["file"]).read_bytes()
+    import hashlib
+    assert hashlib.sha256(data).hexdigest() == part["sha256"]
+    assert part["layout"]["views"] == 4 and part["layout"]["resolution"] == 32
+    preview = Image.open(tmp_path / "x" / part["preview"])
+    assert preview.size == (128, 128) and preview.mode == "RGBA"
+
+
+def test_export_refuses_a_lod_of_another_bundle(tmp_path):
+    from vdmbake.cli import main as bake_main
+    from vdmbake.export.cli import main as export_main
+
+    scene = tmp_path / "s.toml"
+    scene.write_text(RENDER + BALL)
+    assert CliRunner().invoke(bake_main, [str(scene), "-o", str(tmp_path / "b")]).exit_code == 0
+    lod_path = tmp_path / "lod.json"
+    for text, message in (("{}", "not a lod.json"), (json.dumps({"device": "d", "resolution": [4, 4], "chains": [
+            {"name": "a", "objects": {"rabbit": {"entries": []}}}]}), "names object 'rabbit'")):
+        lod_path.write_text(text)
+        r = CliRunner().invoke(export_main, [str(tmp_path / "b"), "--lod", str(lod_path), "-o", str(tmp_path / "x")])
+        assert r.exit_code == 2 and message in r.output, r.output
+        assert not (tmp_path / "x").exists()

@@ -1,0 +1,145 @@
+"""A bundle's objects exported by a measured LOD chain (vdmrender's lod.json): per chain and object, the
+triangle-mesh levels as one glTF 2.0 file with MSFT_lod (vdmbake.export.gltf), and the impostors the chain
+chose (octahedral atlases, enhanced billboards) as their bundle parts copied unchanged beside a JSON sidecar
+that gives their layout and bands (docs/export.md)."""
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from ..bundle.directory import Bundle
+from ..bundle.staging import StagedDir
+from ..common.colour import to_srgb8
+from ..errors import InputError
+from ..formats.safeio import read_regular
+from ..schema import printable
+from ..techniques import REGISTRY
+from .gltf import Writer
+
+TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF carries as they are (vdmrender.lod's meshes_only)
+SIDECAR = "vdm-impostors"
+
+
+def read_lod(path: Path) -> dict:
+    """lod.json as vdmrender wrote it, with the keys this export reads checked."""
+    try:
+        lod = json.loads(read_regular(path, "lod.json", limit=64 << 20))
+        for c in lod["chains"]:
+            for ch in c["objects"].values():
+                for e in ch["entries"] + ch.get("meshes_only", {"entries": []})["entries"]:
+                    e["variant"], e["technique"], int(e["min_px"]), int(e["max_px"])
+        int(lod["resolution"][1])
+    except FileNotFoundError:
+        raise InputError(f"{printable(str(path))}: not found; vdmrender writes lod.json into its output folder for "
+                         "a scene with [[render.sweep.lod]].") from None
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as e:
+        raise InputError(f"{printable(str(path))}: not a lod.json written by vdmrender ({type(e).__name__}: "
+                         f"{printable(str(e))[:200]}).") from None
+    return lod
+
+
+def variant_value(obj, label: str):
+    """The technique and value of the object's variant named `label` in reports."""
+    for tech, options in obj.techniques.items():
+        for v in REGISTRY[tech].values(options):
+            if REGISTRY[tech].label(v) == label:
+                return tech, v
+    raise InputError(f"lod.json names variant {printable(label)!r} of object {obj.name!r}, which the bundle's scene "
+                     "does not have; export with the bundle the chain was rendered from.")
+
+
+def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None = None, log=lambda m: None) -> dict:
+    bundle, lod = Bundle(bundle_path), read_lod(lod_path)
+    chains = [c for c in lod["chains"] if only in (None, c["name"])]
+    if not chains:
+        raise InputError(f"--chain {printable(only)!r}: {printable(str(lod_path))} has the chains "
+                         f"{', '.join(repr(c['name']) for c in lod['chains']) or 'none'}.")
+    objects = {o.name: o for o in bundle.scene.objects}
+    out = StagedDir(out_path, "export.json", "vdmexport output folder")
+    summary = {"bundle": str(bundle.path), "lod": str(lod_path), "device": lod["device"], "files": []}
+    try:
+        for c in chains:
+            for name, ch in c["objects"].items():
+                if name not in objects:
+                    raise InputError(f"{printable(str(lod_path))} names object {printable(name)!r}, which bundle "
+                                     f"{bundle.path} lacks; export with the bundle the chain was rendered from.")
+                obj, entry, stem = objects[name], bundle.manifest["objects"][name], f"{name}-{c['name']}"
+                if "meshes_only" in ch:
+                    summary["files"].append(_gltf(out, bundle, obj, entry, ch["meshes_only"]["entries"], stem,
+                                                  lod["resolution"][1]))
+                    log(f"{stem}.gltf: {len(ch['meshes_only']['entries'])} levels")
+                impostors = [e for e in ch["entries"] if e["technique"] not in TRIANGLE_MESHES]
+                if impostors:
+                    summary["files"].append(_sidecar(out, bundle, obj, entry, impostors, stem, lod))
+                    log(f"{stem}.impostors.json: {', '.join(e['variant'] for e in impostors)}")
+        out.file("export.json").write_text(json.dumps(summary, indent=1) + "\n")
+        out.commit()
+    except BaseException:
+        out.abort()
+        raise
+    return summary
+
+
+def _gltf(out, bundle, obj, entry, levels: list[dict], stem: str, height: int) -> str:
+    """The chain's triangle-mesh levels as STEM.gltf: level k shown while the object spans more than its band's
+    min_px (MSFT_screencoverage: that over the frame height), the last down to nothing left to cull."""
+    w = Writer()
+    texture_uri = None
+    nodes = []
+    for k, e in enumerate(levels):
+        tech, value = variant_value(obj, e["variant"])
+        rel = next(iter(REGISTRY[tech].reads(entry["techniques"][tech], value, obj))) if REGISTRY[tech].reads \
+            else entry["mesh"]
+        mesh = bundle.surface(entry, rel)
+        if mesh.texture is not None and texture_uri is None:
+            texture_uri = f"{obj.name}-albedo.png"
+            from PIL import Image
+            Image.fromarray(np.ascontiguousarray(mesh.texture[::-1])).save(out.file(texture_uri))
+        material = w.material(f"{obj.name} {e['variant']}", texture_uri if mesh.texture is not None else None,
+                              obj.material.albedo)
+        nodes.append(w.mesh(f"{obj.name} LOD{k} {e['variant']}", mesh, material))
+    coverage = [e["min_px"] / height for e in levels[:-1]] + [0.0]
+    w.lod(nodes, coverage, bundle.scene.camera.up)
+    w.save(out.file(f"{stem}.gltf"))
+    return f"{stem}.gltf"
+
+
+def _sidecar(out, bundle, obj, entry, impostors: list[dict], stem: str, lod: dict) -> str:
+    """STEM.impostors.json: per impostor of the chain its band, what it measured, and its parts (copied as
+    OBJECT-PART) with the manifest's layout of each; an octahedral atlas also as a PNG to look at."""
+    items = []
+    for e in impostors:
+        tech, value = variant_value(obj, e["variant"])
+        files = []
+        for rel, kind in REGISTRY[tech].reads(entry["techniques"][tech], value, obj).items():
+            name = f"{obj.name}-{Path(rel).name}"
+            if not out.file(name).exists():
+                shutil.copyfile(bundle.part_path(rel), out.file(name))
+            meta = bundle.manifest["parts"][rel]
+            files.append({"file": name, "kind": kind.name, "sha256": meta["sha256"],
+                          "layout": {k: v for k, v in meta.items() if k not in ("sha256", "bytes", "kind")}})
+            if kind.name == "octahedral":
+                files[-1]["preview"] = _atlas_preview(out, bundle.read(rel, kind), name)
+        items.append({"variant": e["variant"], "technique": tech, "band_px": [e["min_px"], e["max_px"]],
+                      "screen_coverage": e["screen_coverage"], "within_limits": e["meets"], "measured": e["measured"],
+                      "files": files})
+    doc = {"format": SIDECAR, "version": 1, "object": obj.name, "device": lod["device"],
+           "frame": lod["resolution"], "band": lod.get("band"),
+           "read": "docs/export.md: each part kind's layout and how a shader reads it", "impostors": items}
+    out.file(f"{stem}.impostors.json").write_text(json.dumps(doc, indent=1) + "\n")
+    return f"{stem}.impostors.json"
+
+
+def _atlas_preview(out, atlas, name: str) -> str:
+    """The atlas as an sRGB PNG, alpha the coverage: its albedo where it has one, else its normals (0.5 + n/2)."""
+    from PIL import Image
+
+    rgb = atlas.albedo if atlas.albedo is not None else np.dstack(
+        [0.5 + 0.5 * atlas.normal, np.sqrt(np.clip(1 - (atlas.normal ** 2).sum(-1), 0, 1))[..., None]])
+    rgba = np.dstack([to_srgb8(rgb), (255 * atlas.coverage).astype(np.uint8)])
+    png = Path(name).stem + ".png"
+    Image.fromarray(np.ascontiguousarray(rgba[::-1])).save(out.file(png))
+    return png
