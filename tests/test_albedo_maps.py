@@ -46,7 +46,7 @@ def test_sample_conventions():
 
 def test_obj_and_glb_load_the_same_albedo(tmp_path):
     """OBJ map_Kd is taken as it is; the same model written as GLB (trimesh) gives the same colour at every
-    vertex (the glTF v flip undone), and glTF's baseColorFactor multiplies the map."""
+    vertex (the glTF v flip undone), and glTF's baseColorFactor, a colour per vertex, multiplies the map."""
     import trimesh
 
     m = bunny()
@@ -64,7 +64,7 @@ def test_obj_and_glb_load_the_same_albedo(tmp_path):
         want = texture.sample(m.texture, m.uvs)
         # the same vertices in another order: compare the colours at matching positions
         order_m, order_g = np.lexsort(m.vertices.T), np.lexsort(g.vertices.T)
-        got = texture.sample(g.texture, g.uvs)[order_g]
+        got = (texture.sample(g.texture, g.uvs) * (1.0 if g.colors is None else g.colors))[order_g]
         want = want[order_m] * np.array([1.0, scale, 1.0])
         assert np.abs(got - want).max() < 0.01, np.abs(got - want).max()
 

@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from ..common import texture
-from ..common.colour import srgb8_to_linear, to_srgb8
+from ..common.colour import srgb8_to_linear
 from ..errors import InputError
 from ..schema import printable
+from .gltf import ALBEDO, gltf_albedo
 from .references import check_picture, described, names_texture, reached_files
 
 
@@ -123,7 +124,7 @@ def weld(vertices: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
     return rank[inv.ravel()]
 
 
-def merge_vertices(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, rgb8: np.ndarray | None = None,
+def merge_vertices(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, colors: np.ndarray | None = None,
                    rel_tol: float = 1e-9):
     """Coincident vertices merged (STL and OBJ split them), tolerance relative to the mesh's size and
     about its centre, so that a mesh keeps its vertices at any scale and offset (an absolute tolerance
@@ -136,15 +137,15 @@ def merge_vertices(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | No
         lo = finite.min(0) if len(finite) else np.zeros(2)
         span = max(float(np.abs(finite - lo).max()) if len(finite) else 0.0, 1e-300)
         key = np.column_stack([key, np.round((uvs - lo) / (span * rel_tol))])
-    if rgb8 is not None:
-        key = np.column_stack([key, rgb8.astype(np.float64)])
+    if colors is not None:
+        key = np.column_stack([key, colors])
     _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
     order = np.argsort(first)
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     keep = first[order]
     return (vertices[keep], rank[inv.ravel()][faces], None if uvs is None else uvs[keep],
-            None if rgb8 is None else rgb8[keep])
+            None if colors is None else colors[keep])
 
 
 def rotation_xyz(degrees) -> np.ndarray:
@@ -225,7 +226,8 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
     """Any format trimesh reads, merged to one triangle mesh with area-weighted vertex normals, and with its
     texture as an albedo map if `textures` and it has one. trimesh reads only the bytes of
     `references.reached_files`, through a resolver, and each texture file is checked first
-    (`references.check_picture`); an embedded picture (a GLB's) over texture.MAX_PIXELS is left out undecoded."""
+    (`references.check_picture`); an embedded picture (a GLB's) over texture.MAX_PIXELS is left out undecoded.
+    A glTF's colours per vertex are read here, not by trimesh (gltf_albedo)."""
     import trimesh  # imported here: only scenes with mesh files pay for it
     from PIL import Image
 
@@ -235,14 +237,20 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
         if f.what == "texture":
             check_picture(f.data, f"{printable(str(f.path))} (the {described(chain, f.what)})")
     resolver = {chain[-1]: f.data for chain, f in files.items() if len(chain) > 1}
+    gltf = path.suffix[1:].lower() in ("gltf", "glb")
     limit = Image.MAX_IMAGE_PIXELS
     try:
         Image.MAX_IMAGE_PIXELS = texture.MAX_PIXELS
         with warnings.catch_warnings():   # a picture over the limit: refused, not decoded with a warning
             warnings.simplefilter("error", Image.DecompressionBombWarning)
-            loaded = trimesh.load(io.BytesIO(files[(str(path),)].data), resolver=resolver, force="mesh",
-                                  file_type=trimesh.util.split_extension(path.name, special=["tar.gz", "tar.bz2"]),
-                                  process=False, skip_materials=not textures)
+            scene = trimesh.load_scene(io.BytesIO(files[(str(path),)].data), resolver=resolver,
+                                       file_type=trimesh.util.split_extension(path.name, special=["tar.gz", "tar.bz2"]),
+                                       process=False, skip_materials=not textures)
+            if gltf:
+                gltf_albedo(scene, files, textures, shown)
+            loaded = scene.to_mesh()   # every instance with its node's transform applied (glTF 2.0 §3.5.2)
+    except InputError:
+        raise
     except ImportError as e:  # trimesh reads some formats through optional packages
         raise InputError(f"{shown}: format not supported here: install the Python package "
                          f"{e.name or 'that trimesh needs for it'} ({printable(str(e))}).") from None
@@ -270,10 +278,9 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
         raise InputError(f"{shown}: {int((~np.isfinite(uv)).any(1).sum())} vertices have NaN or Inf texture "
                          'coordinates, where its texture is read; fix the UVs, or set textures = "ignore" on the '
                          "object.")
-    rgb8 = vertex_colors(visual, len(vertices))
+    colors = loaded.vertex_attributes.get(ALBEDO) if gltf else vertex_colors(visual, len(vertices))
     # vertices that differ in colour stay apart too: the colour is an attribute like the UV
-    v, f, uvs, rgb8 = merge_vertices(vertices, faces, uv, rgb8)
-    colors = None if rgb8 is None else srgb8_to_linear(rgb8)
+    v, f, uvs, colors = merge_vertices(vertices, faces, uv, None if colors is None else np.asarray(colors, np.float64))
     # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
     # of all its faces on both sides, so shading and displacement agree across the seam.
     w = weld(v)
@@ -283,34 +290,21 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
 
 def base_colour_map(visual) -> np.ndarray | None:
     """The asset's base-colour texture as an albedo map (vdmbake.common.texture), or None: OBJ's `map_Kd` as it is
-    (as MeshLab and Blender show it: exporters write a default Kd beside a map), glTF's baseColorTexture
-    times its baseColorFactor (glTF 2.0 sec. 3.9.2)."""
-    from ..common import texture
-
+    (as MeshLab and Blender show it: exporters write a default Kd beside a map), glTF's baseColorTexture as the
+    file's own picture (its baseColorFactor is a colour per vertex: gltf_albedo)."""
     material = getattr(visual, "material", None)
     image = getattr(material, "baseColorTexture", None)
-    factor = np.ones(3)
-    if image is not None:
-        bcf = getattr(material, "baseColorFactor", None)
-        if bcf is not None:   # trimesh gives it as uint8 (0..255) or as floats (0..1)
-            bcf = np.asarray(bcf)
-            factor = bcf[:3] / (255.0 if bcf.dtype == np.uint8 else 1.0)
-    else:
+    if image is None:
         image = getattr(material, "image", None)
         if image is not None and image.format is None and not image.info:
             image = None   # made by trimesh for an OBJ with UVs and no material (a 2x2 grey), not the asset's
-    if image is None:
-        return None
-    rgb = texture.from_image(image)
-    if not np.allclose(factor, 1.0):   # the factor multiplies linear colour: applied once, re-encoded to 8 bits
-        rgb = to_srgb8(texture.linear(rgb) * factor)
-    return rgb
+    return None if image is None else texture.from_image(image)
 
 
 def vertex_colors(visual, count: int) -> np.ndarray | None:
-    """(V, 3) uint8 sRGB per-vertex colours when the file has them (trimesh's vertex-kind visual, e.g. a
-    PLY's red/green/blue properties or OBJ's `v x y z r g b`), else None."""
+    """(V, 3) linear per-vertex colours when the file has them as trimesh reads them, 8-bit sRGB (a vertex-kind
+    visual, e.g. a PLY's red/green/blue properties or OBJ's `v x y z r g b`), else None."""
     if visual is None or getattr(visual, "kind", None) != "vertex":
         return None
     rgb = np.asarray(visual.vertex_colors)[:, :3]
-    return rgb.astype(np.uint8) if len(rgb) == count else None
+    return srgb8_to_linear(rgb.astype(np.uint8)) if len(rgb) == count else None

@@ -6,6 +6,8 @@ hands trimesh only these bytes). A texture that cannot be used is an error namin
 named it, not a mesh silently baked without it."""
 from __future__ import annotations
 
+import base64
+import binascii
 import io
 import json
 from dataclasses import dataclass
@@ -51,6 +53,36 @@ def _gltf_json(kind: str, data: bytes):
     if kind == "glb":   # the JSON chunk: after the 12-byte header, its length and type
         data = data[20:20 + int.from_bytes(data[12:16], "little")] if data[16:20] == b"JSON" else b""
     return json.loads(data)
+
+
+def gltf_tree(files: dict) -> dict:
+    """The JSON of the glTF or GLB mesh file among `files` (reached_files)."""
+    mesh = next(f for chain, f in files.items() if len(chain) == 1)
+    return _gltf_json(mesh.path.suffix[1:].lower(), mesh.data)
+
+
+def gltf_buffer(files: dict, tree: dict, index: int, origin: str) -> bytes:
+    """Buffer `index` of the glTF or GLB mesh file among `files`, whose JSON is `tree` (glTF 2.0 §3.6.1): a data:
+    URI decoded, a file as `reached_files` read it, or, without a uri, a GLB's binary chunk (chapter 4)."""
+    spec, mesh = next((chain, f) for chain, f in files.items() if len(chain) == 1)
+    uri = tree["buffers"][index].get("uri")
+    if uri is None:
+        data = mesh.data
+        at = 20 + int.from_bytes(data[12:16], "little")    # past the header and the JSON chunk
+        if data[16:20] != b"JSON" or data[at + 4:at + 8] != b"BIN\0":
+            raise InputError(f"{origin}: buffer {index} has no uri and the file has no GLB binary chunk; glTF 2.0 "
+                             "gives every buffer of a .gltf a uri.")
+        return data[at + 8:at + 8 + int.from_bytes(data[at:at + 4], "little")]
+    if not uri.startswith("data:"):
+        return files[spec + (uri,)].data
+    head, _, body = uri.partition(",")
+    try:
+        if head.endswith(";base64"):
+            return base64.b64decode(body, validate=True)
+    except binascii.Error:
+        pass
+    raise InputError(f"{origin}: buffer {index}'s data: URI is not base64 (glTF 2.0 §3.6.1: "
+                     "data:application/octet-stream;base64,...); re-export the file.")
 
 
 def names_texture(kind: str, files: dict) -> bool:

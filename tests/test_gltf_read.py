@@ -1,0 +1,281 @@
+"""glTF colours read to the spec (issue 22, item 4): COLOR_0 is linear (glTF 2.0 §3.7.2.1), baseColorFactor,
+the base-colour texture and COLOR_0 multiply in linear floats (§3.9.2), a factor alone is the asset's colour, a
+texture read otherwise than the renderer reads it is refused, and the nodes' transforms are applied (§3.5.2). The
+files are written here as plain JSON, their buffer a base64 data: URI, a .bin file or a GLB's binary chunk."""
+from __future__ import annotations
+
+import base64
+import io
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from vdmbake.assets.meshes import TriMesh, load_mesh_file
+from vdmbake.bundle import parts
+from vdmbake.common import texture
+from vdmbake.common.colour import srgb8_to_linear
+from vdmbake.errors import InputError
+from vdmbake.scene import Light, Material
+from vdmrender import gl, images, metrics, reference
+from vdmrender.camera import orbit
+from vdmrender.passes.raster import RasterMesh
+
+QUAD = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
+UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)          # glTF's v runs down the picture
+BG = (0.05, 0.05, 0.06)
+
+
+class Gltf:
+    """A glTF file built up in memory: one buffer, accessors, meshes of quads, materials, nodes."""
+
+    def __init__(self):
+        self.blob = b""
+        self.tree = {"asset": {"version": "2.0"}, "accessors": [], "bufferViews": [], "meshes": [], "nodes": [],
+                     "scenes": [{"nodes": []}], "scene": 0}
+
+    def accessor(self, a: np.ndarray, normalized: bool = False) -> int:
+        self.blob += b"\0" * (-len(self.blob) % 4)
+        self.tree["bufferViews"].append({"buffer": 0, "byteOffset": len(self.blob), "byteLength": a.nbytes})
+        self.blob += np.ascontiguousarray(a).tobytes()
+        acc = {"bufferView": len(self.tree["bufferViews"]) - 1, "count": len(a),
+               "componentType": {"f": 5126, "B": 5121, "H": 5123, "b": 5120}[a.dtype.char],
+               "type": "SCALAR" if a.ndim == 1 else f"VEC{a.shape[1]}"}
+        if normalized:
+            acc["normalized"] = True
+        if a.ndim == 2 and a.shape[1] == 3 and a.dtype == np.float32:   # POSITION needs its bounds
+            acc["min"], acc["max"] = a.min(0).tolist(), a.max(0).tolist()
+        self.tree["accessors"].append(acc)
+        return len(self.tree["accessors"]) - 1
+
+    def material(self, factor=None, picture=None, info=None, sampler=None) -> int:
+        """A material of `factor` and (if `picture`, an (H, W, 3) uint8) a base-colour texture whose textureInfo
+        gets `info`'s keys, sampled by `sampler`."""
+        pbr = {} if factor is None else {"baseColorFactor": list(factor)}
+        if picture is not None:
+            png = io.BytesIO()
+            Image.fromarray(np.asarray(picture, np.uint8)).save(png, "PNG")
+            self.tree.setdefault("images", []).append(
+                {"uri": "data:image/png;base64," + base64.b64encode(png.getvalue()).decode()})
+            tex = {"source": len(self.tree["images"]) - 1}
+            if sampler is not None:
+                self.tree.setdefault("samplers", []).append(sampler)
+                tex["sampler"] = len(self.tree["samplers"]) - 1
+            self.tree.setdefault("textures", []).append(tex)
+            pbr["baseColorTexture"] = {"index": len(self.tree["textures"]) - 1, **(info or {})}
+        self.tree.setdefault("materials", []).append({"pbrMetallicRoughness": pbr})
+        return len(self.tree["materials"]) - 1
+
+    def primitive(self, colour=None, material=None, uv=None, mode=None) -> dict:
+        """A quad (two triangles, or its corners for a `mode` of points), its COLOR_0 `colour` given per vertex
+        (normalized where it is of integers)."""
+        p = {"attributes": {"POSITION": self.accessor(QUAD)},
+             "indices": self.accessor(np.array([0, 1, 2, 0, 2, 3], np.uint16))}
+        if colour is not None:
+            colour = np.asarray(colour)
+            p["attributes"]["COLOR_0"] = self.accessor(colour, normalized=colour.dtype.kind == "u")
+        if uv is not None:
+            p["attributes"]["TEXCOORD_0"] = self.accessor(np.asarray(uv, np.float32))
+        if material is not None:
+            p["material"] = material
+        if mode is not None:
+            p["mode"] = mode
+            del p["indices"]
+        return p
+
+    def mesh(self, *primitives) -> int:
+        self.tree["meshes"].append({"primitives": list(primitives)})
+        return len(self.tree["meshes"]) - 1
+
+    def node(self, root: bool = True, **node) -> int:
+        self.tree["nodes"].append(node)
+        if root:
+            self.tree["scenes"][0]["nodes"].append(len(self.tree["nodes"]) - 1)
+        return len(self.tree["nodes"]) - 1
+
+    def write(self, path, buffer: str = "data"):
+        """The file at `path`, its buffer a data: URI, a file of that name, or (`glb`) the GLB's binary chunk."""
+        self.tree["buffers"] = [{"byteLength": len(self.blob)}]
+        if buffer == "data":
+            self.tree["buffers"][0]["uri"] = ("data:application/octet-stream;base64,"
+                                              + base64.b64encode(self.blob).decode())
+        elif buffer != "glb":
+            self.tree["buffers"][0]["uri"] = buffer
+            (path.parent / buffer).write_bytes(self.blob)
+        text = json.dumps(self.tree).encode()
+        if buffer != "glb":
+            path.write_bytes(text)
+            return path
+        text += b" " * (-len(text) % 4)
+        blob = self.blob + b"\0" * (-len(self.blob) % 4)
+        chunks = (len(text).to_bytes(4, "little") + b"JSON" + text + len(blob).to_bytes(4, "little") + b"BIN\0" + blob)
+        path.write_bytes(b"glTF" + (2).to_bytes(4, "little") + (12 + len(chunks)).to_bytes(4, "little") + chunks)
+        return path
+
+
+def quad_file(path, colour=None, uv=None, **materials) -> TriMesh:
+    """A one-quad glTF loaded: COLOR_0 `colour`, and a material made by Gltf.material(**materials) if given."""
+    g = Gltf()
+    material = g.material(**materials) if materials else None
+    g.node(mesh=g.mesh(g.primitive(colour, material, UV if uv is None and "picture" in materials else uv)))
+    return load_mesh_file(g.write(path))
+
+
+def albedo(m: TriMesh) -> np.ndarray:
+    """The asset's linear albedo at the quad's centre, as the reference reads it (None: the scene's material)."""
+    return texture.surface_albedo(m, np.array([0]), np.array([[0.25, 0.25, 0.5]]), None)[0] if texture.has_albedo(m) \
+        else None
+
+
+# --------------------------------------------------------------------------------------- 1. COLOR_0 is linear
+
+@pytest.mark.parametrize("colour, want", [
+    (np.full((4, 3), 0.5, np.float32), 0.5),                  # before this fix: 0.2159 (128 decoded as sRGB)
+    (np.full((4, 4), 128, np.uint8), 128 / 255),              # before: 0.2159
+    (np.full((4, 3), 32768, np.uint16), 32768 / 65535),       # before: 0.0 (trimesh took 32768 for a byte)
+])
+def test_colour_0_is_linear(tmp_path, colour, want):
+    m = quad_file(tmp_path / "q.gltf", colour)
+    assert m.colors is not None and np.allclose(m.colors, want, rtol=0, atol=1e-12), m.colors
+
+
+@pytest.mark.parametrize("name, buffer", [("q.glb", "glb"), ("q.gltf", "q.bin")])
+def test_colour_0_from_a_glb_or_a_buffer_file(tmp_path, name, buffer):
+    """Strided (VEC4 of bytes in a float-aligned view) and offset into the GLB's binary chunk or a .bin file."""
+    g = Gltf()
+    p = g.primitive()
+    p["attributes"]["COLOR_0"] = g.accessor(np.repeat([[51, 102, 204, 255, 0, 0, 0, 0]], 4, 0).astype(np.uint8), True)
+    g.tree["accessors"][-1].update(type="VEC4")
+    g.tree["bufferViews"][-1]["byteStride"] = 8
+    g.node(mesh=g.mesh(p))
+    m = load_mesh_file(g.write(tmp_path / name, buffer))
+    assert np.allclose(m.colors, [0.2, 0.4, 0.8], rtol=0, atol=1e-12), m.colors
+
+
+@pytest.mark.parametrize("colour, match", [
+    (np.full((4, 3), 1.5, np.float32), "outside"),
+    (np.full((4, 3), 100, np.int8), "normalized unsigned byte"),
+])
+def test_colour_0_out_of_spec_is_refused(tmp_path, colour, match):
+    with pytest.raises(InputError, match=match):
+        quad_file(tmp_path / "q.gltf", colour)
+
+
+def test_colour_0_multiplies_the_texture(tmp_path):
+    """COLOR_0 = 0.5 on a white texture: 0.5 (before: COLOR_0 dropped, 1.0)."""
+    m = quad_file(tmp_path / "q.gltf", np.full((4, 3), 0.5, np.float32), picture=np.full((2, 2, 3), 255))
+    assert m.texture is not None and (m.texture == 255).all()
+    assert np.allclose(albedo(m), 0.5, rtol=0, atol=1e-12), albedo(m)
+
+
+# ------------------------------------------------------- 2. factor x texture x COLOR_0 in linear floats, once
+
+def test_factor_multiplies_in_linear_floats(tmp_path):
+    """A white texture with factor [0.9, 0.7, 1]: exactly the factor (before: [0.90466, 0.70110, 1.0], the factor
+    rounded to 1/255 and the product re-encoded to 8-bit sRGB); the texture stays the file's picture."""
+    m = quad_file(tmp_path / "q.gltf", factor=[0.9, 0.7, 1.0, 0.5], picture=np.full((2, 2, 3), 255))
+    assert (m.texture == 255).all()
+    assert np.allclose(albedo(m), [0.9, 0.7, 1.0], rtol=0, atol=1e-12), albedo(m)
+    picture = np.full((2, 2, 3), 200)
+    m = quad_file(tmp_path / "r.gltf", np.full((4, 3), 0.5, np.float32), factor=[0.3, 0.7, 0.9, 1], picture=picture)
+    want = 0.5 * np.array([0.3, 0.7, 0.9]) * srgb8_to_linear(200)
+    assert (m.texture == 200).all() and np.allclose(albedo(m), want, rtol=0, atol=1e-12), (albedo(m), want)
+
+
+# ----------------------------------------------------------------------- 3. a factor alone is the asset's colour
+
+def test_factor_alone_is_the_asset_colour(tmp_path):
+    """Before: no colour (the scene's material applied); a file without any colour keeps that."""
+    m = quad_file(tmp_path / "q.gltf", factor=[0.9, 0.7, 0.2, 1])
+    assert m.texture is None and np.allclose(m.colors, [0.9, 0.7, 0.2], rtol=0, atol=1e-12)
+    plain = quad_file(tmp_path / "p.gltf", factor=None)   # a material without a factor
+    assert plain.colors is None and plain.texture is None
+    ignored = load_mesh_file(tmp_path / "q.gltf", textures=False)   # textures = "ignore": the material is not read
+    assert ignored.colors is None
+
+
+# -------------------------------------------------- 4. texture transforms and wrap modes: refused, not ignored
+
+@pytest.mark.parametrize("info, sampler, uv, match", [
+    ({"extensions": {"KHR_texture_transform": {"offset": [0.5, 0]}}}, None, None, "KHR_texture_transform"),
+    ({"texCoord": 1}, None, None, "TEXCOORD_0"),
+    (None, {"wrapS": 33071}, None, "wrapS"),                  # CLAMP_TO_EDGE where the UVs reach the edge
+    (None, {"wrapT": 33648}, UV * 0.9 + 0.05, "wrapT"),       # MIRRORED_REPEAT within half a texel of it
+])
+def test_texture_read_otherwise_is_refused(tmp_path, info, sampler, uv, match):
+    picture = np.arange(16 * 3).reshape(4, 4, 3) * 5
+    with pytest.raises(InputError, match=match):
+        quad_file(tmp_path / "q.gltf", picture=picture, info=info, sampler=sampler, uv=uv)
+
+
+@pytest.mark.parametrize("info, sampler, uv", [
+    ({"extensions": {"KHR_texture_transform": {"scale": [1, 1], "rotation": 0}}}, None, None),   # the identity
+    (None, {"wrapS": 10497, "wrapT": 10497}, None),                                             # REPEAT, spelt out
+    (None, {"wrapS": 33071, "wrapT": 33648}, UV * 0.75 + 0.125),   # UVs half a texel in: the mode reads nothing
+])
+def test_texture_read_as_the_renderer_reads_it_loads(tmp_path, info, sampler, uv):
+    m = quad_file(tmp_path / "q.gltf", picture=np.full((4, 4, 3), 90), info=info, sampler=sampler, uv=uv)
+    assert m.texture is not None
+
+
+# ------------------------------------------------------------------------------- 5. the nodes' transforms
+
+def test_node_transforms_and_colours_follow_each_instance(tmp_path):
+    """A mesh drawn by two nodes (translation, rotation, scale; identity) and another by a child node (matrix,
+    under the first): every vertex where its node chain puts it, with its own primitive's colour. trimesh's
+    to_mesh applied the transforms before this change too; the colours are new. The points primitive, which
+    trimesh makes a geometry of but to_mesh drops, checks that colours match primitives in file order."""
+    g = Gltf()
+    dim, bright = g.material([0.25, 0.25, 0.25, 1]), g.material([0.75, 0.5, 0.25, 1])
+    a = g.mesh(g.primitive(material=bright, mode=0), g.primitive(material=dim))
+    b = g.mesh(g.primitive(np.full((4, 3), 0.5, np.float32), material=bright))
+    half = np.sqrt(0.5)
+    parent = g.node(mesh=a, translation=[5, 0, 0], rotation=[0, 0, half, half], scale=[2, 2, 2])   # 90 deg about z
+    g.tree["nodes"][parent]["children"] = [g.node(root=False, mesh=b, matrix=[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0,
+                                                                             0, 0, 3, 1])]
+    g.node(mesh=a)
+    m = load_mesh_file(g.write(tmp_path / "nodes.gltf"))
+    trs = np.array([[0, -2, 0, 5], [2, 0, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1.0]])
+    place = lambda matrix: (np.c_[QUAD, np.ones(4)] @ matrix.T)[:, :3]   # noqa: E731
+    want = np.r_[np.c_[place(trs), np.full((4, 3), 0.25)], np.c_[place(np.eye(4)), np.full((4, 3), 0.25)],
+                 np.c_[place(trs @ [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 3], [0, 0, 0, 1]]),   # child after parent
+                       np.tile(0.5 * np.array([0.75, 0.5, 0.25]), (4, 1))]]
+    got = np.c_[m.vertices, m.colors]
+    assert len(got) == len(want)
+    assert np.allclose(got[np.lexsort(got.T)], want[np.lexsort(want.T)], rtol=0, atol=1e-6)
+
+
+# -------------------------------------------------- render: the `mesh` technique and the reference agree with glTF
+
+@pytest.mark.parametrize("materials, colour, want", [
+    ({}, np.full((4, 3), 0.5, np.float32), (0.5, 0.5, 0.5)),                   # before this fix: 21.1 mean dLuv
+    ({"picture": np.full((2, 2, 3), 255)}, np.full((4, 3), 0.5, np.float32), (0.5, 0.5, 0.5)),   # before: 22.3
+    ({"factor": [0.9, 0.7, 0.2, 1]}, None, (0.9, 0.7, 0.2)),                    # before: 55.9
+    ({"factor": [0.9, 0.7, 1, 1], "picture": np.full((2, 2, 3), 255)}, None, (0.9, 0.7, 1.0)),   # before: 0.54
+])
+def test_render_shows_the_glTF_albedo(tmp_path, ctx, materials, colour, want):
+    """The loaded quad stored as the bundle stores it, rasterised by `mesh` and traced by the reference, against
+    the reference of a plain quad whose scene material has the albedo glTF gives: both near-exact."""
+    m = quad_file(tmp_path / "q.gltf", colour, **materials)
+    light, material = Light(), Material()
+    centre, radius = m.bounding_sphere()
+    cam = orbit(SimpleNamespace(count=1, elevation_deg=20, azimuth_deg=-60, distance=2.6, fov_deg=40),
+                [0, 1, 0], centre, radius, 32, 32)[0]
+    stored = parts.stored(parts.MESH, m)
+    stored.texture = m.texture
+    expected = images.encode(reference.MeshReference(TriMesh(m.vertices, m.faces, m.normals), light,
+                                                     Material(albedo=want)).render(cam), BG)
+    target = gl.Target(ctx, 32, 32)
+    r = RasterMesh(ctx, stored, light, material, 256)
+    try:
+        r.render(cam, target)
+        drawn = metrics.compare(images.encode(target.read(), BG), expected)
+    finally:
+        r.release()
+        target.release()
+    traced = metrics.compare(images.encode(reference.MeshReference(m, light, material).render(cam), BG), expected)
+    assert drawn["iou"] > 0.99 and traced["iou"] > 0.99
+    # measured: 0.0 for both (at 32 px, on llvmpipe)
+    assert traced["mean"] < 1e-6 and drawn["mean"] < 0.1, (traced["mean"], drawn["mean"])

@@ -1,0 +1,123 @@
+"""glTF 2.0 colours, read from the file's own JSON and accessors. trimesh rounds COLOR_0 and baseColorFactor to 8
+bits (and misreads a 16-bit COLOR_0), and keeps COLOR_0 apart from the visual where the primitive has a material;
+glTF 2.0 gives both as linear multipliers of the base-colour texture (§3.9.2, §3.7.2.1). So they are read here as
+one linear colour per vertex, never re-encoded: the texture stays the file's sRGB picture, and the renderer and the
+reference multiply the two (mesh.frag, texture.surface_albedo). Textures read otherwise than the renderer reads
+every map are refused (check_texture_read)."""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from ..errors import InputError
+from ..schema import printable
+from .references import gltf_buffer, gltf_tree
+
+ALBEDO = "vdm_albedo"   # the vertex attribute that carries a primitive's colour through trimesh's to_mesh
+_REPEAT = 10497          # glTF 2.0 §5.26: the sampler's default wrapS/wrapT, as the renderer and the reference wrap
+_COLOUR_TYPES = {5121: np.dtype("u1"), 5123: np.dtype("<u2"), 5126: np.dtype("<f4")}   # COLOR_0's (§3.7.2.1)
+
+
+def gltf_albedo(scene, files: dict, textures: bool, origin: str) -> None:
+    """Give each triangle geometry of a glTF's trimesh `scene` (before to_mesh places its instances) its linear
+    albedo per vertex as the vertex attribute ALBEDO: its material's baseColorFactor times its COLOR_0 (`textures`:
+    the material is read, else only COLOR_0). None where no primitive gives a colour (the scene's material applies);
+    glTF's default 1 where another does. A base-colour texture read otherwise than the renderer reads it is refused."""
+    import trimesh
+
+    tree = gltf_tree(files)
+    buffer = functools.cache(lambda i: gltf_buffer(files, tree, i, origin))
+    try:
+        # trimesh makes one geometry of each primitive it can draw (points, lines, triangles, strips), in file order
+        prims = [p for m in tree.get("meshes", []) for p in m["primitives"] if p.get("mode", 4) in (0, 1, 4, 5)]
+        pairs = [(g, p) for g, p in zip(scene.geometry.values(), prims) if isinstance(g, trimesh.Trimesh)]
+        if len(prims) != len(scene.geometry) or any(
+                len(g.vertices) != tree["accessors"][p["attributes"]["POSITION"]]["count"] for g, p in pairs):
+            raise InputError(f"{origin}: trimesh loads its primitives otherwise than the file lists them, so their "
+                             "colours cannot be matched to them; report the file.")
+        colours = [primitive_albedo(tree, p, buffer, textures, origin) for g, p in pairs]
+        if textures:
+            for g, p in pairs:
+                check_texture_read(tree, p, g.visual, origin)
+    except (KeyError, IndexError, TypeError, AttributeError, ValueError) as e:
+        raise InputError(f"{origin}: cannot read its colours or material ({type(e).__name__}: "
+                         f"{printable(str(e))}); fix the file.") from None
+    if any(c is not None for c in colours):
+        for (g, p), c in zip(pairs, colours):
+            g.vertex_attributes[ALBEDO] = np.ones((len(g.vertices), 3)) if c is None else c
+
+
+def primitive_albedo(tree: dict, prim: dict, buffer, textures: bool, origin: str) -> np.ndarray | None:
+    """(V, 3) linear albedo of a glTF primitive's vertices: baseColorFactor's RGB (if `textures`) times COLOR_0's
+    (alpha is coverage, not albedo); None where it has neither."""
+    pbr = tree["materials"][prim["material"]].get("pbrMetallicRoughness", {}) if textures and "material" in prim else {}
+    factor = pbr.get("baseColorFactor")
+    if factor is not None and not (isinstance(factor, list) and len(factor) == 4 and all(
+            type(x) in (int, float) and 0 <= x <= 1 for x in factor)):
+        raise InputError(f"{origin}: material {prim['material']}'s baseColorFactor is {printable(repr(factor))}; "
+                         "glTF 2.0 gives four numbers from 0 to 1; fix the file.")
+    colour = colour_0(tree, prim["attributes"]["COLOR_0"], buffer, origin) if "COLOR_0" in prim["attributes"] else None
+    if factor is None and colour is None:
+        return None
+    rgb = np.ones((tree["accessors"][prim["attributes"]["POSITION"]]["count"], 3)) if colour is None else colour
+    return rgb * (1.0 if factor is None else np.asarray(factor[:3], np.float64))
+
+
+def colour_0(tree: dict, index: int, buffer, origin: str) -> np.ndarray:
+    """(V, 3) linear RGB of COLOR_0 accessor `index`: float, or unsigned byte or short normalized to [0, 1]
+    (glTF 2.0 §3.7.2.1; divided by 255 or 65535), laid out as §3.6.2 says (the view's and the accessor's
+    byteOffset, the view's byteStride)."""
+    a = tree["accessors"][index]
+    dtype, width = _COLOUR_TYPES.get(a.get("componentType")), {"VEC3": 3, "VEC4": 4}.get(a.get("type"))
+    shown = f"{origin}: COLOR_0 accessor {index}"
+    if dtype is None or width is None or a.get("normalized", False) != (dtype.kind == "u"):
+        raise InputError(f"{shown} is {printable(repr(a.get('type')))} of componentType "
+                         f"{printable(repr(a.get('componentType')))}{' normalized' if a.get('normalized') else ''}; "
+                         "glTF 2.0 allows VEC3 or VEC4 of float (5126), or of normalized unsigned byte (5121) or "
+                         "short (5123); fix the file.")
+    if "bufferView" not in a or "sparse" in a:
+        raise InputError(f"{shown} is sparse or compressed (no bufferView); not read here: export it uncompressed.")
+    view = tree["bufferViews"][a["bufferView"]]
+    item = dtype.itemsize * width
+    stride, start = view.get("byteStride", item), view.get("byteOffset", 0) + a.get("byteOffset", 0)
+    data = buffer(view["buffer"])
+    if start + stride * (a["count"] - 1) + item > min(len(data), view.get("byteOffset", 0) + view["byteLength"]):
+        raise InputError(f"{shown} reaches past its bufferView or buffer; fix the file.")
+    rgb = np.ndarray((a["count"], width), dtype, data, start, (stride, dtype.itemsize))[:, :3].astype(np.float64)
+    rgb /= np.iinfo(dtype).max if dtype.kind == "u" else 1.0
+    if not ((rgb >= 0) & (rgb <= 1)).all():    # NaN fails too
+        raise InputError(f"{shown} has values outside [0, 1] (or NaN); a colour is a multiplier from 0 to 1; "
+                         "fix the file.")
+    return rgb
+
+
+def check_texture_read(tree: dict, prim: dict, visual, origin: str) -> None:
+    """Refuse a primitive's base-colour texture read otherwise than the renderer and the reference read every map:
+    at TEXCOORD_0 (trimesh reads no other), untransformed (KHR_texture_transform other than the identity), and
+    wrapping around (the default wrapS/wrapT, §5.26); another wrap mode only where a UV reaches within half a texel
+    of an edge or past it, where the mode decides what bilinear filtering reads."""
+    info = tree["materials"][prim["material"]].get("pbrMetallicRoughness", {}).get("baseColorTexture") \
+        if "material" in prim else None
+    if info is None:
+        return
+    shown = f"{origin}: material {prim['material']}'s base-colour texture"
+    transform = info.get("extensions", {}).get("KHR_texture_transform")
+    if info.get("texCoord", 0) != 0 or (transform or {}).get("texCoord", 0) != 0:
+        raise InputError(f"{shown} is read at another TEXCOORD than TEXCOORD_0, which is the only one read; "
+                         'export it with one UV set, or set textures = "ignore" on the object.')
+    if transform is not None and (transform.get("offset", [0, 0]) != [0, 0] or transform.get("rotation", 0) != 0
+                                  or transform.get("scale", [1, 1]) != [1, 1]):
+        raise InputError(f"{shown} has a KHR_texture_transform ({printable(repr(transform))}), which is not "
+                         'applied here; bake it into the UVs, or set textures = "ignore" on the object.')
+    sampler = tree["textures"][info["index"]].get("sampler")
+    sampler = tree["samplers"][sampler] if sampler is not None else {}
+    image, uv = getattr(visual.material, "baseColorTexture", None), getattr(visual, "uv", None)
+    if image is None or uv is None:
+        return   # nothing read
+    for axis, key in enumerate(("wrapS", "wrapT")):
+        mode, size = sampler.get(key, _REPEAT), image.size[axis]
+        if mode != _REPEAT and not ((0.5 / size <= uv[:, axis]) & (uv[:, axis] <= 1 - 0.5 / size)).all():
+            raise InputError(f"{shown} has {key} = {printable(repr(mode))} and UVs that reach its edge, where "
+                             f"only REPEAT ({_REPEAT}) is read as the file means; set {key} to {_REPEAT} (or "
+                             'leave it out), or set textures = "ignore" on the object.')
