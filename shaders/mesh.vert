@@ -3,7 +3,8 @@
 // the object's anchor (its bounding-box centre) so far-off objects keep float32 precision.
 // VERTEX_COLOR: the asset's albedo per vertex (linear RGB), interpolated over each triangle as the
 // reference interpolates it at the hit; ALBEDO_MAP: the asset's texture coordinates, its albedo map
-// read per fragment (times the vertex colour, if any); otherwise the material's albedo.
+// read per fragment (times the vertex colour, if any); otherwise the material's albedo. INSTANCED: one copy per
+// instance, placed by its matrix.
 in vec3 in_pos;
 in vec3 in_normal;
 #ifdef VERTEX_COLOR
@@ -15,14 +16,22 @@ uniform vec3 u_albedo;
 in vec2 in_uv;
 out vec2 v_uv;
 #endif
+#ifdef INSTANCED
+in mat4 in_model;     // this copy's similarity, anchor-relative (vdmbake.common.instances): normals only turn
+#endif
 uniform mat4 u_mvp;   // clip space from anchor-relative coordinates
 out vec3 v_pos;
 out vec3 v_normal;
 out vec3 v_albedo;
 
 void main() {
+#ifdef INSTANCED
+    v_pos = (in_model * vec4(in_pos, 1.0)).xyz;
+    v_normal = mat3(in_model) * in_normal;   // a uniform scale: the fragment stage normalises
+#else
     v_pos = in_pos;
     v_normal = in_normal;
+#endif
 #ifdef VERTEX_COLOR
     v_albedo = in_color;
 #elif defined(ALBEDO_MAP)
@@ -33,5 +42,5 @@ void main() {
 #ifdef ALBEDO_MAP
     v_uv = in_uv;
 #endif
-    gl_Position = u_mvp * vec4(in_pos, 1.0);
+    gl_Position = u_mvp * vec4(v_pos, 1.0);
 }

@@ -4,7 +4,8 @@
 // a ray / depth-map search, or VIRTUAL, Amplify's single parallax step), blended; the blended hit's exact
 // depth, and its blended normal shaded with the shared model and the shadow map. SHADOW: the light's pass
 // (the light's direction picks its own views); only the depth is written. ALBEDO_ATLAS: the colour is the
-// blended albedo of the views (octahedral.glsl), else the material's.
+// blended albedo of the views (octahedral.glsl), else the material's. INSTANCED: the copy's matrix takes
+// the ray into the impostor's own frame.
 #include "cost_count.glsl"
 #include "quadric.glsl"
 #include "octahedral.glsl"
@@ -19,6 +20,9 @@ uniform float u_atlas_texels;  // extra shadow offset along the normal, in atlas
 out vec4 frag;
 #endif
 uniform float u_radius;
+#ifdef INSTANCED
+flat in mat4 v_model;
+#endif
 
 void main() {
     COUNT_FRAGMENT();
@@ -26,7 +30,17 @@ void main() {
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     float t;
     vec3 n, albedo;
+#ifdef INSTANCED
+    // The ray in the copy's own frame: for M = [s R | c], M^-1 p = R^T (p - c) / s = A^T (p - c) / s^2 with
+    // A = s R; the ray parameter is the same in both frames, the normal turns back by R.
+    mat3 A = mat3(v_model);
+    float s2 = dot(A[0], A[0]);
+    if (!impostor_hit(transpose(A) * (p0 - v_model[3].xyz) / s2, transpose(A) * seg / s2, u_radius, t, n, albedo))
+        discard;
+    n = normalize(A * n);
+#else
     if (!impostor_hit(p0, seg, u_radius, t, n, albedo)) discard;
+#endif
     vec3 p = p0 + seg * t;
     gl_FragDepth = window_depth(u_view_proj, p);
 #if !defined(SHADOW)

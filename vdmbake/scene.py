@@ -165,6 +165,38 @@ class Mesostructure:
     curvatures: int = setting(16, Integer(1, 64), "VDM curvature samples over the range the base mesh has")
 
 
+@dataclass(frozen=True)
+class Placement:
+    """One instance: uniform scale, then rotate about X, Y, Z (degrees), then translate, all after the object's own
+    transform and about its bounding-sphere centre (vdmbake.common.instances)."""
+    translate: tuple[float, float, float] = setting((0.0, 0.0, 0.0), Vector(3), "scene units")
+    rotate_deg: tuple[float, float, float] = setting((0.0, 0.0, 0.0), Vector(3), "about X, then Y, then Z")
+    scale: float = setting(1.0, Number(1e-6, 1e6), "uniform (normals only turn)")
+
+
+@dataclass(frozen=True)
+class Scatter:
+    """`count` instances at seeded random places of a rectangle of the plane through the object's centre normal
+    to `camera.up`, each turned about `up` through its centre and scaled about it (vdmbake.common.instances)."""
+    count: int = setting(REQUIRED, Integer(1, 1_000_000), "instances")
+    area: tuple[float, float] = setting(REQUIRED, Vector(2, 0.0, 1e9), "sides of the rectangle, scene units, centred "
+                                        "on the object")
+    scale: tuple[float, float] = setting((1.0, 1.0), Vector(2, 1e-6, 1e6), "range of the uniform scale")
+    rotate: bool = setting(True, Boolean(), "a random turn about `up` per instance")
+    seed: int = setting(0, Integer(0, 2**63 - 1), "the generator's seed: the same seed, the same places")
+
+
+@dataclass(frozen=True)
+class Instances:
+    """The object drawn many times from one bake (issue 23): an explicit list, or a seeded scatter."""
+    placements: tuple[Placement, ...] = setting((), Tables(Placement), "[[objects.instances.placements]]: one table "
+                                                "per instance")
+    scatter: Scatter | None = setting(None, Table(Scatter), "a seeded scatter over a rectangle")
+
+
+INSTANCED = ("mesh", "coarse", "octahedral")   # the techniques that draw instances (with instanced draws)
+
+
 class Rows(Type):
     """Inline quadrics: rows of n finite numbers, the last (a radius) >= 0."""
 
@@ -209,6 +241,9 @@ class Object:
                                                   "detail geometry over the surface's UVs (mesh or primitive)")
     techniques: dict = setting(REQUIRED, Custom("a table of technique tables (see the techniques below)"),
                                "the techniques to render and compare, each with its settings")
+    instances: Instances | None = setting(None, Table(Instances),
+                                          "[objects.instances]: draw the object many times from one bake (techniques "
+                                          f"{', '.join(INSTANCED)}; the reference traces every copy)")
     viewer_mesh: int | None = setting(None, Integer(0, 4),
                                       "quadrics objects: also bake them as one triangle mesh for viewers (standard PLY "
                                       "with vertex colours, part viewer-mesh), tessellated as `tessellated` draws them "
@@ -267,6 +302,8 @@ def parse_scene_dict(data: dict, origin: str) -> Scene:
             raise InputError(f"{origin}: two objects are named {n!r}; object names must be unique.")
     render = top.value("render", Table(Render), Render())
     check_composite(render.composite, objs, origin)
+    if render.composite and any(o.instances for o in objs):
+        raise InputError(f"{origin}: render.composite with instanced objects is not drawn; render them alone.")
     check_sweep(render.sweep, origin)
     return read(Scene, top, render=render, material=material, objects=objs, camera=_cameras(top.table("camera")))
 
@@ -344,12 +381,25 @@ def _object(t: Reader, default_material: Material) -> Object:
     if t.has("mesostructure") and not (mesh or primitive):
         t.fail("mesostructure", t.data["mesostructure"], "a mesostructure only on mesh or primitive objects")
     meso = t.value("mesostructure", Table(Mesostructure), None)
+    instances = t.value("instances", Table(Instances), None)
+    if instances is not None:
+        given = [k for k in ("placements", "scatter") if getattr(instances, k)]
+        if len(given) != 1:
+            t.fail("instances", t.data["instances"], "a table with exactly one of `placements` (a list of tables) "
+                   "or `scatter`")
+        if not (mesh or primitive) or meso is not None:
+            t.fail("instances", t.data["instances"], "instances only of mesh or primitive objects without a "
+                   "mesostructure")
     m = t.table("material")    # the scene's material with the keys given here overridden
     material = read(Material, m, **{f: getattr(default_material, f) for f in vars(default_material) if not m.has(f)})
     kind = "surface" if (mesh or primitive) else "quadrics"
     techniques = _techniques(t.table("techniques"), name, kind, meso is not None)
+    if instances is not None and set(techniques) - set(INSTANCED):
+        raise InputError(f"{t.origin}: object {name!r} has [objects.instances], but its techniques "
+                         f"{', '.join(sorted(set(techniques) - set(INSTANCED)))} draw one copy only; the techniques "
+                         f"that draw instances: {', '.join(INSTANCED)}.")
     return read(Object, t, name=name, primitive=primitive, params=params, molecule=molecule, style=style, mesh=mesh,
-                mesostructure=meso, material=material, techniques=techniques)
+                mesostructure=meso, material=material, techniques=techniques, instances=instances)
 
 
 def _techniques(t: Reader, name: str, kind: str, has_meso: bool) -> dict:

@@ -9,7 +9,8 @@ from pathlib import Path
 
 from .assets.primitives import PRIMITIVES
 from .schema import knob, markdown, settings
-from .scene import Cameras, Light, Material, Mesostructure, Object, Orbit, Pose, Render, Sweep, Thresholds, Transform
+from .scene import (Cameras, Instances, Light, Material, Mesostructure, Object, Orbit, Placement, Pose, Render, Scatter,
+                    Sweep, Thresholds, Transform)
 from .techniques import REGISTRY
 
 BEGIN = "<!-- scene reference: generated from the code by `python -m vdmbake.scenedoc README.md` -->"
@@ -39,6 +40,11 @@ def reference() -> str:
     out += _table("`[[objects]]`", rows + markdown(Transform, "transform.") + markdown(Material, "material."))
     for name, (_, params) in PRIMITIVES.items():
         out += _table(f"`params` of `primitive = \"{name}\"`", markdown(params))
+    out += _table("`[objects.instances]`", markdown(Placement, "placements[].") + markdown(Scatter, "scatter."),
+                  "The object drawn many times from one bake, by instanced draws (vdmbake.common.instances): exactly "
+                  "one of `placements` or `scatter`; every copy a uniform scale, a turn and a move about the object's "
+                  "bounding-sphere centre. The cameras frame every copy, the shadow map spans them, and the "
+                  "reference traces them all, merged (the memory guard counts each copy's faces).")
     out += _table("`[objects.mesostructure]`", markdown(Mesostructure),
                   "Mesh or primitive objects with texture coordinates; needed by `vdm`, `pom`, `bump`, `displaced`.")
     out += ["#### Techniques (`[objects.techniques]`)", "",

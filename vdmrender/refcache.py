@@ -11,6 +11,7 @@ from dataclasses import asdict
 import numpy as np
 
 from vdmbake import code_fingerprint, imported_closure
+from vdmbake.common import instances
 from vdmbake.formats import exr
 from vdmbake.bundle import parts
 
@@ -44,6 +45,8 @@ def reference_geometry(obj, entry, bundle) -> dict:
     for key in ("albedo_map", "mesostructure_albedo"):   # colour textures
         if entry.get(key):
             geometry[key] = bundle.manifest["parts"][entry[key]]["sha256"]
+    if obj.instances:
+        geometry["instances"] = asdict(obj.instances)
     if obj.mesostructure:   # the truly displaced geometry: the base mesh, the maps and how they are mapped
         geometry.update(maps=bundle.manifest["parts"][entry["mesostructure"]]["sha256"],
                         mesostructure=asdict(obj.mesostructure))
@@ -58,7 +61,10 @@ def object_reference(obj, entry, bundle, scene):
         return (reference.MeshReference(mesostructure.reference_mesh(src), scene.light, obj.material),
                 mesostructure.skirt_scene(src))
     if obj.kind == "surface":
-        return reference.MeshReference(bundle.surface(entry), scene.light, obj.material), None
+        mesh = bundle.surface(entry)
+        if obj.instances:   # every copy, merged (the memory guard counts them: render.geometry_bytes)
+            mesh = instances.placed(mesh, instances.matrices(obj.instances, scene.camera.up, entry["centre"]))
+        return reference.MeshReference(mesh, scene.light, obj.material), None
     return reference.QuadricReference(bundle.read(entry["quadrics"], parts.QUADRICS), scene.light, obj.material), None
 
 

@@ -6,8 +6,11 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import numpy as np
+
 from vdmbake import __version__
 from vdmbake.bundle.directory import Bundle
+from vdmbake.common import instances
 from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
@@ -32,15 +35,18 @@ def geometry_bytes(bundle) -> tuple[int, str]:
     """The largest object's geometry memory (every mesh part of the object counted, the quadrics) and a
     description of it, from the manifest alone."""
     worst, what = 0, ""
+    copies = {o.name: instances.count(o.instances) if o.instances else 1 for o in bundle.scene.objects}
     for name, entry in bundle.manifest["objects"].items():
         prefix = f"objects/{name}/"
         meshes = [m for rel, m in bundle.manifest["parts"].items() if rel.startswith(prefix) and m["kind"] == "mesh"]
-        faces = sum(m["faces"] for m in meshes)
+        faces = sum(m["faces"] for m in meshes) * copies[name]   # the reference merges every copy
         q = bundle.manifest["parts"][entry["quadrics"]] if entry.get("quadrics") else {"spheres": 0, "cylinders": 0}
         quadrics = q["spheres"] + q["cylinders"]
         need = faces * BYTES_PER_FACE + quadrics * BYTES_PER_QUADRIC
         if need > worst:
-            worst, what = need, f"object {name!r}: {faces} mesh faces and {quadrics} spheres and cylinders"
+            worst, what = need, (f"object {name!r}: {faces} mesh faces" + (f" ({copies[name]} copies)" if copies[name] > 1
+                                                                          else "")
+                                 + f" and {quadrics} spheres and cylinders")
     return worst, what
 
 
@@ -218,6 +224,14 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, 
     return rows
 
 
+def sphere(obj, entry, scene) -> tuple[np.ndarray, float]:
+    """The sphere the cameras frame: the object's bounding sphere, or one holding every copy of it."""
+    if not obj.instances:
+        return np.asarray(entry["centre"], float), entry["radius"]
+    return instances.enclosing(instances.matrices(obj.instances, scene.camera.up, entry["centre"]), entry["centre"],
+                               entry["radius"])
+
+
 def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> list[dict]:
     """Every object's variants at each screen size (vdmrender.sweep): rows as _render_all's, with size_px."""
     width, height = harness.target.size
@@ -227,9 +241,10 @@ def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> list[
         chosen = variants(obj, entry, bundle, scene, only)
         if not chosen:
             continue
-        views = cameras_for(scene.camera, entry["centre"], entry["radius"], width, height)
+        centre, radius = sphere(obj, entry, scene)
+        views = cameras_for(scene.camera, centre, radius, width, height)
         for size in sizes:
-            cams = sweep.sized(views, entry["centre"], entry["radius"], size)
+            cams = sweep.sized(views, centre, radius, size)
             distance = round(sweep.distance_for(size, 1.0, views[0].fov_deg, height), 4)
             rows += [{**r, "size_px": size, "distance_radii": distance}
                      for r in render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log,
@@ -244,6 +259,6 @@ def _render_all(harness, out, bundle, scene, only, opts, device, log) -> list[di
         entry = bundle.manifest["objects"][obj.name]
         chosen = variants(obj, entry, bundle, scene, only)
         if chosen:
-            cams = cameras_for(scene.camera, entry["centre"], entry["radius"], width, height)
+            cams = cameras_for(scene.camera, *sphere(obj, entry, scene), width, height)
             rows += render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log)
     return rows

@@ -5,6 +5,8 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from vdmbake.common import instances as copies
+
 from .. import gl
 from .shadowmap import ShadowMap, translation
 
@@ -119,16 +121,23 @@ class MeshInputs:
 
 class RasterMesh(RasterPasses):
     """One triangle mesh with per-vertex normals and the material's albedo, or the asset's own: colours per
-    vertex and an albedo map read at its texture coordinates, where it has them (MeshInputs)."""
+    vertex and an albedo map read at its texture coordinates, where it has them (MeshInputs). instances: (N, 4, 4)
+    world matrices of its copies (vdmbake.common.instances), drawn by one instanced draw per pass (INSTANCED), the
+    shadow map covering them all."""
 
-    def __init__(self, ctx, mesh, light, material, shadow_size: int):
+    def __init__(self, ctx, mesh, light, material, shadow_size: int, instances=None):
         anchor, radius = mesh.bounding_sphere()
+        attributes, defines, count, buffers = [], (), 1, []
+        if instances is not None:
+            model, radius = copies.relative(instances, anchor), copies.reach(instances, anchor, radius)
+            ibo = ctx.buffer(np.ascontiguousarray(model.transpose(0, 2, 1), dtype="f4").tobytes())  # GLSL: columns
+            attributes, defines, count, buffers = [(ibo, "16f/i", "in_model")], ("INSTANCED",), len(model), [ibo]
         super().__init__(ctx, light, material, anchor, radius, shadow_size)
         self.faces = len(mesh.faces)
         self.inputs = MeshInputs(ctx, mesh, anchor)
         self.UNIFORM_ALBEDO = self.inputs.uniform_albedo
-        self.add("mesh.vert", self.inputs.defines, [], self.inputs.attributes,
-                 self.inputs.index)
+        self.add("mesh.vert", self.inputs.defines + defines, buffers, self.inputs.attributes + attributes,
+                 self.inputs.index, count)
 
     def bind_frame(self, prog, camera) -> None:
         self.inputs.bind(prog)

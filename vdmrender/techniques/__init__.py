@@ -10,6 +10,7 @@ import importlib
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from vdmbake.common import instances
 from vdmbake.scene import Object, Scene
 from vdmbake.scene import REGISTRY
 
@@ -28,6 +29,12 @@ class Source:
     @property
     def shadow_map(self) -> int:
         return self.scene.render.shadow_map
+
+    @property
+    def instances(self):
+        """(N, 4, 4) world matrices of the object's copies (vdmbake.common.instances); None: drawn once."""
+        i = self.obj.instances
+        return None if i is None else instances.matrices(i, self.scene.camera.up, self.entry["centre"])
 
 
 @dataclass

@@ -38,6 +38,7 @@ import moderngl
 import numpy as np
 
 from vdmbake.bundle import parts
+from vdmbake.common import instances as copies
 from vdmbake.errors import InputError
 
 from .. import gl
@@ -61,10 +62,11 @@ def atlas_texels(a) -> np.ndarray:
 
 class Octahedral(Passes):
     def __init__(self, ctx, atlas, light, material, shadow_size: int, method: str = "march",
-                 steps_per_texel: float = 1.0, dtype: str = "nu2"):
+                 steps_per_texel: float = 1.0, dtype: str = "nu2", instances=None):
         """atlas: vdmbake.bundle.parts.OctahedralAtlas; method: "march" or "virtual"; steps_per_texel: the
         march's step density; dtype: the atlas texture's channel type ("nu2": 16-bit unorm, "f4":
-        float32)."""
+        float32); instances: (N, 4, 4) world matrices of the object's copies (vdmbake.common.instances), one
+        quad each in one instanced draw (INSTANCED), the shadow map covering them all."""
         if method not in METHODS:
             raise InputError(f"octahedral: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
         if dtype not in TEXTURE_DTYPES:
@@ -90,15 +92,21 @@ class Octahedral(Passes):
             self.albedo.filter = (moderngl.LINEAR, moderngl.LINEAR)
             self.albedo.repeat_x = self.albedo.repeat_y = False
             self.texture_bytes += side * side * 3 * 2
-        self.shadow = ShadowMap(ctx, shadow_size, light.direction, self.radius)
         self.corners = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
-        defines = (method.upper(),) + (("HEMI",) if atlas.hemi else ())
+        layout, reach, self.count, self.model = [(self.corners, "2f", "in_corner")], self.radius, 1, None
+        if instances is not None:
+            model, reach = copies.relative(instances, self.anchor), copies.reach(instances, self.anchor, self.radius)
+            self.model = ctx.buffer(np.ascontiguousarray(model.transpose(0, 2, 1), dtype="f4").tobytes())
+            layout.append((self.model, "16f/i", "in_model"))
+            self.count = len(model)
+        self.shadow = ShadowMap(ctx, shadow_size, light.direction, reach)
+        defines = (method.upper(),) + (("HEMI",) if atlas.hemi else ()) + (("INSTANCED",) if instances is not None else ())
         may_lack = ("u_steps_per_texel",) if method == "virtual" else ()   # the single parallax step
         self.draws = {}
         shaded = ("ALBEDO_ATLAS",) if self.albedo is not None else ()
         for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
             prog = gl.program(ctx, "octahedral.vert", "octahedral.frag", defines + extra, may_lack)
-            self.draws[stage] = (prog, gl.vertex_array(ctx, prog, [(self.corners, "2f", "in_corner")]))
+            self.draws[stage] = (prog, gl.vertex_array(ctx, prog, layout))
 
     def _draw(self, stage: str, view_proj, viewport, **uniforms) -> None:
         prog, vao = self.draws[stage]
@@ -107,7 +115,7 @@ class Octahedral(Passes):
                         u_steps_per_texel=self.steps_per_texel, u_view_proj=view_proj,
                         u_inv_view_proj=np.linalg.inv(view_proj), u_viewport=tuple(float(x) for x in viewport),
                         u_basis=self.basis.T, **uniforms)   # GLSL mat3 is column-major: M = basis (map = M world)
-        vao.render(moderngl.TRIANGLE_STRIP, vertices=4)
+        vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=self.count)
 
     def passes(self, camera, target) -> list:
         """The frame's passes in order, as (name, callable): the impostor into the light's map, then the frame."""
@@ -127,7 +135,8 @@ class Octahedral(Passes):
         return [("shadow", shadow), ("frame", frame)]
 
     def release(self) -> None:
-        gl.release(*(vao for _, vao in self.draws.values()), self.texture, self.albedo, self.corners, self.shadow)
+        gl.release(*(vao for _, vao in self.draws.values()), self.texture, self.albedo, self.corners, self.model,
+                   self.shadow)
 
 
 def shadow_size(resolution: int, scale: float, scene_size: int) -> int:
@@ -140,5 +149,8 @@ def shadow_size(resolution: int, scale: float, scene_size: int) -> int:
 def build(ctx, src, variant):
     """One LAYOUT-NxR-METHOD variant (vdmbake.techniques.octahedral.Variant); its methods share the atlas."""
     atlas = src.bundle.read(src.part[variant.atlas], parts.OCTAHEDRAL)
+    placed = src.instances   # the shadow map spans every copy: as many texels per atlas texel, up to the scene's
+    spread = 1.0 if placed is None else copies.reach(placed, atlas.centre, atlas.radius) / atlas.radius
     return Octahedral(ctx, atlas, src.scene.light, src.obj.material,
-                      shadow_size(variant.resolution, src.options.shadow_scale, src.shadow_map), variant.method)
+                      shadow_size(variant.resolution, src.options.shadow_scale * spread, src.shadow_map),
+                      variant.method, instances=placed)

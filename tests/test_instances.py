@@ -1,0 +1,139 @@
+"""Instances (issue 23): an object drawn many times from one bake, by instanced draws (mesh, coarse, octahedral),
+against a reference that traces every copy merged (vdmbake.common.instances)."""
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from scenes import RENDER, bake_and_render
+from vdmbake.common import instances
+from vdmbake.scene import parse_scene_dict
+
+TECHNIQUES = 'techniques = { mesh = {}, coarse = { ratios = [0.3] }, octahedral = { variants = ["full-9x64-march"] } }'
+
+
+def scene_of(inst: dict):
+    return parse_scene_dict({"objects": [{"name": "b", "primitive": "sphere", "instances": inst,
+                                          "techniques": {"mesh": {}}}]}, "test")
+
+
+def test_placements_scale_turn_and_move_about_the_centre():
+    s = scene_of({"placements": [{"translate": [1, 2, 3], "rotate_deg": [0, 0, 90], "scale": 2.0}]})
+    centre = np.array([5.0, 0.0, 1.0])
+    (m,) = instances.matrices(s.objects[0].instances, (0, 0, 1), centre)
+    apply = lambda p: m[:3, :3] @ p + m[:3, 3]   # noqa: E731
+    assert apply(centre) == pytest.approx(centre + [1, 2, 3])            # the centre moves by translate
+    assert apply(centre + [1, 0, 0]) == pytest.approx(centre + [1, 2, 3] + [0, 2, 0])   # scaled, turned about Z
+    assert instances.scales(m[None]) == pytest.approx([2.0])
+
+
+def test_scatter_is_seeded_on_the_plane_and_within_its_ranges():
+    spec = {"scatter": {"count": 500, "area": [40, 10], "scale": [0.5, 2.0], "seed": 7}}
+    up, centre = np.array([0.0, 0.0, 1.0]), np.array([1.0, 2.0, 3.0])
+    m = instances.matrices(scene_of(spec).objects[0].instances, up, centre)
+    assert np.array_equal(m, instances.matrices(scene_of(spec).objects[0].instances, up, centre))
+    other = instances.matrices(scene_of({"scatter": {**spec["scatter"], "seed": 8}}).objects[0].instances, up, centre)
+    assert not np.allclose(m, other)
+    moved = np.einsum("nij,j->ni", m[:, :3, :3], centre) + m[:, :3, 3] - centre
+    assert np.abs(moved[:, 2]).max() < 1e-12                        # on the plane through the centre, normal to up
+    assert np.abs(moved[:, 0]).max() <= 20 and np.abs(moved[:, 1]).max() <= 5
+    s = instances.scales(m)
+    assert s.min() >= 0.5 and s.max() <= 2.0 and s.max() - s.min() > 1.0
+    rot = m[:, :3, :3] / s[:, None, None]
+    assert np.allclose(rot @ up, up)                                  # turned about up only
+    assert np.allclose(np.einsum("nij,nkj->nik", rot, rot), np.eye(3))
+
+
+def test_enclosing_sphere_holds_every_copy():
+    m = instances.matrices(scene_of({"scatter": {"count": 50, "area": [8, 8], "scale": [0.2, 3]}}).objects[0].instances,
+                           (0, 1, 0), (0, 0, 0))
+    c, r = instances.enclosing(m, (0, 0, 0), 1.5)
+    centres = m[:, :3, 3]
+    assert (np.linalg.norm(centres - c, axis=1) + 1.5 * instances.scales(m) <= r + 1e-9).all()
+
+
+@pytest.mark.parametrize("extra, message", [
+    ('[objects.instances]\nplacements = [{ translate = [1, 0, 0] }]\nscatter = { count = 2, area = [1, 1] }\n',
+     "exactly one of"),
+    ("[objects.instances]\n", "exactly one of"),
+])
+def test_instances_need_one_source(tmp_path, extra, message):
+    from vdmbake.cli import main as bake_main
+
+    p = tmp_path / "s.toml"
+    p.write_text(RENDER + '[[objects]]\nname = "b"\nprimitive = "sphere"\ntechniques = { mesh = {} }\n' + extra)
+    r = CliRunner().invoke(bake_main, [str(p), "-o", str(tmp_path / "b")])
+    assert r.exit_code == 2 and message in r.output, r.output
+
+
+def test_techniques_without_instanced_draws_are_refused():
+    with pytest.raises(Exception, match="draw one copy only"):
+        parse_scene_dict({"objects": [{"name": "b", "primitive": "sphere", "techniques": {"billboards": {}},
+                                       "instances": {"scatter": {"count": 3, "area": [1, 1]}}}]}, "t")
+    with pytest.raises(Exception, match="instances only of mesh or primitive"):
+        parse_scene_dict({"objects": [{"name": "m", "spheres": [[0, 0, 0, 1]], "techniques": {"impostor": {}},
+                                       "instances": {"scatter": {"count": 3, "area": [1, 1]}}}]}, "t")
+
+
+def frames(out, obj, label):
+    folder = out / ("reference" if label == "reference" else "frames") / obj / ("" if label == "reference" else label)
+    return [np.asarray(Image.open(p).convert("RGB"), int) for p in sorted(folder.glob("[0-9][0-9][0-9].png"))]
+
+
+@pytest.mark.gl
+def test_one_copy_in_place_draws_as_the_object_alone(tmp_path):
+    one = ('[[objects]]\nname = "b"\nprimitive = "sphere"\n' + TECHNIQUES +
+           '\n[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n')
+    alone = '[[objects]]\nname = "a"\nprimitive = "sphere"\n' + TECHNIQUES + "\n"
+    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[48, 48]") + one + alone)
+    assert res.exit_code == 0, res.output
+    for label in ("reference", "mesh", "coarse@0.3", "octahedral@full-9x64-march"):
+        a, b = frames(out, "a", label), frames(out, "b", label)
+        assert len(a) == len(b) > 0
+        worst = max(int(np.abs(x - y).max()) for x, y in zip(a, b))
+        assert worst <= (1 if label.startswith("octahedral") else 0), (label, worst)   # the normal renormalised
+
+
+@pytest.mark.gl
+def test_overlapping_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_path):
+    """Copy B stands between copy A and the light and partly in front of it: the instanced draws and the merged
+    reference agree on every pixel's depth order and on B's shadow over A."""
+    light = np.array([0.45, -0.55, 0.7]) / np.linalg.norm([0.45, -0.55, 0.7])
+    b = 2.3 * light
+    pair = ('[[objects]]\nname = "pair"\nprimitive = "sphere"\ntechniques = { mesh = {} }\n'
+            '[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n'
+            f'[[objects.instances.placements]]\ntranslate = [{b[0]}, {b[1]}, {b[2]}]\nscale = 0.8\n')
+    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[96, 96]").replace("256", "1024") + pair)
+    assert res.exit_code == 0, res.output
+    row = json.loads(res.stdout)["rows"][0]
+    assert row["mean_dluv"] < 0.1 and row["iou"] > 0.999, row
+    # the scene has what the agreement is about: B casts a shadow on A's lit side (rays from there to the light
+    # meet B) and covers part of A in some frame
+    from vdmbake.bundle.directory import Bundle
+    from vdmbake.common.embree import RayScene
+
+    bundle = Bundle(tmp_path / "b.bundle")
+    obj = bundle.scene.objects[0]
+    placed = instances.placed(bundle.surface(bundle.manifest["objects"]["pair"]),
+                              instances.matrices(obj.instances, bundle.scene.camera.up, (0, 0, 0)))
+    lit_side = np.array([light + 0.2 * d for d in np.eye(3)])
+    lit_side /= np.linalg.norm(lit_side, axis=1, keepdims=True)
+    assert RayScene(placed.vertices, placed.faces).occluded(lit_side * 1.001, np.tile(light, (3, 1))).all()
+    assert row["coverage"] > 0.05
+
+
+def test_memory_guard_counts_every_copy(tmp_path):
+    from vdmbake.cli import main as bake_main
+    from vdmbake.bundle.directory import Bundle
+    from vdmrender.render import BYTES_PER_FACE, geometry_bytes
+
+    p = tmp_path / "s.toml"
+    p.write_text(RENDER + '[[objects]]\nname = "b"\nprimitive = "sphere"\ntechniques = { mesh = {} }\n'
+                 "[objects.instances]\nscatter = { count = 1000, area = [100, 100] }\n")
+    assert CliRunner().invoke(bake_main, [str(p), "-o", str(tmp_path / "b")]).exit_code == 0
+    bundle = Bundle(tmp_path / "b")
+    need, what = geometry_bytes(bundle)
+    faces = bundle.manifest["parts"]["objects/b/mesh.ply"]["faces"]
+    assert need == 1000 * faces * BYTES_PER_FACE and "1000 copies" in what
