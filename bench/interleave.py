@@ -42,9 +42,11 @@ def reference8(render_dir: Path, name: str, count: int, background) -> list[np.n
     return out
 
 
-def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: int = 5) -> dict[str, dict]:
+def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: int = 5,
+            score: bool = True) -> dict[str, dict]:
     """Each build(ctx) -> renderer, warmed up once per camera, then `rounds` rounds of every variant on
-    every camera; medians over all timed frames, error over all frames (thesis eq. 2.2)."""
+    every camera; medians over all timed frames, error over all frames (thesis eq. 2.2) unless not `score`
+    (no reference: the error fields are None)."""
     target = gl.Target(ctx, cams[0].width, cams[0].height)
     timer = FrameTimer(ctx, target)
     renderers = {k: b(ctx) for k, b in builds.items()}
@@ -62,18 +64,20 @@ def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: in
                 wall[k].append(s.wall_ms)
     rows = {}
     for k, r in renderers.items():
-        dists, ious = [], []
-        for cam, r8 in zip(cams, ref8):
-            r.render(cam, target)
-            c = compare(images.encode(target.read(), background), r8)
-            dists.append(c["values"])
-            ious.append(c["iou"])
-        d = np.concatenate(dists)
         rows[k] = {"median_ms": round(statistics.median(gpu[k]), 2), "min_ms": round(min(gpu[k]), 2),
                    "median_wall_ms": round(statistics.median(wall[k]), 2),
                    "median_cpu_ms": round(statistics.median(cpu[k]), 2),
-                   "mean_dluv": round(float(d.mean()), 4), "p95_dluv": round(float(np.percentile(d, 95)), 3),
-                   "iou": round(float(np.mean(ious)), 5)}
+                   "mean_dluv": None, "p95_dluv": None, "iou": None}
+        if score:
+            dists, ious = [], []
+            for cam, r8 in zip(cams, ref8):
+                r.render(cam, target)
+                c = compare(images.encode(target.read(), background), r8)
+                dists.append(c["values"])
+                ious.append(c["iou"])
+            d = np.concatenate(dists)
+            rows[k].update(mean_dluv=round(float(d.mean()), 4), p95_dluv=round(float(np.percentile(d, 95)), 3),
+                           iou=round(float(np.mean(ious)), 5))
         r.release()
     target.release()
     return rows
@@ -81,12 +85,12 @@ def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: in
 
 def costs(ctx, build: Callable, cams) -> dict:
     """build(ctx) built with the cost counters on, one frame per camera: counters.count_frames (divide by
-    "covered" for figures per covered pixel)."""
+    "covered" for figures per covered pixel), and the GPU bytes it holds then (counters.resident_bytes)."""
     target = gl.Target(ctx, cams[0].width, cams[0].height)
     with counters.counting(ctx):
         r = build(ctx)
     try:
-        return counters.count_frames(ctx, r, cams, target)
+        return {**counters.count_frames(ctx, r, cams, target), "bytes": counters.resident_bytes(r)}
     finally:
         r.release()
         target.release()

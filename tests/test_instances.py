@@ -137,3 +137,62 @@ def test_memory_guard_counts_every_copy(tmp_path):
     need, what = geometry_bytes(bundle)
     faces = bundle.manifest["parts"]["objects/b/mesh.ply"]["faces"]
     assert need == 1000 * faces * BYTES_PER_FACE and "1000 copies" in what
+
+
+@pytest.mark.gl
+def test_bench_quick_smoke(tmp_path):
+    from bench.instances import run
+
+    result = run(tmp_path, quick=True, log=lambda m: None)
+    assert {(r["copies"], r["label"]) for r in result["rows"]} >= {(4, "mesh"), (4, "octahedral@full-9x64-virtual")}
+    four = {r["label"]: r for r in result["rows"] if r["copies"] == 4}
+    assert four["mesh"]["primitives"] == 4 * [r for r in result["rows"] if r["copies"] == 1 and
+                                              r["label"] == "mesh"][0]["primitives"]
+    assert all(r["mean_dluv"] is not None for r in result["rows"])
+    assert (tmp_path / "instances.md").is_file() and (tmp_path / "instances.png").is_file()
+
+
+def test_each_copy_takes_the_band_its_screen_size_falls_in():
+    from vdmrender import lod
+    from vdmrender.camera import Camera
+    from vdmrender.sweep import distance_for
+
+    entries = [{"variant": "mesh", "min_px": 64, "max_px": 256}, {"variant": "coarse@0.1", "min_px": 16, "max_px": 64},
+               {"variant": "octahedral@x", "min_px": 0, "max_px": 16}]
+    sizes = np.array([1000.0, 256, 65, 64, 17, 16, 3, 0.5, np.inf])
+    assert lod.pick(entries, sizes).tolist() == [0, 0, 0, 1, 1, 2, 2, 2, 0]
+    cam = Camera(np.zeros(3), np.array([0, 0, -1.0]), np.array([0, 1.0, 0]), 40.0, 300, 200, 0.1, 100.0)
+    d = distance_for(48, 1.5, 40.0, 200)   # the sweep's distance for 48 px gives back 48 px
+    px = lod.screen_px(cam, np.array([[0, 0, -d], [0, 0, -0.5]]), np.array([1.5, 1.0]))
+    assert px[0] == pytest.approx(48) and px[1] == np.inf
+
+
+@pytest.mark.gl
+def test_per_copy_lod_row_draws_each_copy_by_its_band(tmp_path):
+    text = RENDER.replace("[32, 32]", "[80, 48]") + """
+[render.sweep]
+sizes = [48, 12, 4]
+[[render.sweep.lod]]
+name = "fine"
+mean_dluv = 1.0
+[camera]
+poses = [{ eye = [-9, -9, 3], target = [0, 0, 0], fov_deg = 60 }, { eye = [9, -9, 2], target = [0, 0, 0] }]
+[[objects]]
+name = "field"
+primitive = "sphere"
+techniques = { mesh = {}, coarse = { ratios = [0.2, 0.03] } }
+[objects.instances]
+scatter = { count = 40, area = [16, 16], scale = [0.6, 1.2], seed = 2 }
+"""
+    res, out = bake_and_render(tmp_path, text)
+    assert res.exit_code == 0, res.output
+    report = json.loads(res.stdout)
+    rows = {r["label"]: r for r in report["rows"]}
+    mix = rows["lod@fine"]
+    assert mix["technique"] == "lod" and sum(mix["lod_copies"].values()) == 40 * 2
+    chain = report["lod"]["chains"][0]["objects"]["field"]["entries"]
+    assert set(mix["lod_copies"]) == {e["variant"] for e in chain}
+    assert mix["counters"]["instances"] == 2 * 40 * 2   # every copy once per pass (light, frame), per camera
+    # the mix is drawn by the chain's variants only: its error within theirs, the coverage the reference's
+    assert mix["mean_dluv"] <= max(rows[v]["mean_dluv"] for v in mix["lod_copies"]) + 0.05
+    assert mix["iou"] > 0.98

@@ -44,7 +44,9 @@ def reference() -> str:
                   "The object drawn many times from one bake, by instanced draws (vdmbake.common.instances): exactly "
                   "one of `placements` or `scatter`; every copy a uniform scale, a turn and a move about the object's "
                   "bounding-sphere centre. The cameras frame every copy, the shadow map spans them, and the "
-                  "reference traces them all, merged (the memory guard counts each copy's faces).")
+                  "reference traces them all, merged (the memory guard counts each copy's faces). With "
+                  "`[[render.sweep.lod]]`, the sweep draws one copy, and each chain adds a row `lod@CHAIN`: per frame "
+                  "every copy drawn by the variant its screen size selects, as an engine would (vdmrender.lod.LodMix).")
     out += _table("`[objects.mesostructure]`", markdown(Mesostructure),
                   "Mesh or primitive objects with texture coordinates; needed by `vdm`, `pom`, `bump`, `displaced`.")
     out += ["#### Techniques (`[objects.techniques]`)", "",

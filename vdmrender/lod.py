@@ -11,7 +11,14 @@ so that two runs pick the same chain."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
+
+import numpy as np
+
+from vdmbake.common import instances
+
+from .composite import Composite
 
 NOISE = 0.1   # run-to-run change of a variant's median GPU time that is not taken as a difference in cost
 TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
@@ -107,3 +114,51 @@ def table(lod: dict) -> str:
 def write(folder: Path, lod: dict) -> None:
     (folder / "lod.json").write_text(json.dumps(lod, indent=1, allow_nan=False) + "\n")
     (folder / "lod.md").write_text(table(lod))
+
+
+def screen_px(camera, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Each sphere's silhouette diameter in pixels as vdmrender.sweep measures it (seen at the image centre: what
+    an engine's screen-size test computes), infinite for a sphere around the eye."""
+    f = 0.5 * camera.height / math.tan(math.radians(camera.fov_deg) / 2)
+    d2 = ((centres - camera.eye) ** 2).sum(1)
+    gap = d2 - radii ** 2
+    with np.errstate(divide="ignore"):
+        return np.where(gap > 0, 2 * f * radii / np.sqrt(np.maximum(gap, 1e-300)), np.inf)
+
+
+def pick(entries: list[dict], sizes: np.ndarray) -> np.ndarray:
+    """Each size's entry index: the band (min_px, max_px] it falls in; above the chain's top, its finest entry."""
+    lows = np.array([e["min_px"] for e in entries], float)   # decreasing
+    return np.clip((sizes <= lows[:, None]).sum(0), 0, len(entries) - 1)
+
+
+class LodMix(Composite):
+    """Per-instance LOD, as an engine does it: per frame every copy of the object is drawn by the variant its
+    screen size selects in the chain (`entries`, lod.json's), all in one frame with one depth buffer and one
+    shadow map (vdmrender.composite.Composite: each copy casts what its variant casts). renderers: {variant label:
+    renderer built with every copy, with `place`}; world: the copies' matrices; sphere: the object's bounding
+    sphere (centre, radius); around: the sphere holding every copy."""
+
+    def __init__(self, ctx, renderers: dict, entries: list[dict], world: np.ndarray, sphere, around, light,
+                 shadow_size: int):
+        super().__init__(ctx, renderers, *around, light, shadow_size)
+        self.all, self.entries, self.world = dict(self.renderers), entries, world
+        self.centres = np.einsum("nij,j->ni", world[:, :3, :3], np.asarray(sphere[0], float)) + world[:, :3, 3]
+        self.radii = sphere[1] * instances.scales(world)
+        self.chosen = {label: 0 for label in renderers}   # copies drawn by each variant, summed over frames
+
+    def passes(self, camera, target) -> list:
+        which = pick(self.entries, screen_px(camera, self.centres, self.radii))
+        self.renderers = {}
+        for k, e in enumerate(self.entries):
+            mine = self.world[which == k]
+            if len(mine):
+                r = self.all[e["variant"]]
+                r.place(mine)
+                self.renderers[e["variant"]] = r
+                self.chosen[e["variant"]] += len(mine)
+        return super().passes(camera, target)
+
+    def release(self) -> None:
+        self.renderers = self.all
+        super().release()

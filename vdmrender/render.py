@@ -2,6 +2,7 @@
 the error of each frame, the time per frame, and the report."""
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -19,7 +20,7 @@ from . import baseline, composite, gl, images, lod, measure, refcache, report, s
 from . import device as gpu
 from .camera import cameras_for
 from .metrics import summarise
-from .techniques import variants
+from .techniques import Variant, variants
 
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
 # (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
@@ -140,7 +141,20 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     out = StagedDir(out_path, "report.json", "vdmrender output folder")
     harness = measure.Harness(ctx, gl.Target(ctx, width, height), plan, opts.counters)
     try:
-        rows = _render_all(harness, out, bundle, scene, only, opts, device, log)
+        # the sweep first: its LOD chains choose per copy in an instanced object's lod@CHAIN row
+        sized = {}
+        sizes = opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ())
+        if sizes:
+            rows_by_size = _sweep(harness, out, bundle, scene, only, opts, device, log, sorted(sizes, reverse=True))
+            sized["sweep"] = {"sizes_px": sorted(sizes, reverse=True), "how": SWEEP, "rows": rows_by_size}
+            if scene.render.sweep and scene.render.sweep.lod:
+                sized["lod"] = lod.chains(rows_by_size, scene.render.sweep.lod, device, (width, height))
+                for c in sized["lod"]["chains"]:
+                    for obj, ch in c["objects"].items():
+                        log(f"LOD chain {c['name']} of {obj}: " + ", ".join(
+                            f"{e['variant']} {e['min_px']}-{e['max_px']} px{'' if e['meets'] else ' (over the limits)'}"
+                            for e in ch["entries"]))
+        rows = _render_all(harness, out, bundle, scene, only, opts, device, log, sized.get("lod"))
         report.add_baseline_ratios(rows)
         composite_rows = composite.render_sets(harness, out, bundle, scene, only, opts, device, log)
         result = {"tool_version": __version__, "bundle": str(bundle.path), "device": device,
@@ -158,17 +172,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                   "heatmap_max_dluv": opts.heat_max, "rows": rows}
         if composite_rows:   # render.composite: every object in one frame, per variant set (vdmrender.composite)
             result["composite"] = composite_rows
-        sizes = opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ())
-        if sizes:
-            rows_by_size = _sweep(harness, out, bundle, scene, only, opts, device, log, sorted(sizes, reverse=True))
-            result["sweep"] = {"sizes_px": sorted(sizes, reverse=True), "how": SWEEP, "rows": rows_by_size}
-            if scene.render.sweep and scene.render.sweep.lod:
-                result["lod"] = lod.chains(rows_by_size, scene.render.sweep.lod, device, (width, height))
-                for c in result["lod"]["chains"]:
-                    for obj, ch in c["objects"].items():
-                        log(f"LOD chain {c['name']} of {obj}: " + ", ".join(
-                            f"{e['variant']} {e['min_px']}-{e['max_px']} px{'' if e['meets'] else ' (over the limits)'}"
-                            for e in ch["entries"]))
+        result.update(sized)
         if old is not None:
             result["baseline"] = {"report": str(opts.baseline),
                                   **baseline.compare(old, result, opts.max_error_increase, opts.max_slowdown,
@@ -233,11 +237,13 @@ def sphere(obj, entry, scene) -> tuple[np.ndarray, float]:
 
 
 def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> list[dict]:
-    """Every object's variants at each screen size (vdmrender.sweep): rows as _render_all's, with size_px."""
+    """Every object's variants at each screen size (vdmrender.sweep), an instanced object's as one copy: rows as
+    _render_all's, with size_px."""
     width, height = harness.target.size
     rows = []
     for obj in scene.objects:
         entry = bundle.manifest["objects"][obj.name]
+        obj = dataclasses.replace(obj, instances=None)   # one copy: the chain is the object's
         chosen = variants(obj, entry, bundle, scene, only)
         if not chosen:
             continue
@@ -252,13 +258,47 @@ def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> list[
     return rows
 
 
-def _render_all(harness, out, bundle, scene, only, opts, device, log) -> list[dict]:
+def _render_all(harness, out, bundle, scene, only, opts, device, log, chains=None) -> list[dict]:
+    """Every object's variants from its cameras; an instanced object also drawn per chain of `chains` (lod.json's)
+    with each copy by the variant its screen size selects (lod@CHAIN: vdmrender.lod.LodMix)."""
     width, height = harness.target.size
     rows = []
     for obj in scene.objects:
         entry = bundle.manifest["objects"][obj.name]
         chosen = variants(obj, entry, bundle, scene, only)
-        if chosen:
-            cams = cameras_for(scene.camera, *sphere(obj, entry, scene), width, height)
-            rows += render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log)
+        if not chosen:
+            continue
+        cams = cameras_for(scene.camera, *sphere(obj, entry, scene), width, height)
+        mixes = [_mixed(obj, entry, bundle, scene, c["name"], c["objects"][obj.name]["entries"])
+                 for c in (chains or {}).get("chains", []) if obj.instances]
+        mine = render_object(harness, out, bundle, scene, obj, cams, chosen + [m for m, _ in mixes], opts, device, log)
+        for row in mine:
+            entries = {m.label: e for m, e in mixes}.get(row["label"])
+            if entries:
+                row["lod_copies"] = _copies_chosen(obj, entry, scene, entries, cams)
+        rows += mine
     return rows
+
+
+def _mixed(obj, entry, bundle, scene, name: str, entries: list[dict]):
+    """The variant lod@NAME of an instanced object: every copy drawn by the variant of chain NAME its screen size
+    selects, per frame (vdmrender.lod.LodMix); and the chain's entries."""
+    builds = {v.label: v.build for v in variants(obj, entry, bundle, scene)}
+    labels = list(dict.fromkeys(e["variant"] for e in entries))
+    world = instances.matrices(obj.instances, scene.camera.up, entry["centre"])
+
+    def build(ctx):
+        return lod.LodMix(ctx, {label: builds[label](ctx) for label in labels}, entries, world,
+                          (entry["centre"], entry["radius"]), sphere(obj, entry, scene), scene.light,
+                          scene.render.shadow_map)
+
+    return Variant("lod", "chain", name, f"lod@{name}", build), entries
+
+
+def _copies_chosen(obj, entry, scene, entries, cams) -> dict:
+    """How many copies each variant of the chain drew, summed over the cameras."""
+    world = instances.matrices(obj.instances, scene.camera.up, entry["centre"])
+    centres = np.einsum("nij,j->ni", world[:, :3, :3], np.asarray(entry["centre"], float)) + world[:, :3, 3]
+    radii = entry["radius"] * instances.scales(world)
+    which = np.concatenate([lod.pick(entries, lod.screen_px(c, centres, radii)) for c in cams])
+    return {e["variant"]: int((which == k).sum()) for k, e in enumerate(entries)}

@@ -55,6 +55,11 @@ def relative(m: np.ndarray, anchor) -> np.ndarray:
     return r
 
 
+def model_columns(m: np.ndarray, anchor) -> bytes:
+    """The matrices about `anchor` (relative) as float32 column-major mat4s, as GLSL reads a per-instance mat4."""
+    return np.ascontiguousarray(relative(m, anchor).transpose(0, 2, 1), dtype="f4").tobytes()
+
+
 def scales(m: np.ndarray) -> np.ndarray:
     """(N,) each similarity's uniform scale."""
     return np.linalg.norm(m[:, :3, 0], axis=1)

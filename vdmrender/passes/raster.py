@@ -128,16 +128,24 @@ class RasterMesh(RasterPasses):
     def __init__(self, ctx, mesh, light, material, shadow_size: int, instances=None):
         anchor, radius = mesh.bounding_sphere()
         attributes, defines, count, buffers = [], (), 1, []
+        self.model = None
         if instances is not None:
-            model, radius = copies.relative(instances, anchor), copies.reach(instances, anchor, radius)
-            ibo = ctx.buffer(np.ascontiguousarray(model.transpose(0, 2, 1), dtype="f4").tobytes())  # GLSL: columns
-            attributes, defines, count, buffers = [(ibo, "16f/i", "in_model")], ("INSTANCED",), len(model), [ibo]
+            self.model = ctx.buffer(reserve=len(instances) * 64)
+            attributes, defines, buffers = [(self.model, "16f/i", "in_model")], ("INSTANCED",), [self.model]
+            radius = copies.reach(instances, anchor, radius)
         super().__init__(ctx, light, material, anchor, radius, shadow_size)
         self.faces = len(mesh.faces)
         self.inputs = MeshInputs(ctx, mesh, anchor)
         self.UNIFORM_ALBEDO = self.inputs.uniform_albedo
         self.add("mesh.vert", self.inputs.defines + defines, buffers, self.inputs.attributes + attributes,
                  self.inputs.index, count)
+        if instances is not None:
+            self.place(instances)
+
+    def place(self, instances) -> None:
+        """Draw these copies (world matrices, at most as many as built with) from now on."""
+        self.model.write(copies.model_columns(instances, self.anchor))
+        self.draws = [(stage, prog, vao, len(instances)) for stage, prog, vao, _ in self.draws]
 
     def bind_frame(self, prog, camera) -> None:
         self.inputs.bind(prog)

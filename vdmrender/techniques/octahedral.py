@@ -95,10 +95,10 @@ class Octahedral(Passes):
         self.corners = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
         layout, reach, self.count, self.model = [(self.corners, "2f", "in_corner")], self.radius, 1, None
         if instances is not None:
-            model, reach = copies.relative(instances, self.anchor), copies.reach(instances, self.anchor, self.radius)
-            self.model = ctx.buffer(np.ascontiguousarray(model.transpose(0, 2, 1), dtype="f4").tobytes())
+            reach = copies.reach(instances, self.anchor, self.radius)
+            self.model = ctx.buffer(reserve=len(instances) * 64)
             layout.append((self.model, "16f/i", "in_model"))
-            self.count = len(model)
+            self.place(instances)
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, reach)
         defines = (method.upper(),) + (("HEMI",) if atlas.hemi else ()) + (("INSTANCED",) if instances is not None else ())
         may_lack = ("u_steps_per_texel",) if method == "virtual" else ()   # the single parallax step
@@ -107,6 +107,11 @@ class Octahedral(Passes):
         for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
             prog = gl.program(ctx, "octahedral.vert", "octahedral.frag", defines + extra, may_lack)
             self.draws[stage] = (prog, gl.vertex_array(ctx, prog, layout))
+
+    def place(self, instances) -> None:
+        """Draw these copies (world matrices, at most as many as built with) from now on."""
+        self.model.write(copies.model_columns(instances, self.anchor))
+        self.count = len(instances)
 
     def _draw(self, stage: str, view_proj, viewport, **uniforms) -> None:
         prog, vao = self.draws[stage]

@@ -1,0 +1,202 @@
+"""make bench-instances: many copies of one object (issue 23), the case impostors exist for. Per asset, one bake
+(the full mesh, coarse meshes, octahedral impostors), then fields of N copies (N = 1, 10, 100, 1000, 10000) at a
+constant density (one copy per (SPACING r)^2 of ground, r the bounding radius, seeded turns and scales 0.8-1.2),
+seen by two cameras standing at the field's edge and looking across it (copies from near to far, as in a real
+scene). Every variant is timed interleaved (bench.interleave: GPU timer queries after a warm-up, medians), with its
+GPU bytes and per-pixel work (vdmrender.counters), and scored against the reference that traces every copy merged
+while that stays within MAX_REFERENCE_FACES (the memory guard's rule, vdmrender.render.BYTES_PER_FACE); beyond
+it the error is not measured, and said so. A variant whose frame would take longer than FRAME_BUDGET_S at the next
+N (its time growing with N) is not run there. The crossover: the smallest N at which each impostor's median time is below the full mesh's.
+
+    python -m bench.instances -o out/bench [--quick]
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+
+from vdmbake.bake import bake
+from vdmbake.bundle.directory import Bundle
+from vdmbake.common import instances
+from vdmbake.scene import Instances, Scatter
+
+from vdmrender import gl, images, refcache
+from vdmrender.camera import Camera, clip_planes
+from vdmrender.render import BYTES_PER_FACE
+from vdmrender.techniques import variants
+
+from .interleave import costs, measure
+
+ASSETS = {"scan": ('mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"', 'coarse = { ratios = [0.1, 0.01] }'),
+          "bunny": ('mesh = "pkg:pymeshlab/tests/sample_meshes/bunny10k_textured.obj"\n'
+                    'transform = { rotate_deg = [90, 0, 0] }', 'coarse = { ratios = [0.1] }')}
+COUNTS = (1, 10, 100, 1000, 10000)
+SPACING = 3.0                       # ground per copy: (SPACING r)^2
+MAX_REFERENCE_FACES = 12_000_000    # the merged reference's faces: about 7 GiB by the memory guard's estimate
+FRAME_BUDGET_S = 20.0               # wall time per frame a variant may be expected to take at the next N
+RESOLUTION = (960, 540)
+
+SCENE = """
+[render]
+resolution = [{w}, {h}]
+shadow_map = 2048
+[[objects]]
+name = "{name}"
+{source}
+techniques = {{ mesh = {{}}, {coarse}, octahedral = {{ variants = ["full-9x128-march", "full-9x64-virtual"] }} }}
+"""
+
+
+def field(n: int, radius: float) -> Instances:
+    side = SPACING * radius * np.sqrt(n)
+    return Instances(scatter=Scatter(count=n, area=(side, side), scale=(0.8, 1.2), seed=n))
+
+
+def cameras(centre, radius: float, n: int, w: int, h: int) -> list[Camera]:
+    """Two eyes at the field's edge, a little above it, looking across it towards its far corner and side."""
+    half = 0.5 * SPACING * radius * np.sqrt(n)
+    up = np.array([0.0, 0.0, 1.0])
+    cams = []
+    for corner in ((-1.0, -1.0), (1.0, -1.0)):
+        eye = centre + np.array([corner[0] * (half + 2.5 * radius), corner[1] * (half + 2.5 * radius),
+                                 1.2 * radius + 0.15 * half])
+        target = centre - np.array([corner[0], corner[1], 0.0]) * 0.3 * half
+        reach = np.linalg.norm(eye - centre) + 1.5 * half * 1.5 + 2 * radius
+        near, far = clip_planes(eye, target, centre, reach)
+        cams.append(Camera(eye, target, up, 60.0, w, h, max(near, 0.05 * radius), far))
+    return cams
+
+
+def run(out: Path, quick: bool, log) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    w, h = (160, 90) if quick else RESOLUTION
+    counts = (1, 4) if quick else COUNTS
+    assets = {"sphere": ('primitive = "sphere"', 'coarse = { ratios = [0.1] }')} if quick else ASSETS
+    ctx = gl.create_context()
+    device = gl.renderer_name(ctx)
+    rows, bakes = [], {}
+    try:
+        for name, (source, coarse) in assets.items():
+            scene_path, bundle_path = out / f"instances-{name}.toml", out / f"instances-{name}.bundle"
+            scene_path.write_text(SCENE.format(w=w, h=h, name=name, source=source, coarse=coarse))
+            t0 = time.perf_counter()
+            bake(scene_path, bundle_path, force=True)
+            bundle = Bundle(bundle_path)
+            timing = json.loads((bundle_path / "timing.json").read_text())
+            bakes[name] = {"bake_s": round(time.perf_counter() - t0, 2), "steps_s": timing["steps_s"].get(name, {})}
+            obj, entry = bundle.scene.objects[0], bundle.manifest["objects"][name]
+            faces = bundle.manifest["parts"][entry["mesh"]]["faces"]
+            too_slow: set[str] = set()
+            for n in counts:
+                copies = dataclasses.replace(obj, instances=field(n, entry["radius"]))
+                cams = cameras(np.asarray(entry["centre"]), entry["radius"], n, w, h)
+                chosen = [v for v in variants(copies, entry, bundle, bundle.scene) if v.label not in too_slow]
+                ref8, traced = None, None
+                if faces * n <= MAX_REFERENCE_FACES:
+                    t0 = time.perf_counter()
+                    ref, _ = refcache.object_reference(copies, entry, bundle, bundle.scene)
+                    ref8 = [images.encode(ref.render(c), bundle.scene.render.background) for c in cams]
+                    traced = round(time.perf_counter() - t0, 2)
+                builds = {v.label: v.build for v in chosen}
+                measured = measure(ctx, builds, cams, ref8 or [None] * len(cams), bundle.scene.render.background,
+                                   rounds=1 if quick else 3, score=ref8 is not None)
+                for v in chosen:
+                    m = measured[v.label]
+                    c = costs(ctx, v.build, cams[:1])
+                    rows.append({"asset": name, "faces": faces, "copies": n, "label": v.label, "technique": v.technique,
+                                 **m, "gpu_bytes": c["bytes"], "primitives": c["total"]["primitives"],
+                                 "fragments_px": round(c["total"]["fragments"] / max(c["covered"], 1), 2),
+                                 "reference_s": traced,
+                                 "error": "measured" if ref8 is not None else
+                                 f"not measured: {n} x {faces} faces merged exceed {MAX_REFERENCE_FACES}"})
+                    log(f"{name} x{n}: {v.label:>28} {m['median_ms']:10.2f} ms  "
+                        + (f"mean dLuv {m['mean_dluv']:.3f}" if m.get("mean_dluv") is not None else "(no reference)"))
+                    grow = counts[counts.index(n) + 1] / n if n != counts[-1] else 1
+                    if m["median_wall_ms"] * grow > FRAME_BUDGET_S * 1e3:   # its next frame would be over the budget
+                        too_slow.add(v.label)
+    finally:
+        ctx.release()
+    result = {"device": device, "resolution": [w, h], "counts": list(counts), "bakes": bakes, "rows": rows,
+              "crossover": crossover(rows), "how": __doc__.split("\n\n")[0]}
+    (out / "instances.json").write_text(json.dumps(result, indent=1) + "\n")
+    (out / "instances.md").write_text(table(result))
+    plot(out / "instances.png", result)
+    return result
+
+
+def crossover(rows) -> dict:
+    """Per asset and impostor-like variant: the smallest count at which it is faster than the full mesh."""
+    out = {}
+    for asset in dict.fromkeys(r["asset"] for r in rows):
+        mine = [r for r in rows if r["asset"] == asset]
+        mesh = {r["copies"]: r["median_ms"] for r in mine if r["technique"] == "mesh"}
+        for label in dict.fromkeys(r["label"] for r in mine if r["technique"] != "mesh"):
+            faster = [r["copies"] for r in mine if r["label"] == label and r["copies"] in mesh
+                      and r["median_ms"] < mesh[r["copies"]]]
+            out.setdefault(asset, {})[label] = min(faster) if faster else None
+    return out
+
+
+def table(result) -> str:
+    lines = [f"Instances on {result['device']} at {result['resolution'][0]}x{result['resolution'][1]}. "
+             f"{result['how']}".replace("\n", " "), "",
+             "| asset | copies | variant | median GPU ms | mean ΔLuv | p95 ΔLuv | IoU | GPU MB | primitives |",
+             "|---|---:|---|---:|---:|---:|---:|---:|---:|"]
+    for r in result["rows"]:
+        err = r.get("mean_dluv")
+        lines.append(f"| {r['asset']} | {r['copies']} | {r['label']} | {r['median_ms']:.2f} | "
+                     f"{'-' if err is None else f'{err:.3f}'} | "
+                     f"{'-' if r.get('p95_dluv') is None else r['p95_dluv']} | "
+                     f"{'-' if r.get('iou') is None else r['iou']} | {r['gpu_bytes'] / 2**20:.1f} | {r['primitives']} |")
+    lines += ["", "Crossover (smallest count at which the variant is faster than the full mesh):", ""]
+    for asset, c in result["crossover"].items():
+        lines.append(f"* {asset}: " + ", ".join(f"{k}: {v if v is not None else 'never (up to the largest count run)'}"
+                                                 for k, v in c.items()))
+    lines += ["", "Bake: " + "; ".join(f"{a} {b['bake_s']} s ({', '.join(f'{k} {v}' for k, v in b['steps_s'].items())})"
+                                       for a, b in result["bakes"].items())]
+    return "\n".join(lines) + "\n"
+
+
+def plot(path: Path, result) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    assets = list(dict.fromkeys(r["asset"] for r in result["rows"]))
+    fig, axes = plt.subplots(2, len(assets), figsize=(6 * len(assets), 8), squeeze=False)
+    for k, asset in enumerate(assets):
+        mine = [r for r in result["rows"] if r["asset"] == asset]
+        for label in dict.fromkeys(r["label"] for r in mine):
+            pts = [r for r in mine if r["label"] == label]
+            axes[0, k].plot([r["copies"] for r in pts], [r["median_ms"] for r in pts], "o-", label=label)
+            err = [r for r in pts if r.get("mean_dluv") is not None]
+            axes[1, k].plot([r["copies"] for r in err], [r["mean_dluv"] for r in err], "o-", label=label)
+        for ax, what in ((axes[0, k], "median GPU time per frame [ms]"), (axes[1, k], "mean ΔL*u*v* (merged reference)")):
+            ax.set_xscale("log")
+            ax.set_xlabel("copies")
+            ax.set_ylabel(what)
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+        axes[0, k].set_yscale("log")
+        axes[0, k].set_title(f"{asset}, {result['resolution'][0]}x{result['resolution'][1]}", fontsize=10)
+    fig.suptitle(f"copies of one object on {result['device']}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+@click.command()
+@click.option("-o", "--out", type=click.Path(path_type=Path), default=Path("out/bench"))
+@click.option("--quick", is_flag=True, help="a sphere, 1 and 4 copies, 160x90 (a smoke test)")
+def main(out, quick):
+    run(out, quick, lambda m: click.echo(m, err=True))
+
+
+if __name__ == "__main__":
+    main()
