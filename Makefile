@@ -14,7 +14,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test fuzz kill-test bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances sysdeps clean
+.PHONY: demo test fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances sysdeps clean
 
 # The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
 GLTF_VALIDATOR := 2.0.0-dev.3.10
@@ -53,6 +53,12 @@ test: $(STAMP)
 FUZZ_EXAMPLES ?= 1000
 fuzz: $(STAMP)
 	VDM_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(BIN)/python -m pytest -q tests/test_fuzz.py
+
+# make bake-library: write the 118-scene test library (vdmbake/library/scenes.py) and bake it on the local cores
+#                    through a part cache (out/library/: scenes/, bundles/, cache/); run again, only what changed bakes
+bake-library: $(STAMP)
+	$(BIN)/python -m vdmbake.library.scenes out/library/scenes
+	$(BIN)/vdmbake out/library/scenes -o out/library/bundles --cache out/library/cache --cache-stats
 
 kill-test: $(STAMP)
 	$(BIN)/python tools/kill_test.py -o out/kill-test

@@ -608,7 +608,7 @@ def test_missing_optional_reader_reported_as_unsupported_format(tmp_path, monkey
     def load(*a, **k):
         raise ModuleNotFoundError("No module named 'charset_normalizer'", name="charset_normalizer")
 
-    monkeypatch.setattr(trimesh, "load", load)
+    monkeypatch.setattr(trimesh, "load_scene", load)   # how assets/meshes.py reads every file
     name = _obj_file(tmp_path / "m.obj", [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
     out = tmp_path / "x.bundle"
     assert_input_error(bake(write_scene(tmp_path, _mesh_scene(name, "mesh = {}")), "-o", out),

@@ -6,6 +6,7 @@ so a bundle or a reference made by other code is never taken for current."""
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
 import importlib.util
 from pathlib import Path
@@ -22,36 +23,44 @@ def package_modules(package: str) -> list[str]:
                   for p in root.rglob("*.py"))
 
 
-def imported_closure(roots) -> list[str]:
-    """The modules `roots` import, directly or through each other, within PACKAGES: every import
-    statement counts, those inside functions too (a superset of what one run executes)."""
+def imported_closure(roots, stop=frozenset()) -> list[str]:
+    """The modules `roots` import, directly or through each other, within PACKAGES, not following the modules in
+    `stop`: every import statement counts, those inside functions too (a superset of what one run executes)."""
     seen, todo = set(), list(roots)
     while todo:
         name = todo.pop()
-        if name in seen:
-            continue
-        seen.add(name)
-        spec = importlib.util.find_spec(name)
-        tree = ast.parse(Path(spec.origin).read_text())
-        pkg = name if spec.submodule_search_locations else name.rpartition(".")[0]
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import):
-                found = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                base = node.module or ""
-                if node.level:
-                    base = ".".join([*pkg.split(".")[:len(pkg.split(".")) - node.level + 1], *filter(None, [base])])
-                found = [base] + [f"{base}.{a.name}" for a in node.names]
-            else:
-                continue
-            todo += [m for m in found if m.split(".")[0] in PACKAGES and _is_module(m)]
+        if name not in seen and name not in stop:
+            seen.add(name)
+            todo += _imports(name, PACKAGES)
     return sorted(seen)
 
 
+@functools.lru_cache(maxsize=None)
+def _imports(name: str, packages: tuple) -> tuple[str, ...]:
+    """The modules of `packages` that module `name`'s import statements name (parsed once per process)."""
+    spec = importlib.util.find_spec(name)
+    tree = ast.parse(Path(spec.origin).read_text())
+    pkg = name if spec.submodule_search_locations else name.rpartition(".")[0]
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join([*pkg.split(".")[:len(pkg.split(".")) - node.level + 1], *filter(None, [base])])
+            found = [base] + [f"{base}.{a.name}" for a in node.names]
+        else:
+            continue
+        out += [m for m in found if m.split(".")[0] in packages and _is_module(m)]
+    return tuple(dict.fromkeys(out))
+
+
+@functools.lru_cache(maxsize=None)
 def _is_module(name: str) -> bool:
     try:
         return importlib.util.find_spec(name) is not None
-    except ModuleNotFoundError:
+    except (ModuleNotFoundError, ValueError):
         return False
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -18,6 +19,7 @@ from typing import Any, Callable
 import numpy as np
 
 from . import __version__, code_fingerprint, package_modules
+from .library import cache as part_cache
 from .kernels import curvature, quadric_mesh, quadrics, vdm
 from .assets import heightfields, meso_albedo, primitives
 from .bundle import parts, staging
@@ -27,7 +29,10 @@ from .errors import InputError
 from .assets.meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
 from .assets.references import reached_files
 from .scene import Object, Scene, load_scene
+from .schema import dump
 from .techniques import REGISTRY
+
+_CACHE: ContextVar = ContextVar("vdmbake_part_cache", default=None)   # the bake's PartCache, if it has one
 
 
 def object_mesh(obj: Object, base: Path) -> TriMesh:
@@ -80,6 +85,20 @@ def _is_file(spec: str, patterns) -> bool:
     return spec not in patterns and not spec.startswith("skimage:")
 
 
+def object_inputs(obj: Object, base: Path) -> dict:
+    """The sha256 of every file the object reads, keyed as input_hash keys them (the part cache's key)."""
+    files = [obj.molecule] if obj.molecule else []
+    if obj.mesostructure:
+        m = obj.mesostructure
+        files += [spec for spec, patterns in ((m.height, heightfields.PATTERNS), (m.albedo, meso_albedo.PATTERNS))
+                  if spec and _is_file(spec, patterns)]
+    inputs = {f: file_sha256(resolve_path(f, base)) for f in files}
+    if obj.mesh:
+        for chain, f in reached_files(resolve_path(obj.mesh, base), obj.mesh, obj.textures == "use").items():
+            inputs[" > ".join(chain)] = hashlib.sha256(f.data).hexdigest()
+    return inputs
+
+
 def stale(out: Path, digest: str, code: str) -> str | None:
     """Why the bundle at `out` must be baked (again), or None if it is complete, baked from the same
     inputs and settings by the same code, and every part is intact."""
@@ -115,8 +134,11 @@ class Job:
         return self.writer.add(f"objects/{self.obj.name}/{name}", kind, value)
 
 
-def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None) -> dict:
-    """Bake the scene into the bundle at `out`; returns the manifest's statistics (or that it was up to date)."""
+def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
+         cache: part_cache.PartCache | None = None) -> dict:
+    """Bake the scene into the bundle at `out`; returns the manifest's statistics (or that it was up to date).
+    With a part cache (vdmbake.library.cache), each step's parts are taken from it when it holds them, and stored in
+    it when baked; the bundle's bytes are the same either way (timing.json says which parts came from it)."""
     scene_path = Path(scene_path)
     scene = load_scene(scene_path)
     base = scene_path.parent
@@ -129,6 +151,7 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
         return {"up_to_date": True, "bundle": str(out)}
     log(f"{out}: baking ({reason})")
     writer = BundleWriter(out)
+    token = _CACHE.set(cache)
     try:
         objects, timing, steps, t_all = {}, {}, {}, time.perf_counter()
         for obj in scene.objects:
@@ -137,19 +160,64 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None)
             timing[obj.name] = round(time.perf_counter() - t0, 4)
         stats = {"objects": len(objects), "parts": len(writer.parts),
                  "bytes": sum(p["bytes"] for p in writer.parts.values())}
+        record = {"bake_s": round(time.perf_counter() - t_all, 4), "objects_s": timing,
+                  "steps_s": {k: v for k, v in steps.items() if v}}
+        took = {}                                  # not in the manifest: its bytes are the same with or without a cache
+        if cache is not None:
+            c = cache.counters
+            took = {"parts_from_cache": c.parts_from_cache, "steps_from_cache": c.hits, "steps_baked": c.misses}
+            record["cache"] = {"dir": str(cache.root), "steps": dict(c.events), "steps_from_cache": c.hits,
+                               "steps_baked": c.misses, "corrupt_entries": c.corrupt,
+                               "parts_from_cache": c.parts_from_cache}
         writer.commit({"scene": scene.to_dict(), "input_hash": digest, "code_fingerprint": code, "inputs": inputs,
-                       "objects": objects, "stats": stats},
-                      {"bake_s": round(time.perf_counter() - t_all, 4), "objects_s": timing,
-                       "steps_s": {k: v for k, v in steps.items() if v}})
+                       "objects": objects, "stats": stats}, record)
     except BaseException:
         writer.abort()
         raise
-    return {"up_to_date": False, "bundle": str(out), **stats, "bake_s": round(time.perf_counter() - t_all, 3)}
+    finally:
+        _CACHE.reset(token)
+        if cache is not None:
+            cache.record(scene=str(scene_path))
+    return {"up_to_date": False, "bundle": str(out), **stats, **took, "bake_s": round(time.perf_counter() - t_all, 3)}
 
 
 def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict) -> dict:
-    """The object's manifest entry: what its reference needs, then each technique's own parts."""
+    """The object's manifest entry: what its reference needs, then each technique's own parts; each of these
+    steps through the part cache when the bake has one (vdmbake.library.cache.run_step)."""
     say = lambda m: log(f"{obj.name}: {m}")  # noqa: E731
+    cache, prefix = _CACHE.get(), f"objects/{obj.name}/"
+    obj_dict = dump(obj)
+    okey = part_cache.object_key(obj_dict, object_inputs(obj, base)) if cache is not None else None
+    made = {}     # what the object step gives the technique steps: (mesh, stored mesh, maps), once it ran here
+
+    def own(log_) -> dict:
+        entry, made["base"] = _object_parts(writer, obj, base, log_)
+        return entry
+
+    def prepare() -> None:
+        """A technique step to bake after the object's parts came from the cache: its inputs, made again (the
+        same bytes are written again)."""
+        if "base" not in made:
+            made["base"] = _object_parts(writer, obj, base, lambda m: None)[1]
+
+    entry = part_cache.run_step(cache, writer, okey, prefix, obj.name, own, say)
+    entry["techniques"] = {}
+    for name, options in obj.techniques.items():
+        technique = REGISTRY[name]
+        if technique.bake is None:
+            continue
+        tkey = part_cache.technique_key(okey, name, obj_dict["techniques"][name]) if okey else None
+
+        def step(log_, technique=technique, options=options):
+            return technique.bake(Job(obj, options, *made["base"], writer, log_, steps))
+        entry["techniques"][name] = part_cache.run_step(cache, writer, tkey, prefix, f"{obj.name}/{name}", step, say,
+                                                        prepare)
+    return entry
+
+
+def _object_parts(writer: BundleWriter, obj: Object, base: Path, say) -> tuple[dict, tuple]:
+    """The object's own parts (what its reference needs) written, and its manifest entry without the techniques;
+    with what the technique steps read: (mesh, stored mesh, mesostructure maps)."""
     mesh = stored_mesh = maps = None
     if obj.kind == "quadrics":
         q, dropped = object_quadrics(obj, base, lambda m: say(f"warning: {m}"))
@@ -194,9 +262,4 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
                 entry["mesostructure_albedo"] = writer.add(f"objects/{obj.name}/mesostructure-albedo", parts.ALBEDO_MAP,
                                                            tile)
                 say(f"mesostructure albedo {tile.shape[1]}x{tile.shape[0]}")
-    entry["techniques"] = {}
-    for name, options in obj.techniques.items():
-        technique = REGISTRY[name]
-        if technique.bake is not None:
-            entry["techniques"][name] = technique.bake(Job(obj, options, mesh, stored_mesh, maps, writer, say, steps))
-    return entry
+    return entry, (mesh, stored_mesh, maps)

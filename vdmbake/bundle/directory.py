@@ -43,6 +43,7 @@ class BundleWriter:
     def __init__(self, path: Path):
         self.stage = StagedDir(path, MANIFEST, "bundle")
         self.parts: dict[str, dict] = {}
+        self._made: list | None = None       # the parts of the step being recorded (record), for the part cache
 
     def add(self, rel: str, kind: PartKind, value) -> str:
         """Write `value` as a part of `kind` at `rel` (its suffix appended); returns the part's path."""
@@ -51,15 +52,33 @@ class BundleWriter:
     def add_read(self, rel: str, kind: PartKind, value):
         """add, returning also the value as a reader of the bundle gets it (parts.stored's, from the bytes
         written: float32 rounding included): (the part's path, that value)."""
-        rel += kind.suffix
         data, meta = kind.pack(value)
+        return self.add_packed(rel + kind.suffix, kind, data, meta)
+
+    def check_packed(self, rel: str, kind: PartKind, data: bytes, meta: dict):
+        """The checks the renderer will make, on a part's bytes and manifest metadata: the metadata by the kind's
+        schema, the bytes by the kind's reader; returns the value read."""
         origin = f"{self.stage.path / rel} (as baked)"
         from .manifest import check_meta
         check_meta(kind, meta, rel, origin)                 # what the renderer will check: the manifest entry
-        read = kind.unpack(data, meta, origin)              # and the part
+        return kind.unpack(data, meta, origin)              # and the part
+
+    def add_packed(self, rel: str, kind: PartKind, data: bytes, meta: dict, checked: bool = False):
+        """Write a packed part at `rel` (suffix included) after check_packed (unless `checked`: the caller made
+        them); the parts of a bake step come here whether baked or taken from the part cache (vdmbake.cache).
+        Returns (rel, the value read back; None if `checked`)."""
+        read = None if checked else self.check_packed(rel, kind, data, meta)
         self.stage.file(rel).write_bytes(data)
         self.parts[rel] = {"kind": kind.name, "sha256": _sha256(data), "bytes": len(data), **meta}
+        if self._made is not None:
+            self._made.append((rel, kind.name, meta, data))
         return rel, read
+
+    def record(self, stop: list | None = None) -> list:
+        """Start recording the parts written (rel, kind name, metadata, bytes) into a new list, returned;
+        record(stop=that list) stops."""
+        self._made = None if stop is not None else []
+        return stop if stop is not None else self._made
 
     def commit(self, manifest: dict, timing: dict) -> None:
         manifest = {"format": FORMAT, "format_version": FORMAT_VERSION, "tool_version": __version__,

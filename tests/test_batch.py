@@ -1,0 +1,175 @@
+"""Many scenes per call (vdmbake/batch.py, issue 24): OUTDIR/<stem>.bundle per scene, a failing scene never
+stops the others, the closing table and the exit codes, a worker killed mid-bake, a signal to the batch;
+and the library of 100+ scenes (vdmbake/library/scenes.py)."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from vdmbake.bundle.directory import Bundle
+from vdmbake.cli import main as bake_main
+
+BIN = Path(sys.executable).parent
+
+SMALL = """
+[[objects]]
+name = "{name}"
+primitive = "{prim}"
+techniques = {{ mesh = {{}}, coarse = {{ ratios = [0.5] }} }}
+"""
+# A few seconds of billboard bake: long enough to be caught mid-bake.
+SLOW = """
+[[objects]]
+name = "slow"
+primitive = "sphere"
+params = { segments = 64, rings = 32 }
+techniques = { billboards = { variants = ["greedy-hit0.01"], resolution = 96 } }
+"""
+BAD = """
+[[objects]]
+name = "x"
+primitive = "sphere"
+techniques = { coarse = { ratios = [1e-8] } }
+"""
+
+
+def write(folder: Path, **scenes) -> list[Path]:
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for stem, text in scenes.items():
+        (folder / f"{stem}.toml").write_text(text)
+        out.append(folder / f"{stem}.toml")
+    return out
+
+
+def bake(*args):
+    return CliRunner().invoke(bake_main, [str(a) for a in args], env={"VDM_CACHE": None})
+
+
+def hidden(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith(".")) if folder.is_dir() else []
+
+
+def test_many_scenes_one_failing(tmp_path):
+    write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"), b=SMALL.format(name="b", prim="torus"), bad=BAD)
+    out = tmp_path / "out"
+    r = bake(tmp_path / "s", "-o", out, "--jobs", "2")
+    assert r.exit_code == 1, r.output
+    assert "1 of 3 scenes failed" in r.stderr and str(tmp_path / "s" / "bad.toml") in r.stderr
+    rows = {line.split()[0]: line for line in r.stdout.splitlines() if line.endswith(".toml") or ".toml " in line}
+    assert rows["a.toml"].split()[1] == "baked" and rows["b.toml"].split()[1] == "baked"
+    assert "failed" in rows["bad.toml"] and "leaves no face" in rows["bad.toml"]
+    assert "3 scenes: 2 baked, 0 up to date, 1 failed" in r.stdout
+    for stem in "ab":
+        Bundle(out / f"{stem}.bundle")
+    assert not (out / "bad.bundle").exists() and hidden(out) == []
+    again = bake(tmp_path / "s", "-o", out, "--json")                 # up to date; still one failure
+    rows = {Path(x["scene"]).stem: x for x in json.loads(again.stdout)["scenes"]}
+    assert again.exit_code == 1 and rows["a"]["status"] == "up to date" and rows["bad"]["status"] == "failed"
+
+
+def test_glob_folder_and_usage_errors(tmp_path):
+    write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"), b=SMALL.format(name="b", prim="cone"))
+    write(tmp_path / "t", a=SMALL.format(name="a", prim="torus"))
+    out = tmp_path / "out"
+    r = bake(str(tmp_path / "s" / "*.toml"), "-o", out, "--jobs", "1", "--json")
+    assert r.exit_code == 0, r.output
+    assert sorted(Path(x["bundle"]).name for x in json.loads(r.stdout)["scenes"]) == ["a.bundle", "b.bundle"]
+    r = bake(tmp_path / "s", tmp_path / "t", "-o", tmp_path / "o2")
+    assert r.exit_code == 2 and "would all be baked into" in r.output                   # two a.toml
+    assert bake(tmp_path / "s", "-o", out / "a.bundle").exit_code == 2                  # -o is a bundle
+    assert bake(tmp_path / "s").exit_code == 2                                          # no -o
+    assert bake(tmp_path / "s", "-o", out, "--jobs", "0").exit_code == 2
+    (tmp_path / "empty").mkdir()
+    assert bake(tmp_path / "empty", "-o", out).exit_code == 2
+    assert bake(str(tmp_path / "nothing-*.toml"), "-o", out).exit_code == 2
+    assert bake(tmp_path / "s", "-o", out, "--scheduler", "localhost").exit_code == 2
+
+
+def _wait_for_staging(folder: Path, proc, timeout: float = 120) -> int:
+    """The pid in the first hidden staging folder `.NAME.tmp-PID` that appears in `folder`: the process baking."""
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        for name in hidden(folder):
+            if ".tmp-" in name:
+                return int(name.rsplit("-", 1)[1])
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.01)
+    raise AssertionError("no bake started")
+
+
+def test_worker_killed_mid_bake_is_retried(tmp_path):
+    """Fault test: the worker process baking a scene is killed (SIGKILL) mid-bake; the scene is baked again in a
+    fresh worker, the run completes (exit 0) and no staging folder is left."""
+    write(tmp_path / "s", slow=SLOW, a=SMALL.format(name="a", prim="sphere"))
+    out = tmp_path / "out"
+    p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--jobs", "1", "--json"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         env={k: v for k, v in os.environ.items() if k != "VDM_CACHE"})
+    pid = _wait_for_staging(out, p)
+    assert pid != p.pid                                  # a worker of the pool, not the command
+    os.kill(pid, signal.SIGKILL)
+    stdout, stderr = p.communicate(timeout=300)
+    assert p.returncode == 0, stderr
+    rows = json.loads(stdout)["scenes"]
+    assert [r["status"] for r in rows] == ["baked", "baked"]
+    for r in rows:
+        Bundle(Path(r["bundle"]))
+    assert hidden(out) == []
+
+
+def test_signal_stops_the_batch_and_its_workers(tmp_path):
+    write(tmp_path / "s", slow=SLOW)
+    out = tmp_path / "out"
+    p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--jobs", "1"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _wait_for_staging(out, p)
+    p.send_signal(signal.SIGTERM)
+    _, stderr = p.communicate(timeout=120)
+    assert p.returncode == 143, stderr
+    assert "interrupted" in stderr
+    time.sleep(0.5)
+    assert hidden(out) == [] and not (out / "slow.bundle").exists()
+
+
+def test_library_has_100_varied_scenes(tmp_path):
+    from vdmbake.library import scenes as library
+    from vdmbake.bake import input_hash
+    from vdmbake.scene import load_scene
+
+    files = library.write(tmp_path)
+    assert len(files) >= 100 and len({f.stem.split("-")[1] for f in files}) >= 5
+    sources, techniques = set(), set()
+    for f in files:
+        scene = load_scene(f)
+        input_hash(scene, f.parent)                         # every pkg: asset resolves
+        for o in scene.objects:
+            sources.add("mesh" if o.mesh else "molecule" if o.molecule else o.primitive or "inline")
+            techniques |= set(o.techniques)
+    assert {"mesh", "molecule", "inline", "torus", "teapot", "plane"} <= sources
+    assert {"coarse", "billboards", "octahedral", "relief", "vdm", "displaced", "impostor"} <= techniques
+    assert [f.read_text() for f in library.write(tmp_path)] == [f.read_text() for f in files]   # deterministic
+
+
+def test_library_sample_bakes_and_shares_the_cache(tmp_path):
+    """One scene of each family baked on two workers through a cache, then again: every step from the cache."""
+    from vdmbake.library import scenes as library
+
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    picked = {}
+    for name, text in library.scenes():
+        picked.setdefault(name.split("-")[1].rstrip("0123456789"), (name, text))
+    for name, text in picked.values():
+        (scenes / name).write_text(text)
+    cache = tmp_path / "cache"
+    r = bake(scenes, "-o", tmp_path / "cold", "--jobs", "2", "--cache", cache, "--json")
+    assert r.exit_code == 0, r.output
+    r = bake(scenes, "-o", tmp_path / "warm", "--jobs", "2", "--cache", cache, "--json")
+    rows = json.loads(r.stdout)["scenes"]
+    assert r.exit_code == 0 and all(x["baked"] == 0 and x["from_cache"] == x["parts"] for x in rows), rows
