@@ -13,6 +13,7 @@ from vdmbake.errors import InputError, fail, guarded
 from vdmbake.scene import MAX_SIDE, REGISTRY
 
 from . import gl
+from . import many as many_bundles
 from .baseline import table as baseline_table
 from .render import Options, run
 
@@ -37,9 +38,10 @@ def _sizes(ctx, param, value):
 
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
-@click.argument("bundle", type=click.Path(path_type=Path))
+@click.argument("bundles", nargs=-1, required=True, metavar="BUNDLE...", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "out", required=True, type=click.Path(path_type=Path),
-              help="Output folder (frames, reference, heat maps, report); replaced atomically.")
+              help="Output folder (frames, reference, heat maps, report); replaced atomically. Several bundles (or a "
+                   "folder of them): OUTPUT/<bundle name>/ each, and the combined report in OUTPUT.")
 @click.option("-t", "--technique", "techniques", multiple=True,
               help=f"Render only this technique (repeatable; {', '.join(REGISTRY)}); default: every technique "
                    "the scene names.")
@@ -82,9 +84,9 @@ def _sizes(ctx, param, value):
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
-def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_s, device, max_error, baseline, max_error_increase,
+def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample_s, device, max_error, baseline, max_error_increase,
          max_slowdown, compare_devices, counters, flip, heat_max, sizes, as_json, debug):
-    """Render BUNDLE (made by vdmbake) into OUTPUT and report error against run time.
+    """Render each BUNDLE (made by vdmbake) into OUTPUT and report error against run time.
 
     For every object, each technique variant (a technique at one value of its quality
     knob, e.g. coarse@0.1) renders the scene's camera frames on the GPU (OpenGL through
@@ -114,8 +116,13 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
     OUTPUT/lod.json, lod.md                  with [[render.sweep.lod]]: per object the cheapest
                                              variant within the limits per band of screen sizes
 
+    Several bundles, or a folder of them: each into OUTPUT/<bundle name without .bundle>/ as
+    alone, one after another on the GPU; OUTPUT/report.json, report.csv and error_vs_time.png
+    combine their rows (object spelled SCENE/OBJECT, so --baseline compares combined reports),
+    OUTPUT/runs.md lists each bundle's status; a bundle that fails does not stop the others.
+
     Exit codes: 0 done; 1 done but a threshold was exceeded (--max-error, --max-error-increase,
-    --max-slowdown); 2 bad usage or bad input, or a variant or composite set with no covered pixel in
+    --max-slowdown) or some of several bundles failed (each named); 2 bad usage or bad input, or a variant or composite set with no covered pixel in
     any frame (unless its objects set expect_empty = true), also under --debug, which adds the traceback;
     128 + N stopped by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). --debug also makes GL strict: a uniform or
     vertex attribute a shader does not have is an error instead of being skipped.
@@ -127,6 +134,7 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
           --max-error-increase 0.05 --max-slowdown 1.25 --sample-s 1.5
       vdmrender out/default.bundle -o out/gpu --device cuda:0 --warmup-s 2 --sample-s 1
       vdmrender out/lod-bunny.bundle -o out/lod-bunny --sizes 512,256,128,64,32,16
+      vdmrender out/library/bundles -o out/library/renders --baseline old/report.json --max-error-increase 0.1
     """
     if (max_error_increase is not None or max_slowdown is not None) and baseline is None:
         fail(InputError("--max-error-increase and --max-slowdown compare with an earlier run; give its "
@@ -139,9 +147,16 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
                    counters=counters, sizes=sizes)
     if debug:
         gl.STRICT = True
-    result = guarded(lambda: run(bundle, out, opts, log), debug)
+    found, many = guarded(lambda: many_bundles.bundles(bundles), debug)
+    if many:
+        result = guarded(lambda: many_bundles.run_many(found, out, opts, log), debug)
+        click.echo(many_bundles.table(result["runs"]), err=True)
+    else:
+        result = guarded(lambda: run(found[0], out, opts, log), debug)
     if as_json:
         click.echo(json.dumps(result, indent=1, allow_nan=False))
+    elif many:
+        click.echo(f"combined report: {out / 'report.json'}  runs: {out / 'runs.md'}  ({result['device']})")
     else:
         click.echo(f"report: {out / 'report.json'}  plot: {out / 'error_vs_time.png'}  "
                    f"overview: {out / 'overview'}/  ({result['device']})")
@@ -164,7 +179,10 @@ def main(bundle, out, techniques, resolution, repeats, warmup, warmup_s, sample_
     for name, why, advice in empty:
         click.echo(f"error: {name}: no frame has a pixel to score ({why}), so there is nothing to measure; "
                    f"{advice} if that is the point.", err=True)
-    sys.exit(2 if empty else 1 if worst or (block and block["failed"]) else 0)
+    failed = [r["scene"] for r in result.get("runs", []) if r["status"] == "failed"]
+    if failed:
+        click.echo(f"{len(failed)} of {len(result['runs'])} bundles failed: {', '.join(failed)}", err=True)
+    sys.exit(2 if empty else 1 if worst or failed or (block and block["failed"]) else 0)
 
 
 if __name__ == "__main__":
