@@ -68,4 +68,4 @@ def test_bundles_of_one_name_and_empty_folders_are_refused(tmp_path):
     assert r.exit_code == 2 and "named 'x'" in r.output, r.output
     (tmp_path / "empty").mkdir()
     r = CliRunner().invoke(render_main, [str(tmp_path / "empty"), "-o", str(tmp_path / "o")])
-    assert r.exit_code == 2 and "neither a bundle nor a folder holding bundles" in r.output, r.output
+    assert r.exit_code == 2 and "not a bundle (no manifest.json), nor a folder holding bundles" in r.output, r.output

@@ -25,8 +25,8 @@ def bundles(args) -> tuple[list[Path], bool]:
         if a.is_dir() and not (a / "manifest.json").is_file():
             found, many = sorted(p for p in a.iterdir() if (p / "manifest.json").is_file()), True
             if not found:
-                raise InputError(f"{a}: neither a bundle nor a folder holding bundles (folders with a manifest.json); "
-                                 "make them with vdmbake.")
+                raise InputError(f"{a}: not a bundle (no manifest.json), nor a folder holding bundles; make them "
+                                 "with vdmbake.")
         else:
             found = [a]
         out += [b for b in found if b not in out]
