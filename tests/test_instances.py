@@ -196,3 +196,41 @@ scatter = { count = 40, area = [16, 16], scale = [0.6, 1.2], seed = 2 }
     # the mix is drawn by the chain's variants only: its error within theirs, the coverage the reference's
     assert mix["mean_dluv"] <= max(rows[v]["mean_dluv"] for v in mix["lod_copies"]) + 0.05
     assert mix["iou"] > 0.98
+
+
+@pytest.mark.gl
+def test_a_variant_holding_two_bands_draws_the_copies_of_both(ctx):
+    """A chain may come back to a variant (coarse@0.1 near, octahedral between, coarse@0.1 far): each frame places
+    every copy whose band names it, not the last band's alone."""
+    from vdmbake.scene import Light
+    from vdmrender import lod
+    from vdmrender.camera import Camera
+
+    class Fake:
+        anchor, faces = np.zeros(3), 0
+
+        def __init__(self):
+            self.shadow, self.placed = None, []
+
+        def place(self, m):
+            self.placed.append(len(m))
+
+        def passes(self, camera, target):
+            return []
+
+        def release(self):
+            pass
+
+    entries = [{"variant": "coarse@0.1", "min_px": 64, "max_px": 256}, {"variant": "oct", "min_px": 32, "max_px": 64},
+               {"variant": "coarse@0.1", "min_px": 0, "max_px": 32}]
+    world = np.tile(np.eye(4), (3, 1, 1))
+    world[:, 0, 3] = [-5.0, -15.0, -400.0]   # one copy near (144 px), one between (47 px), one far (2 px)
+    fakes = {"coarse@0.1": Fake(), "oct": Fake()}
+    cam = Camera(np.zeros(3), np.array([-1.0, 0, 0]), np.array([0, 0, 1.0]), 40.0, 256, 256, 0.1, 1000.0)
+    sizes = lod.screen_px(cam, world[:, :3, 3], np.ones(3))
+    assert [lod.pick(entries, sizes).tolist()] == [[0, 1, 2]]
+    mix = lod.LodMix(ctx, fakes, entries, world, (np.zeros(3), 1.0), (np.zeros(3), 500.0), Light(), 256)
+    target = type("T", (), {"kept": lambda self: self})()
+    mix.passes(cam, target)
+    assert fakes["coarse@0.1"].placed == [2] and fakes["oct"].placed == [1]
+    mix.release()

@@ -147,18 +147,16 @@ class LodMix(Composite):
         self.all, self.entries, self.world = dict(self.renderers), entries, world
         self.centres = np.einsum("nij,j->ni", world[:, :3, :3], np.asarray(sphere[0], float)) + world[:, :3, 3]
         self.radii = sphere[1] * instances.scales(world)
-        self.chosen = {label: 0 for label in renderers}   # copies drawn by each variant, summed over frames
 
     def passes(self, camera, target) -> list:
-        which = pick(self.entries, screen_px(camera, self.centres, self.radii))
+        labels = np.array([e["variant"] for e in self.entries])[pick(self.entries, screen_px(camera, self.centres,
+                                                                                            self.radii))]
         self.renderers = {}
-        for k, e in enumerate(self.entries):
-            mine = self.world[which == k]
+        for label, r in self.all.items():   # a variant may hold several bands: all its copies at once
+            mine = self.world[labels == label]
             if len(mine):
-                r = self.all[e["variant"]]
                 r.place(mine)
-                self.renderers[e["variant"]] = r
-                self.chosen[e["variant"]] += len(mine)
+                self.renderers[label] = r
         return super().passes(camera, target)
 
     def release(self) -> None:

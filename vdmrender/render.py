@@ -300,5 +300,6 @@ def _copies_chosen(obj, entry, scene, entries, cams) -> dict:
     world = instances.matrices(obj.instances, scene.camera.up, entry["centre"])
     centres = np.einsum("nij,j->ni", world[:, :3, :3], np.asarray(entry["centre"], float)) + world[:, :3, 3]
     radii = entry["radius"] * instances.scales(world)
-    which = np.concatenate([lod.pick(entries, lod.screen_px(c, centres, radii)) for c in cams])
-    return {e["variant"]: int((which == k).sum()) for k, e in enumerate(entries)}
+    labels = np.array([e["variant"] for e in entries])
+    which = np.concatenate([labels[lod.pick(entries, lod.screen_px(c, centres, radii))] for c in cams])
+    return {label: int((which == label).sum()) for label in dict.fromkeys(labels)}
