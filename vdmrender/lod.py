@@ -134,6 +134,11 @@ def pick(entries: list[dict], sizes: np.ndarray) -> np.ndarray:
     return np.clip((sizes <= lows[:, None]).sum(0), 0, len(entries) - 1)
 
 
+def chosen(entries: list[dict], camera, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Each copy's variant label under `camera`: the entry whose band its screen size falls in (pick)."""
+    return np.array([e["variant"] for e in entries])[pick(entries, screen_px(camera, centres, radii))]
+
+
 class LodMix(Composite):
     """Per-instance LOD, as an engine does it: per frame every copy of the object is drawn by the variant its
     screen size selects in the chain (`entries`, lod.json's), all in one frame with one depth buffer and one
@@ -145,12 +150,10 @@ class LodMix(Composite):
                  shadow_size: int):
         super().__init__(ctx, renderers, *around, light, shadow_size)
         self.all, self.entries, self.world = dict(self.renderers), entries, world
-        self.centres = np.einsum("nij,j->ni", world[:, :3, :3], np.asarray(sphere[0], float)) + world[:, :3, 3]
-        self.radii = sphere[1] * instances.scales(world)
+        self.centres, self.radii = instances.spheres(world, *sphere)
 
     def passes(self, camera, target) -> list:
-        labels = np.array([e["variant"] for e in self.entries])[pick(self.entries, screen_px(camera, self.centres,
-                                                                                            self.radii))]
+        labels = chosen(self.entries, camera, self.centres, self.radii)
         self.renderers = {}
         for label, r in self.all.items():   # a variant may hold several bands: all its copies at once
             mine = self.world[labels == label]

@@ -269,37 +269,35 @@ def _render_all(harness, out, bundle, scene, only, opts, device, log, chains=Non
         if not chosen:
             continue
         cams = cameras_for(scene.camera, *sphere(obj, entry, scene), width, height)
-        mixes = [_mixed(obj, entry, bundle, scene, c["name"], c["objects"][obj.name]["entries"])
-                 for c in (chains or {}).get("chains", []) if obj.instances]
-        mine = render_object(harness, out, bundle, scene, obj, cams, chosen + [m for m, _ in mixes], opts, device, log)
+        world = instances.matrices(obj.instances, scene.camera.up, entry["centre"]) if obj.instances else None
+        mixes = {c["name"]: c["objects"][obj.name]["entries"] for c in (chains or {}).get("chains", [])
+                 if world is not None}
+        mine = render_object(harness, out, bundle, scene, obj, cams,
+                             chosen + [_mixed(obj, entry, bundle, scene, name, entries, world)
+                                       for name, entries in mixes.items()], opts, device, log)
         for row in mine:
-            entries = {m.label: e for m, e in mixes}.get(row["label"])
-            if entries:
-                row["lod_copies"] = _copies_chosen(obj, entry, scene, entries, cams)
+            if row["technique"] == "lod":
+                row["lod_copies"] = _copies_chosen(entry, world, mixes[row["value"]], cams)
         rows += mine
     return rows
 
 
-def _mixed(obj, entry, bundle, scene, name: str, entries: list[dict]):
-    """The variant lod@NAME of an instanced object: every copy drawn by the variant of chain NAME its screen size
-    selects, per frame (vdmrender.lod.LodMix); and the chain's entries."""
+def _mixed(obj, entry, bundle, scene, name: str, entries: list[dict], world) -> Variant:
+    """The variant lod@NAME of an instanced object whose copies `world` places: every copy drawn by the variant of
+    chain NAME its screen size selects, per frame (vdmrender.lod.LodMix)."""
     builds = {v.label: v.build for v in variants(obj, entry, bundle, scene)}
     labels = list(dict.fromkeys(e["variant"] for e in entries))
-    world = instances.matrices(obj.instances, scene.camera.up, entry["centre"])
 
     def build(ctx):
         return lod.LodMix(ctx, {label: builds[label](ctx) for label in labels}, entries, world,
                           (entry["centre"], entry["radius"]), sphere(obj, entry, scene), scene.light,
                           scene.render.shadow_map)
 
-    return Variant("lod", "chain", name, f"lod@{name}", build), entries
+    return Variant("lod", "chain", name, f"lod@{name}", build)
 
 
-def _copies_chosen(obj, entry, scene, entries, cams) -> dict:
-    """How many copies each variant of the chain drew, summed over the cameras."""
-    world = instances.matrices(obj.instances, scene.camera.up, entry["centre"])
-    centres = np.einsum("nij,j->ni", world[:, :3, :3], np.asarray(entry["centre"], float)) + world[:, :3, 3]
-    radii = entry["radius"] * instances.scales(world)
-    labels = np.array([e["variant"] for e in entries])
-    which = np.concatenate([labels[lod.pick(entries, lod.screen_px(c, centres, radii))] for c in cams])
-    return {label: int((which == label).sum()) for label in dict.fromkeys(labels)}
+def _copies_chosen(entry, world, entries, cams) -> dict:
+    """How many copies each variant of the chain drew, summed over the cameras (lod.chosen, as LodMix draws)."""
+    centres, radii = instances.spheres(world, entry["centre"], entry["radius"])
+    which = np.concatenate([lod.chosen(entries, c, centres, radii) for c in cams])
+    return {label: int((which == label).sum()) for label in dict.fromkeys(e["variant"] for e in entries)}

@@ -55,7 +55,7 @@ def write(folder: Path, report: dict) -> None:
     with open(folder / "report.csv", "w", newline="") as f:
         w = csv.DictWriter(f, COLUMNS, extrasaction="ignore")
         w.writeheader()
-        w.writerows(_flat(r) for r in report["rows"])
+        w.writerows(flat(r) for r in report["rows"])
     if "baseline" in report:
         (folder / "baseline.md").write_text(baseline.table(report["baseline"]))
         (folder / "baseline.csv").write_text(baseline.to_csv(report["baseline"]))
@@ -64,7 +64,7 @@ def write(folder: Path, report: dict) -> None:
     plot(folder / "error_vs_time.png", report)
 
 
-def _flat(row: dict) -> dict:
+def flat(row: dict) -> dict:
     """A row for the CSV: per-pass times as `name=ms;name=ms`, the counters per covered pixel and per run."""
     passes, px, c = row.get("passes_ms") or {}, row.get("per_pixel") or {}, row.get("counters") or {}
     return {**row, "passes_ms": ";".join(f"{k}={v}" for k, v in passes.items()),

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .camera import Camera, clip_planes
+from .report import flat as report_flat
 
 COLUMNS = ["object", "size_px", "distance_radii", "label", "technique", "value", "median_ms", "spread_ms", "q1_ms",
            "q3_ms", "fragments_px", "fetches_px", "steps_px", "mean_dluv", "p95_dluv", "flip_mean", "iou",
@@ -37,18 +38,13 @@ def sized(views: list[Camera], centre, radius: float, size_px: float) -> list[Ca
     return cams
 
 
-def flat(row: dict) -> dict:
-    px = row.get("per_pixel") or {}
-    return {**row, **{f"{k}_px": px.get(k) for k in ("fragments", "fetches", "steps")}}
-
-
 def write(folder: Path, report: dict) -> None:
     """sweep.csv (one row per object, size and variant), error_vs_size.png and cost_vs_size.png."""
     rows = report["sweep"]["rows"]
     with open(folder / "sweep.csv", "w", newline="") as f:
         w = csv.DictWriter(f, COLUMNS, extrasaction="ignore")
         w.writeheader()
-        w.writerows(flat(r) for r in rows)
+        w.writerows(report_flat(r) for r in rows)   # per-pixel work spelled as report.csv spells it
     for name, field, label, log in (
             ("error_vs_size.png", "mean_dluv", "mean ΔL*u*v* against the reference (eq. 2.2)", False),
             ("cost_vs_size.png", "median_ms", "median GPU time per frame, timer queries [ms] (log)", True)):

@@ -71,11 +71,15 @@ def reach(m: np.ndarray, anchor, radius: float) -> float:
     return float((np.linalg.norm(rel[:, :3, 3], axis=1) + radius * scales(rel)).max())
 
 
+def spheres(m: np.ndarray, centre, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every copy's bounding sphere: (N, 3) centres, (N,) radii, from the object's (centre, radius)."""
+    return np.einsum("nij,j->ni", m[:, :3, :3], np.asarray(centre, np.float64)) + m[:, :3, 3], radius * scales(m)
+
+
 def enclosing(m: np.ndarray, centre, radius: float) -> tuple[np.ndarray, float]:
     """A sphere holding every instance's bounding sphere: centred on the box of their centres, as large as the
     farthest instance's surface from there."""
-    c = np.einsum("nij,j->ni", m[:, :3, :3], np.asarray(centre, np.float64)) + m[:, :3, 3]
-    r = radius * scales(m)
+    c, r = spheres(m, centre, radius)
     mid = 0.5 * ((c - r[:, None]).min(0) + (c + r[:, None]).max(0))
     return mid, float((np.linalg.norm(c - mid, axis=1) + r).max())
 

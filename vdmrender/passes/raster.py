@@ -127,7 +127,7 @@ class RasterMesh(RasterPasses):
 
     def __init__(self, ctx, mesh, light, material, shadow_size: int, instances=None):
         anchor, radius = mesh.bounding_sphere()
-        attributes, defines, count, buffers = [], (), 1, []
+        attributes, defines, buffers = [], (), []
         self.model = None
         if instances is not None:
             self.model = ctx.buffer(reserve=len(instances) * 64)
@@ -138,8 +138,8 @@ class RasterMesh(RasterPasses):
         self.inputs = MeshInputs(ctx, mesh, anchor)
         self.UNIFORM_ALBEDO = self.inputs.uniform_albedo
         self.add("mesh.vert", self.inputs.defines + defines, buffers, self.inputs.attributes + attributes,
-                 self.inputs.index, count)
-        if instances is not None:
+                 self.inputs.index)
+        if instances is not None:   # the instance count of every draw is set by place
             self.place(instances)
 
     def place(self, instances) -> None:
