@@ -4,10 +4,12 @@ hundred examples of each inside `make test` (derandomised, so the suite is repro
 under 60 s on 2 cores); `make fuzz` runs 1000+ of each, randomised (VDM_FUZZ_EXAMPLES)."""
 from __future__ import annotations
 
+import json
 import tomllib
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -216,3 +218,59 @@ def test_fuzz_parts_are_accepted_unmutated(parts_bundle, tmp_path_factory):
     for rel, (tables, meta) in parts.items():
         case = DamagedPart(rel, exr.to_bytes(tables), meta, {}, ["reorder"])
         check_part(tmp_path_factory.mktemp("part"), manifest, case, values[rel])
+
+
+# ---------------------------------------------------------------------------- issue 22: lod.json for vdmexport
+
+LOD_SCENE = TINY_HEAD + """
+[render.sweep]
+sizes = [24, 8]
+[[render.sweep.lod]]
+name = "any"
+mean_dluv = 1e3
+[[objects]]
+name = "ball"
+primitive = "sphere"
+techniques = { mesh = {}, coarse = { ratios = [0.3] }, octahedral = { variants = ["full-4x32-march"] } }
+"""
+
+
+@pytest.fixture(scope="module")
+def fuzz_lod(tmp_path_factory):
+    from scenes import bake_and_render
+
+    d = tmp_path_factory.mktemp("lod")
+    result, out = bake_and_render(d, LOD_SCENE, "--no-flip")
+    assert result.exit_code == 0, result.output[-2000:]
+    return Quiet("fuzz_lod", (d / "b.bundle", json.loads((out / "lod.json").read_text())))
+
+
+def check_export(bundle: Path, lod_path: Path, out: Path) -> None:
+    """vdmexport with a hostile lod.json: exit 0 with export.json written, or exit 2 through the one-paragraph
+    error path with nothing written."""
+    from vdmbake.export.cli import main as export_main
+
+    r = CliRunner().invoke(export_main, [str(bundle), "--lod", str(lod_path), "-o", str(out)])
+    assert r.exit_code in (0, 2), (r.exit_code, r.output[-3000:], repr(r.exception))
+    if r.exit_code == 0:
+        assert (out / "export.json").is_file()
+        return
+    assert isinstance(r.exception, SystemExit) and "Traceback" not in r.output, r.output[-3000:]
+    assert r.output.rstrip("\n").splitlines()[-1].startswith("error: "), r.output[-3000:]
+    assert not out.exists()
+
+
+def test_fuzz_lod_is_accepted_unmutated(fuzz_lod, tmp_path):
+    bundle, lod = fuzz_lod
+    (tmp_path / "lod.json").write_text(json.dumps(lod))
+    check_export(bundle, tmp_path / "lod.json", tmp_path / "x")
+    assert (tmp_path / "x" / "ball-any.gltf").is_file()
+
+
+@given(data=st.data())
+@examples(300)
+def test_fuzz_lod(fuzz_lod, tmp_path_factory, data):
+    bundle, lod = fuzz_lod
+    d = tmp_path_factory.mktemp("export")
+    (d / "lod.json").write_text(json.dumps(data.draw(mutated(lod))))
+    check_export(bundle, d / "lod.json", d / "x")

@@ -255,7 +255,11 @@ def test_export_refuses_a_lod_of_another_bundle(tmp_path):
     assert CliRunner().invoke(bake_main, [str(scene), "-o", str(tmp_path / "b")]).exit_code == 0
     lod_path = tmp_path / "lod.json"
     for text, message in (("{}", "not a lod.json"), (json.dumps({"device": "d", "resolution": [4, 4], "chains": [
-            {"name": "a", "objects": {"rabbit": {"entries": []}}}]}), "names object 'rabbit'")):
+            {"name": "a", "objects": {"rabbit": {"entries": [{"variant": "mesh", "technique": "mesh", "min_px": 0,
+                                                              "max_px": 8, "meets": True, "screen_coverage": [2, 0],
+                                                              "measured": []}]}}}]}), "names object 'rabbit'"),
+                          (json.dumps({"device": "d", "resolution": [4, 4], "chains": [{"name": "../up", "objects": {}}]}),
+                           "chains[0].name is not 1-64 characters")):   # a chain's name is part of file names
         lod_path.write_text(text)
         r = CliRunner().invoke(export_main, [str(tmp_path / "b"), "--lod", str(lod_path), "-o", str(tmp_path / "x")])
         assert r.exit_code == 2 and message in r.output, r.output

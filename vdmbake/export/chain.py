@@ -5,6 +5,7 @@ that gives their layout and bands (docs/export.md)."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -23,21 +24,55 @@ TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF carries as they are
 SIDECAR = "vdm-impostors"
 
 
+NAME = re.compile(r"[A-Za-z0-9_-]{1,64}")   # a chain's name becomes part of file names, as the scene reader spells it
+
+
 def read_lod(path: Path) -> dict:
-    """lod.json as vdmrender wrote it, with the keys this export reads checked."""
+    """lod.json as vdmrender wrote it, every key this export reads checked for its type before anything is
+    written: a damaged or hand-edited file ends the run with one message naming the key."""
+    shown = printable(str(path))
     try:
         lod = json.loads(read_regular(path, "lod.json", limit=64 << 20))
-        for c in lod["chains"]:
-            for ch in c["objects"].values():
-                for e in ch["entries"] + ch.get("meshes_only", {"entries": []})["entries"]:
-                    e["variant"], e["technique"], int(e["min_px"]), int(e["max_px"])
-        int(lod["resolution"][1])
     except FileNotFoundError:
-        raise InputError(f"{printable(str(path))}: not found; vdmrender writes lod.json into its output folder for "
-                         "a scene with [[render.sweep.lod]].") from None
-    except (OSError, ValueError, KeyError, TypeError, IndexError) as e:
-        raise InputError(f"{printable(str(path))}: not a lod.json written by vdmrender ({type(e).__name__}: "
+        raise InputError(f"{shown}: not found; vdmrender writes lod.json into its output folder for a scene with "
+                         "[[render.sweep.lod]].") from None
+    except (OSError, ValueError, RecursionError) as e:
+        raise InputError(f"{shown}: not a lod.json written by vdmrender ({type(e).__name__}: "
                          f"{printable(str(e))[:200]}).") from None
+
+    def need(ok: bool, where: str, want: str) -> None:
+        if not ok:
+            raise InputError(f"{shown}: {where} is not {want}; it is not a lod.json written by vdmrender, or was "
+                             "edited: render again.")
+
+    def count(x) -> bool:
+        return type(x) is int and x >= 0
+
+    need(isinstance(lod, dict), "the top level", "an object")
+    need(isinstance(lod.get("device"), str), "'device'", "a string")
+    res = lod.get("resolution")
+    need(isinstance(res, list) and len(res) == 2 and all(count(x) and x > 0 for x in res), "'resolution'",
+         "[width, height] in pixels")
+    need(isinstance(lod.get("band", ""), str), "'band'", "a string")
+    need(isinstance(lod.get("chains"), list), "'chains'", "a list")
+    for i, c in enumerate(lod["chains"]):
+        where = f"chains[{i}]"
+        need(isinstance(c, dict) and isinstance(c.get("name"), str) and NAME.fullmatch(c["name"]) is not None,
+             f"{where}.name", "1-64 characters from A-Z a-z 0-9 _ -")
+        need(isinstance(c.get("objects"), dict), f"{where}.objects", "an object")
+        for o, ch in c["objects"].items():
+            need(isinstance(ch, dict), f"{where}.objects.{printable(o)}", "an object")
+            for part in ("entries", "meshes_only") if "meshes_only" in ch else ("entries",):
+                entries = ch.get(part) if part == "entries" else ch[part].get("entries") if isinstance(ch[part], dict) \
+                    else None
+                at = f"{where}.objects.{printable(o)}.{part}"
+                need(isinstance(entries, list) and len(entries) > 0, at, "a non-empty list of entries")
+                for k, e in enumerate(entries):
+                    need(isinstance(e, dict) and isinstance(e.get("variant"), str) and isinstance(e.get("technique"), str)
+                         and count(e.get("min_px")) and count(e.get("max_px")) and e["min_px"] <= e["max_px"]
+                         and isinstance(e.get("meets"), bool) and isinstance(e.get("screen_coverage"), list)
+                         and isinstance(e.get("measured"), list), f"{at}[{k}]",
+                         "an entry {variant, technique, min_px <= max_px (pixels), meets, screen_coverage, measured}")
     return lod
 
 
@@ -54,9 +89,12 @@ def variant_value(obj, label: str):
 def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None = None, log=lambda m: None) -> dict:
     bundle, lod = Bundle(bundle_path), read_lod(lod_path)
     chains = [c for c in lod["chains"] if only in (None, c["name"])]
+    if not lod["chains"]:
+        raise InputError(f"{printable(str(lod_path))} holds no chain; give the scene [[render.sweep.lod]] limits and "
+                         "render it again.")
     if not chains:
         raise InputError(f"--chain {printable(only)!r}: {printable(str(lod_path))} has the chains "
-                         f"{', '.join(repr(c['name']) for c in lod['chains']) or 'none'}.")
+                         f"{', '.join(repr(c['name']) for c in lod['chains'])}.")
     objects = {o.name: o for o in bundle.scene.objects}
     out = StagedDir(out_path, "export.json", "vdmexport output folder")
     summary = {"bundle": str(bundle.path), "lod": str(lod_path), "device": lod["device"], "files": []}
