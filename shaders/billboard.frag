@@ -30,6 +30,7 @@ flat in vec3 v_iu;
 flat in vec3 v_iv;
 flat in vec3 v_iw;
 flat in int v_layer;
+flat in mat3 v_turn;
 
 void main() {
     COUNT_FRAGMENT();
@@ -52,7 +53,7 @@ void main() {
     gl_FragDepth = window_depth(u_view_proj, p);
 #if !defined(SHADOW)
     vec3 st = o + d * t;
-    vec3 N = safe_normalize(map(st.xy, v_layer).xyz);
+    vec3 N = safe_normalize(v_turn * map(st.xy, v_layer).xyz);
 #if defined(THESIS)
     // The thesis's hit test (|ray depth - map depth| < e) takes either side of the surface. A ray that
     // enters the box behind the surface and meets it from below (f = ray depth - map depth falling there,

@@ -12,7 +12,9 @@
 //   COARSE_DEPTH  the coarse mesh's depth pre-pass (pushed back as the frame's coarse pass is) bounds every
 //                 ray: what lies behind it would lose the depth test against the coarse mesh anyway;
 //   SHADOW        the light's pass (orthographic), depth only;
-//   ALBEDO_MAPS   the colour at the hit is the billboard's colour map (Vichitvejpaisal2005 §3.3 step 2.3), else the material's.
+//   ALBEDO_MAPS   the colour at the hit is the billboard's colour map (Vichitvejpaisal2005 §3.3 step 2.3), else the material's;
+//   INSTANCED     one fragment per pixel of each copy's quad (bounding_quad.vert): the ray is taken into the
+//                 copy's frame (copy.glsl), where the arrays below hold; depth and shading in the world.
 // BOARDS (defined by the caller) is the number of billboards, MAX_ITER the tracer's cap per billboard.
 // Counts (cost_count.glsl): each billboard traced is a search, each of its cell visits a step.
 #include "cost_count.glsl"
@@ -24,6 +26,10 @@ uniform ivec2 u_level_origin[16];     // where each level starts in the atlas
 int g_layer = 0;
 #include "heightfield_trace.glsl"
 #include "camera.glsl"
+#if defined(INSTANCED)
+#include "copy.glsl"
+flat in mat4 v_model;
+#endif
 
 uniform sampler2DArray u_maps;        // RGBA32F bordered maps: normal (xyz), depth (w); linear filtering
 uniform mat4 u_to_box[BOARDS];        // anchor-relative world -> the billboard's unit box (u, v, depth)
@@ -65,6 +71,12 @@ void main() {
     vec2 ndc = gl_FragCoord.xy / u_viewport * 2.0 - 1.0;
     vec4 q = u_inv_view_proj * vec4(ndc, zc * 2.0 - 1.0, 1.0);
     best = zc < 1.0 ? dot(q.xyz / q.w - p0, seg) / dot(seg, seg) : 1.0;
+#endif
+#if defined(INSTANCED)
+    vec3 w0 = p0, wseg = seg;            // the world ray; p0, seg from here on in the copy's frame
+    into_copy(v_model, p0, seg);
+    float scale = length(v_model[0].xyz);
+    mat3 turn = mat3(v_model) / scale;
 #endif
     float R = float(u_hf_cells.x - 1);   // (R + 1)^2 cells over the bordered R x R map
     // Per billboard, the ray's segment in its box from where it enters the first occupied box of its
@@ -129,19 +141,26 @@ void main() {
     best = from_below ? back : front;
     if (hit < 0) discard;
     vec3 p = p0 + seg * best;
-    gl_FragDepth = window_depth(u_view_proj, p);
+#if defined(INSTANCED)
+    vec3 world = w0 + wseg * best;
+#else
+    vec3 world = p;
+    float scale = 1.0;
+    mat3 turn = mat3(1.0);
+#endif
+    gl_FragDepth = window_depth(u_view_proj, world);
 #if !defined(SHADOW)
     vec3 st = (u_to_box[hit] * vec4(p, 1.0)).xyz;
-    vec3 N = safe_normalize(FETCH(texture(u_maps, vec3((st.xy * R + 1.0) / (R + 2.0), float(u_layer[hit])))).xyz);
+    vec3 N = safe_normalize(turn * FETCH(texture(u_maps, vec3((st.xy * R + 1.0) / (R + 2.0), float(u_layer[hit])))).xyz);
     if (from_below) N = -N;   // the surface seen from behind: shaded two-sided, as the mesh and the reference are
     // the shadow lookup moves along the normal by u_board_texels map texels on top of the shadow map's
     // own normal offset (the surface is known to about a texel)
-    float lit = shadow_lit(p + N * (u_board_texels * u_texel[hit]), N);
+    float lit = shadow_lit(world + N * (u_board_texels * u_texel[hit] * scale), N);
 #if defined(ALBEDO_MAPS)
     vec3 albedo = board_albedo(st.xy, u_layer[hit]);
 #else
     vec3 albedo = u_albedo;
 #endif
-    frag = vec4(shade(albedo, N, normalize(u_eye - p), lit), 1.0);
+    frag = vec4(shade(albedo, N, normalize(u_eye - world), lit), 1.0);
 #endif
 }

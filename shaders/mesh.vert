@@ -20,6 +20,13 @@ out vec2 v_uv;
 in mat4 in_model;     // this copy's similarity, anchor-relative (vdmbake.common.instances): normals only turn
 #endif
 uniform mat4 u_mvp;   // clip space from anchor-relative coordinates
+#ifdef PUSHED
+// Copies of a coarse mesh that fills holes (Vichitvejpaisal2005 §3.4; vdmrender/passes/boards.py pushed): each is
+// depth-tested as if u_behind times its scale farther along its own ray than it is, from the eye (u_away.w = 1,
+// xyz the eye) or along the light (u_away.w = 0, xyz the direction away from it); shaded where it is.
+uniform vec4 u_away;
+uniform float u_behind;
+#endif
 out vec3 v_pos;
 out vec3 v_normal;
 out vec3 v_albedo;
@@ -42,5 +49,10 @@ void main() {
 #ifdef ALBEDO_MAP
     v_uv = in_uv;
 #endif
+#ifdef PUSHED
+    vec3 away = u_away.w > 0.5 ? normalize(v_pos - u_away.xyz) : u_away.xyz;
+    gl_Position = u_mvp * vec4(v_pos + away * (u_behind * length(in_model[0].xyz)), 1.0);
+#else
     gl_Position = u_mvp * vec4(v_pos, 1.0);
+#endif
 }

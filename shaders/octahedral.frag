@@ -9,6 +9,7 @@
 #include "cost_count.glsl"
 #include "quadric.glsl"
 #include "octahedral.glsl"
+#include "copy.glsl"
 #if !defined(SHADOW)
 #include "shading.glsl"
 #include "shadow.glsl"
@@ -31,13 +32,10 @@ void main() {
     float t;
     vec3 n, albedo;
 #ifdef INSTANCED
-    // The ray in the copy's own frame: for M = [s R | c], M^-1 p = R^T (p - c) / s = A^T (p - c) / s^2 with
-    // A = s R; the ray parameter is the same in both frames, the normal turns back by R.
-    mat3 A = mat3(v_model);
-    float s2 = dot(A[0], A[0]);
-    if (!impostor_hit(transpose(A) * (p0 - v_model[3].xyz) / s2, transpose(A) * seg / s2, u_radius, t, n, albedo))
-        discard;
-    n = normalize(A * n);
+    vec3 q0 = p0, qseg = seg;   // the ray in the copy's own frame (copy.glsl)
+    into_copy(v_model, q0, qseg);
+    if (!impostor_hit(q0, qseg, u_radius, t, n, albedo)) discard;
+    n = normalize(mat3(v_model) * n);
 #else
     if (!impostor_hit(p0, seg, u_radius, t, n, albedo)) discard;
 #endif

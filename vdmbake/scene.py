@@ -194,9 +194,6 @@ class Instances:
     scatter: Scatter | None = setting(None, Table(Scatter), "a seeded scatter over a rectangle")
 
 
-INSTANCED = ("mesh", "coarse", "octahedral")   # the techniques that draw instances (with instanced draws)
-
-
 class Rows(Type):
     """Inline quadrics: rows of n finite numbers, the last (a radius) >= 0."""
 
@@ -242,8 +239,9 @@ class Object:
     techniques: dict = setting(REQUIRED, Custom("a table of technique tables (see the techniques below)"),
                                "the techniques to render and compare, each with its settings")
     instances: Instances | None = setting(None, Table(Instances),
-                                          "[objects.instances]: draw the object many times from one bake (techniques "
-                                          f"{', '.join(INSTANCED)}; the reference traces every copy)")
+                                          "[objects.instances]: draw the object many times from one bake (every "
+                                          "technique, one instanced draw per pass; the reference traces every copy; "
+                                          "not on objects with a mesostructure)")
     viewer_mesh: int | None = setting(None, Integer(0, 4),
                                       "quadrics objects: also bake them as one triangle mesh for viewers (standard PLY "
                                       "with vertex colours, part viewer-mesh), tessellated as `tessellated` draws them "
@@ -387,17 +385,12 @@ def _object(t: Reader, default_material: Material) -> Object:
         if len(given) != 1:
             t.fail("instances", t.data["instances"], "a table with exactly one of `placements` (a list of tables) "
                    "or `scatter`")
-        if not (mesh or primitive) or meso is not None:
-            t.fail("instances", t.data["instances"], "instances only of mesh or primitive objects without a "
-                   "mesostructure")
+        if meso is not None:
+            t.fail("instances", t.data["instances"], "instances only of objects without a mesostructure")
     m = t.table("material")    # the scene's material with the keys given here overridden
     material = read(Material, m, **{f: getattr(default_material, f) for f in vars(default_material) if not m.has(f)})
     kind = "surface" if (mesh or primitive) else "quadrics"
     techniques = _techniques(t.table("techniques"), name, kind, meso is not None)
-    if instances is not None and set(techniques) - set(INSTANCED):
-        raise InputError(f"{t.origin}: object {name!r} has [objects.instances], but its techniques "
-                         f"{', '.join(sorted(set(techniques) - set(INSTANCED)))} draw one copy only; the techniques "
-                         f"that draw instances: {', '.join(INSTANCED)}.")
     return read(Object, t, name=name, primitive=primitive, params=params, molecule=molecule, style=style, mesh=mesh,
                 mesostructure=meso, material=material, techniques=techniques, instances=instances)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 
 import numpy as np
 
@@ -65,7 +65,26 @@ def object_reference(obj, entry, bundle, scene):
         if obj.instances:   # every copy, merged (the memory guard counts them: render.geometry_bytes)
             mesh = instances.placed(mesh, instances.matrices(obj.instances, scene.camera.up, entry["centre"]))
         return reference.MeshReference(mesh, scene.light, obj.material), None
-    return reference.QuadricReference(bundle.read(entry["quadrics"], parts.QUADRICS), scene.light, obj.material), None
+    q = bundle.read(entry["quadrics"], parts.QUADRICS)
+    if obj.instances:   # every copy, merged (the memory guard counts them: render.geometry_bytes)
+        q = placed_quadrics(q, instances.matrices(obj.instances, scene.camera.up, entry["centre"]))
+    return reference.QuadricReference(q, scene.light, obj.material), None
+
+
+def placed_quadrics(q, m: np.ndarray):
+    """Every copy of the quadrics q (vdmbake.kernels.quadrics.QuadricSet) placed by the world matrices m
+    (similarities, vdmbake.common.instances), merged into one set: centres and end points by each matrix, radii
+    by its scale, colours kept."""
+    scale = instances.scales(m)[:, None]
+
+    def moved(p):   # (N, 3) points -> (copies * N, 3)
+        return (np.einsum("cij,nj->cni", m[:, :3, :3], p) + m[:, None, :3, 3]).reshape(-1, 3)
+
+    s, c = q.spheres, q.cylinders
+    spheres = np.concatenate([moved(s[:, :3]), (scale * s[:, 3]).reshape(-1, 1)], 1)
+    cylinders = np.concatenate([moved(c[:, :3]), moved(c[:, 3:6]), (scale * c[:, 6]).reshape(-1, 1)], 1)
+    return replace(q, spheres=spheres, sphere_rgb=np.tile(q.sphere_rgb, (len(m), 1)),
+                   cylinders=cylinders, cylinder_rgb=np.tile(q.cylinder_rgb, (len(m), 1)))
 
 
 def cached_reference(out, folder: str, key: str, count: int):

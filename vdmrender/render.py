@@ -33,8 +33,8 @@ BYTES_PER_FACE = 600
 
 
 def geometry_bytes(bundle) -> tuple[int, str]:
-    """The largest object's geometry memory (every mesh part of the object counted, the quadrics) and a
-    description of it, from the manifest alone."""
+    """The largest object's geometry memory (every mesh part of the object counted, the quadrics; each times the
+    object's copies) and a description of it, from the manifest alone."""
     worst, what = 0, ""
     copies = {o.name: instances.count(o.instances) if o.instances else 1 for o in bundle.scene.objects}
     for name, entry in bundle.manifest["objects"].items():
@@ -42,12 +42,11 @@ def geometry_bytes(bundle) -> tuple[int, str]:
         meshes = [m for rel, m in bundle.manifest["parts"].items() if rel.startswith(prefix) and m["kind"] == "mesh"]
         faces = sum(m["faces"] for m in meshes) * copies[name]   # the reference merges every copy
         q = bundle.manifest["parts"][entry["quadrics"]] if entry.get("quadrics") else {"spheres": 0, "cylinders": 0}
-        quadrics = q["spheres"] + q["cylinders"]
+        quadrics = (q["spheres"] + q["cylinders"]) * copies[name]   # the quadric reference merges them too
         need = faces * BYTES_PER_FACE + quadrics * BYTES_PER_QUADRIC
         if need > worst:
-            worst, what = need, (f"object {name!r}: {faces} mesh faces" + (f" ({copies[name]} copies)" if copies[name] > 1
-                                                                          else "")
-                                 + f" and {quadrics} spheres and cylinders")
+            worst, what = need, (f"object {name!r}: {faces} mesh faces and {quadrics} spheres and cylinders"
+                                 + (f" ({copies[name]} copies)" if copies[name] > 1 else ""))
     return worst, what
 
 

@@ -47,28 +47,22 @@ def matrices(instances, up, centre) -> np.ndarray:
     return m
 
 
-def relative(m: np.ndarray, anchor) -> np.ndarray:
-    """The matrices between anchor-relative coordinates (the renderers' GPU space): T(-a) M T(a)."""
-    a = np.asarray(anchor, np.float64)
+def relative(m: np.ndarray, centre, anchor) -> np.ndarray:
+    """The matrices from coordinates relative to the object's centre (where its data is uploaded) to coordinates
+    relative to `anchor` (the renderers' GPU space, enclosing): T(-anchor) M T(centre)."""
     r = m.copy()
-    r[:, :3, 3] += np.einsum("nij,j->ni", m[:, :3, :3], a) - a
+    r[:, :3, 3] += np.einsum("nij,j->ni", m[:, :3, :3], np.asarray(centre, np.float64)) - np.asarray(anchor, np.float64)
     return r
 
 
-def model_columns(m: np.ndarray, anchor) -> bytes:
-    """The matrices about `anchor` (relative) as float32 column-major mat4s, as GLSL reads a per-instance mat4."""
-    return np.ascontiguousarray(relative(m, anchor).transpose(0, 2, 1), dtype="f4").tobytes()
+def model_columns(m: np.ndarray, centre, anchor) -> bytes:
+    """relative(m, centre, anchor) as float32 column-major mat4s, as GLSL reads a per-instance mat4."""
+    return np.ascontiguousarray(relative(m, centre, anchor).transpose(0, 2, 1), dtype="f4").tobytes()
 
 
 def scales(m: np.ndarray) -> np.ndarray:
     """(N,) each similarity's uniform scale."""
     return np.linalg.norm(m[:, :3, 0], axis=1)
-
-
-def reach(m: np.ndarray, anchor, radius: float) -> float:
-    """The radius about `anchor` (an object's bounding-sphere centre) that holds every copy's bounding sphere."""
-    rel = relative(m, anchor)
-    return float((np.linalg.norm(rel[:, :3, 3], axis=1) + radius * scales(rel)).max())
 
 
 def spheres(m: np.ndarray, centre, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -77,10 +71,13 @@ def spheres(m: np.ndarray, centre, radius: float) -> tuple[np.ndarray, np.ndarra
 
 
 def enclosing(m: np.ndarray, centre, radius: float) -> tuple[np.ndarray, float]:
-    """A sphere holding every instance's bounding sphere: centred on the box of their centres, as large as the
-    farthest instance's surface from there."""
+    """A sphere holding every copy's bounding sphere, centred on the box of their centres: what the cameras frame,
+    and the renderers' GPU space (its centre the anchor, its radius what the shadow map spans), so copies placed
+    far from the object itself keep small float32 coordinates and a shadow map of their own extent (about the
+    object's centre, copies 1.7e4 units away lost their shadows: mean ΔLuv 8.1). One copy in place: the object's
+    own centre and radius, exactly."""
     c, r = spheres(m, centre, radius)
-    mid = 0.5 * ((c - r[:, None]).min(0) + (c + r[:, None]).max(0))
+    mid = 0.5 * (c.min(0) + c.max(0))
     return mid, float((np.linalg.norm(c - mid, axis=1) + r).max())
 
 

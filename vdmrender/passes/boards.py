@@ -9,6 +9,7 @@ import numpy as np
 
 from .. import gl
 from .raster import MeshInputs
+from .shadowmap import translation
 
 NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels (as impostors) ...
 BOARD_TEXELS = 1.0           # ... plus this many of the billboard's map texels: less gives acne where billboards
@@ -23,18 +24,35 @@ CUBE = CORNERS[np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], 
                          [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])].reshape(-1, 3)
 
 
-def coarse_draws(ctx, mesh, anchor) -> tuple[dict, MeshInputs]:
+def coarse_draws(ctx, mesh, anchor, model=None) -> tuple[dict, MeshInputs]:
     """The coarse mesh (Vichitvejpaisal2005 §3.4) uploaded once, anchor-relative, with the asset's colours
     where it carries them (raster.MeshInputs), and drawn by mesh.vert two ways: {"depth": (program, vao) writing depth only
-    (depth.frag), "shaded": (program, vao) (mesh.frag)}; and its inputs (the shaded pass binds them)."""
+    (depth.frag), "shaded": (program, vao) (mesh.frag)}; and its inputs (the shaded pass binds them). model: the
+    buffer of the copies' matrices (one per instance, INSTANCED, pushed per copy: `pushed`), or None for an object
+    drawn once."""
     inputs = MeshInputs(ctx, mesh, anchor)
+    placed = ("INSTANCED", "PUSHED") if model is not None else ()
+    attributes = inputs.attributes + ([(model, "16f/i", "in_model")] if model is not None else [])
     draws = {}
-    for kind, frag, defines in (("depth", "depth.frag", ()), ("shaded", "mesh.frag", inputs.defines)):
+    for kind, frag, defines in (("depth", "depth.frag", placed), ("shaded", "mesh.frag", inputs.defines + placed)):
         prog = gl.program(ctx, "mesh.vert", frag, defines)
-        draws[kind] = (prog, gl.vertex_array(ctx, prog, inputs.attributes, inputs.index, subset=kind == "depth"))
+        draws[kind] = (prog, gl.vertex_array(ctx, prog, attributes, inputs.index, subset=kind == "depth"))
     return draws, inputs
 
 
+def pushed(view_proj, behind: float, *, eye=None, light=None, radius: float = 0.0, copies: bool = False) -> dict:
+    """The coarse mesh's uniforms under view_proj, depth-tested as if `behind` farther from the eye (eye:
+    anchor-relative; the same pixels, farther) or from the light (light: its direction) than it is (§3.4). Drawn
+    once: a matrix folded into u_mvp, a scaling about the eye by behind at the object's distance (at least its
+    radius) or a shift along the light. Copies: per vertex in mesh.vert (PUSHED), `behind` times each copy's scale
+    along its own ray, since one matrix would push a copy near the eye less and a far one more."""
+    if copies:
+        away = (*eye, 1.0) if eye is not None else (*(-np.asarray(light, np.float64)), 0.0)
+        return {"u_mvp": view_proj, "u_away": tuple(float(x) for x in away), "u_behind": behind}
+    if eye is not None:
+        k = 1.0 + behind / max(float(np.linalg.norm(eye)), radius)
+        return {"u_mvp": view_proj @ (translation(eye) @ np.diag([k, k, k, 1.0]) @ translation(-eye))}
+    return {"u_mvp": view_proj @ translation(-np.asarray(light, np.float64) * behind)}
 
 
 def albedo_maps(ctx, bordered):

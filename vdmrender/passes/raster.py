@@ -126,16 +126,16 @@ class RasterMesh(RasterPasses):
     shadow map covering them all."""
 
     def __init__(self, ctx, mesh, light, material, shadow_size: int, instances=None):
-        anchor, radius = mesh.bounding_sphere()
-        attributes, defines, buffers = [], (), []
+        self.centre, radius = mesh.bounding_sphere()   # the data is uploaded about the object's centre
+        anchor, attributes, defines, buffers = self.centre, [], (), []
         self.model = None
-        if instances is not None:
+        if instances is not None:   # the GPU space about the copies (instances.enclosing)
+            anchor, radius = copies.enclosing(instances, self.centre, radius)
             self.model = ctx.buffer(reserve=len(instances) * 64)
             attributes, defines, buffers = [(self.model, "16f/i", "in_model")], ("INSTANCED",), [self.model]
-            radius = copies.reach(instances, anchor, radius)
         super().__init__(ctx, light, material, anchor, radius, shadow_size)
         self.faces = len(mesh.faces)
-        self.inputs = MeshInputs(ctx, mesh, anchor)
+        self.inputs = MeshInputs(ctx, mesh, self.centre)
         self.UNIFORM_ALBEDO = self.inputs.uniform_albedo
         self.add("mesh.vert", self.inputs.defines + defines, buffers, self.inputs.attributes + attributes,
                  self.inputs.index)
@@ -144,7 +144,7 @@ class RasterMesh(RasterPasses):
 
     def place(self, instances) -> None:
         """Draw these copies (world matrices, at most as many as built with) from now on."""
-        self.model.write(copies.model_columns(instances, self.anchor))
+        self.model.write(copies.model_columns(instances, self.centre, self.anchor))
         self.draws = [(stage, prog, vao, len(instances)) for stage, prog, vao, _ in self.draws]
 
     def bind_frame(self, prog, camera) -> None:

@@ -1,7 +1,8 @@
 """Enhanced billboards, the render side (Vichitvejpaisal2005 §3.3, §3.4, §4.1).
 
 Each billboard of the bake (vdmbake.kernels.billboards: origin, axes u v w, size, alpha, depth and normal
-maps) is drawn as its bounding box, one instance per billboard (Vichitvejpaisal2005 §3.3 step 1). Only the box's back
+maps) is drawn as its bounding box (Vichitvejpaisal2005 §3.3 step 1), all of them once per copy of the object
+by one instanced draw (issue 23: an instance per copy; an object drawn once is one copy). Only the box's back
 faces are rasterised: they cover its screen footprint whether the eye is outside or inside the box, and
 near-plane clipping removes only box parts whose whole ray segment lies before the near plane; the
 raster matrix has its far plane at infinity, so no box face is lost behind the far plane. Per pixel,
@@ -44,12 +45,13 @@ import moderngl
 import numpy as np
 
 from vdmbake.bundle import parts
+from vdmbake.common import instances as copies
 from vdmbake.errors import InputError
 
 from .. import gl
 from .billboards_hier import HierBillboards
 from ..passes.boards import (BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS,
-                             albedo_maps, coarse_draws, infinite_far)
+                             albedo_maps, coarse_draws, infinite_far, pushed)
 from ..passes.raster import Passes, RasterPasses
 from ..passes.shadowmap import ShadowMap, translation
 
@@ -66,11 +68,12 @@ def surface_points(b) -> np.ndarray:
 
 class Billboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, method: str = "improved",
-                 hit_range: float = 0.01, coarse=None, bounds=None):
+                 hit_range: float = 0.01, coarse=None, bounds=None, instances=None):
         """boards: vdmbake.bundle.parts.Billboard (origin, axes, size, alpha, depth, normal maps); bordered: their
         vdmbake.bundle.parts.BorderedMaps; coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of
         the model, which fits the shadow map (default: the box of the covered texels' points, and of the
-        coarse mesh)."""
+        coarse mesh); instances: (N, 4, 4) world matrices of the object's copies (vdmbake.common.instances),
+        every copy in one instanced draw per pass, the shadow map covering them all (None: drawn once)."""
         if method not in METHODS:
             raise InputError(f"billboards: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
         if not hit_range > 0:
@@ -91,25 +94,33 @@ class Billboards(Passes):
             centre = 0.5 * (lo + hi)
             texel = max((np.linalg.norm(b.size) / np.asarray(b.alpha).shape[0] for b in boards), default=0.0)
             bounds = (centre, float(np.linalg.norm(pts - centre, axis=1).max()) + texel)
-        self.anchor, radius = np.asarray(bounds[0], np.float64), float(bounds[1])
+        self.centre, radius = np.asarray(bounds[0], np.float64), float(bounds[1])   # the data is about the centre
         self.radius = radius
         self.behind = COARSE_BEHIND * radius
-        self.shadow = ShadowMap(ctx, shadow_size, light.direction, radius)
-        self.objects, self.draws = [], []   # GL objects to release; (pass, program, vao, kind)
+        placed = np.eye(4)[None] if instances is None else np.asarray(instances, np.float64)
+        self.instanced = instances is not None
+        # the GPU space about the copies (instances.enclosing; drawn once: the object's own sphere)
+        self.anchor, reach = copies.enclosing(placed, self.centre, radius)
+        self.shadow = ShadowMap(ctx, shadow_size, light.direction, reach)
+        self.model = ctx.buffer(reserve=len(placed) * 64)   # the copies' matrices (place)
+        self.objects, self.draws = [self.model], []         # GL objects to release; (pass, program, vao, kind)
+        self.place(placed)
         self.albedo_maps = self.coarse = None
 
         defines = ("THESIS",) if method == "thesis" else ("IMPROVED",)
-        self.count = len(boards)
         self.shadow_squeeze = np.eye(4)   # the light's raster matrix is this times the shadow map's
         if boards:
-            o = np.array([np.asarray(b.origin, np.float64) - self.anchor for b in boards])
+            o = np.array([np.asarray(b.origin, np.float64) - self.centre for b in boards])
             edges = np.array([np.asarray(b.axes, np.float64) * np.asarray(b.size, np.float64)[:, None]
                               for b in boards])
-            inst = np.concatenate([o, edges.reshape(-1, 9)], 1)
-            # The light's raster matrix: the shadow map's, its depth range widened to hold every box corner
-            # (also in a composite's map of the whole scene, which holds this object's bounding sphere).
+            # per vertex: the unit-cube corner, its box (origin, edges) and its layer (billboard.vert)
+            box = np.concatenate([o, edges.reshape(-1, 9)], 1).astype(np.float32)
+            vertices = np.concatenate([np.repeat(CUBE[None], len(boards), 0), np.repeat(box[:, None], 36, 1)], 2)
+            layers = np.repeat(np.arange(len(boards), dtype=np.int32), 36)
+            # The light's raster matrix: the shadow map's, its depth range widened to hold every copy's box
+            # corners (also in a composite's map of the whole scene, which holds this object's bounding sphere).
             far = max(np.linalg.norm(o[:, None] + CORNERS[None] @ edges, axis=2).max(), radius)
-            self.shadow_squeeze = np.diag([1.0, 1.0, min(1.0, radius / far), 1.0])
+            self.shadow_squeeze = np.diag([1.0, 1.0, min(1.0, reach / copies.enclosing(placed, self.centre, far)[1]), 1.0])
             res = np.asarray(boards[0].alpha).shape[0]
             maps = np.stack([np.asarray(m.maps, np.float32) for m in bordered])
             covered = [np.asarray(b.alpha) > 0.5 for b in boards]
@@ -120,24 +131,30 @@ class Billboards(Passes):
             self.alpha.filter = (moderngl.NEAREST, moderngl.NEAREST)
             for t in (self.maps, self.alpha):
                 t.repeat_x = t.repeat_y = False
-            cube = ctx.buffer(CUBE.tobytes())
-            ibuf = ctx.buffer(np.ascontiguousarray(inst, np.float32).tobytes())
+            vbuf = ctx.buffer(np.ascontiguousarray(vertices, np.float32).tobytes())
+            lbuf = ctx.buffer(layers.tobytes())
             self.albedo_maps = albedo_maps(ctx, bordered)
-            self.objects += [self.maps, self.alpha, cube, ibuf, self.albedo_maps]
+            self.objects += [self.maps, self.alpha, vbuf, lbuf, self.albedo_maps]
             shaded = ("ALBEDO_MAPS",) if self.albedo_maps is not None else ()
             for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
                 prog = gl.program(ctx, "billboard.vert", "billboard.frag", defines + extra)
-                vao = gl.vertex_array(ctx, prog, [(cube, "3f", "in_corner"),
-                                                  (ibuf, "3f 3f 3f 3f/i", "in_origin", "in_u", "in_v", "in_w")])
+                vao = gl.vertex_array(ctx, prog, [
+                    (vbuf, "3f 3f 3f 3f 3f", "in_corner", "in_origin", "in_u", "in_v", "in_w"),
+                    (lbuf, "1i", "in_layer"), (self.model, "16f/i", "in_model")])
                 self.draws.append((stage, prog, vao, "boards"))
         if coarse is not None:   # Vichitvejpaisal2005 §3.4: the coarse mesh, in both passes
-            draws, self.coarse = coarse_draws(ctx, coarse, self.anchor)
+            draws, self.coarse = coarse_draws(ctx, coarse, self.centre, None if instances is None else self.model)
             self.objects.append(self.coarse)
             self.draws += [("shadow", *draws["depth"], "mesh"), ("frame", *draws["shaded"], "mesh")]
 
-    def _draw(self, stage: str, view_proj, raster, viewport, push, **uniforms) -> None:
+    def place(self, instances) -> None:
+        """Draw these copies (world matrices, at most as many as built with) from now on."""
+        self.model.write(copies.model_columns(instances, self.centre, self.anchor))
+        self.count = len(instances)
+
+    def _draw(self, stage: str, view_proj, raster, viewport, push: dict, **uniforms) -> None:
         """One pass. raster: the billboards' box matrix (wider depth range than view_proj); push: the coarse
-        mesh's depth push (a scaling about the eye, or a shift away from the light: same pixels, farther)."""
+        mesh's matrix uniforms, pushed back (passes.boards.pushed)."""
         ctx = self.ctx
         for name, prog, vao, kind in self.draws:
             if name != stage:
@@ -167,28 +184,27 @@ class Billboards(Passes):
             else:
                 if stage == "frame":
                     self.coarse.bind(prog)
-                gl.set_uniforms(prog, u_mvp=view_proj @ push, **uniforms)
+                gl.set_uniforms(prog, **push, **uniforms)
                 ctx.polygon_offset = RasterPasses.POLYGON_OFFSET if stage == "shadow" else (0.0, 0.0)
-                vao.render()
+                vao.render(instances=self.count)
                 ctx.polygon_offset = (0.0, 0.0)
 
     def passes(self, camera, target) -> list:
         """The frame's passes in order, as (name, callable): render runs them, a profile times each."""
         eye = camera.eye - self.anchor
-        k = 1.0 + self.behind / max(float(np.linalg.norm(eye)), self.radius)
-        push = translation(eye) @ np.diag([k, k, k, 1.0]) @ translation(-eye)
         to_anchor = camera.view() @ translation(self.anchor)
 
         def shadow():
             self.shadow.begin()
             self._draw("shadow", self.shadow.view_proj, self.shadow_squeeze @ self.shadow.view_proj,
                        self.shadow.texture.size,
-                       translation(-np.asarray(self.light.direction, np.float64) * self.behind))
+                       pushed(self.shadow.view_proj, self.behind, light=self.light.direction, copies=self.instanced))
 
         def frame():
             target.begin()
-            self._draw("frame", camera.projection() @ to_anchor, infinite_far(camera.projection()) @ to_anchor,
-                       target.size, push, u_eye=tuple(eye))
+            view_proj = camera.projection() @ to_anchor
+            self._draw("frame", view_proj, infinite_far(camera.projection()) @ to_anchor, target.size,
+                       pushed(view_proj, self.behind, eye=eye, radius=self.radius, copies=self.instanced), u_eye=tuple(eye))
         return [("shadow", shadow), ("frame", frame)]
 
     def release(self) -> None:
@@ -206,7 +222,7 @@ def build(ctx, src, variant):
     bounds = (np.asarray(src.entry["centre"]), src.entry["radius"])
     if variant.method == "hier":
         return HierBillboards(ctx, boards, bordered, src.scene.light, src.obj.material, src.shadow_map,
-                              coarse if variant.coarse else None, bounds, shadow_mesh=coarse)
+                              coarse if variant.coarse else None, bounds, shadow_mesh=coarse, instances=src.instances)
     method = "thesis" if variant.hit_range is not None else "improved"
     return Billboards(ctx, boards, bordered, src.scene.light, src.obj.material, src.shadow_map, method,
-                      variant.hit_range or 0.01, coarse, bounds)
+                      variant.hit_range or 0.01, coarse, bounds, src.instances)

@@ -21,18 +21,25 @@ rejecting anything early on llvmpipe. Here a frame is:
   5. with hole filling, the coarse mesh shaded and depth-tested as if COARSE_BEHIND farther than it is
      (as techniques/billboards.py), so that it fills only the pixels no billboard hit; drawn after the
      billboards, its hidden fragments fail the early depth test unshaded.
+Instances (issue 23): every copy in one instanced draw per pass. Pass 4 draws a quad over each copy's
+bounding sphere (bounding_quad.vert, INSTANCED) instead of the screen triangle, and its fragments take the
+ray into the copy's frame (copy.glsl), where the billboards' arrays hold; the coarse and shadow meshes are
+drawn instanced. Pass 3 is left out: its tiles are one per billboard (a copy's would be one per billboard
+and copy), so each ray starts at the boxes it meets; the coarse depth of pass 2, over every copy, still
+bounds it.
 """
 from __future__ import annotations
 
 import moderngl
 import numpy as np
 
+from vdmbake.common import instances as copies
 from vdmbake.common import pyramid
 from vdmbake.errors import InputError
 
 from .. import gl
 from ..passes.boards import (BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS,
-                             albedo_maps, coarse_draws, infinite_far)
+                             albedo_maps, coarse_draws, infinite_far, pushed)
 from ..passes.raster import Passes, RasterPasses
 from ..passes.shadowmap import ShadowMap, translation
 
@@ -43,11 +50,12 @@ LEVELS = 16           # pyramid levels the shader's origin table holds (maps up 
 
 class HierBillboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, coarse=None, bounds=None,
-                 shadow_mesh=None):
+                 shadow_mesh=None, instances=None):
         """boards: vdmbake.bundle.parts.Billboard (their boxes: origin, axes, size); bordered: their
         vdmbake.bundle.parts.BorderedMaps with pyramids; coarse: an optional TriMesh that fills holes (Vichitvejpaisal2005 §3.4);
         shadow_mesh: the TriMesh that casts the shadows (None: the billboards do); bounds: (centre, radius)
-        of the model."""
+        of the model; instances: (N, 4, 4) world matrices of the object's copies (vdmbake.common.instances),
+        None: drawn once."""
         boards, bordered = list(boards), list(bordered)
         if not boards and coarse is None:
             raise InputError("billboards: nothing to draw (no billboard and no coarse mesh).")
@@ -60,16 +68,25 @@ class HierBillboards(Passes):
                              f"than the {LEVELS} the renderer holds.")
         self.ctx, self.light, self.material = ctx, light, material
         self.faces = len(coarse.faces) if coarse is not None else 0
-        self.anchor, self.radius = np.asarray(bounds[0], np.float64), float(bounds[1])
+        self.centre, self.radius = np.asarray(bounds[0], np.float64), float(bounds[1])   # the data is about the centre
+        self.anchor = self.centre
         self.behind = COARSE_BEHIND * self.radius
-        self.shadow = ShadowMap(ctx, shadow_size, light.direction, self.radius)
         self.objects, self.count, self.draws = [], len(boards), {}
+        self.model = self.placed = None     # the copies' matrices (place) and how many are drawn
+        reach = self.radius
+        if instances is not None:   # the GPU space about the copies (instances.enclosing)
+            self.anchor, reach = copies.enclosing(instances, self.centre, self.radius)
+            self.model = ctx.buffer(reserve=len(instances) * 64)
+            self.corners_quad = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
+            self.objects += [self.model, self.corners_quad]
+            self.place(instances)
+        self.shadow = ShadowMap(ctx, shadow_size, light.direction, reach)
         self.depth = self.occupancy = None        # pass 2's and pass 3's targets, made at the first frame's size
         self.albedo_maps = self.coarse = None
         uploaded = {}                             # a mesh filling holes and casting shadows is uploaded once
         for mesh in (coarse, shadow_mesh):
             if mesh is not None and id(mesh) not in uploaded:
-                uploaded[id(mesh)] = coarse_draws(ctx, mesh, self.anchor)
+                uploaded[id(mesh)] = coarse_draws(ctx, mesh, self.centre, self.model)
                 self.objects.append(uploaded[id(mesh)][1])
         if coarse is not None:
             draws, self.coarse = uploaded[id(coarse)]
@@ -80,7 +97,7 @@ class HierBillboards(Passes):
         if not boards:
             return
         res = bordered[0].maps.shape[0] - 2
-        origin = np.array([np.asarray(b.origin, np.float64) - self.anchor for b in boards])
+        origin = np.array([np.asarray(b.origin, np.float64) - self.centre for b in boards])
         edges = np.array([np.asarray(b.axes, np.float64) * np.asarray(b.size, np.float64)[:, None] for b in boards])
         self.corners = origin[:, None] + CORNERS[None] @ edges          # (boards, 8, 3) box corners
         self.centres = origin + 0.5 * edges.sum(1)
@@ -90,21 +107,8 @@ class HierBillboards(Passes):
         self.to_box[:, :3, 3] = -np.einsum("bij,bj->bi", self.to_box[:, :3, :3], origin)
         self.to_box[:, 3, 3] = 1.0
         self.texel = np.array([max(b.size[0], b.size[1]) / res for b in boards])
-        # pass 3's geometry: per billboard the boxes of its occupied cells (pyramid.occupied_boxes), a
-        # quarter texel and 1e-4 depths larger than the cells (rounding must not start a ray past a surface)
-        tris, self.occ_ranges = [], []
-        for m, o, e in zip(bordered, origin, edges):
-            box = pyramid.occupied_boxes(m.pyramid, OCCUPANCY_LEVEL).astype(np.float64)
-            box[:, 0] -= (0.25, 0.25, 1e-4)
-            box[:, 1] += (0.25, 0.25, 1e-4)
-            box[..., :2] = (box[..., :2] - 0.5) / res                   # sample coordinates -> unit box
-            box = np.clip(box, 0.0, 1.0)
-            unit = box[:, None, 0] + CUBE[None].astype(np.float64) * (box[:, None, 1] - box[:, None, 0])
-            self.occ_ranges.append((sum(len(t) for t in tris), 36 * len(box)))
-            tris.append((o + unit.reshape(-1, 3) @ e).astype(np.float32))
-        occ_vbo = ctx.buffer(np.concatenate(tris).tobytes())
-        self.occ_prog = gl.program(ctx, "billboard_occupancy.vert", "billboard_occupancy.frag")
-        self.occ_vao = gl.vertex_array(ctx, self.occ_prog, [(occ_vbo, "3f", "in_pos")])
+        if instances is None:
+            self._occupancy_boxes(bordered, origin, edges, res)
         # the pyramids (pyramid.texture_atlas, one layer each) and the bordered maps
         atlases = [pyramid.texture_atlas(m.pyramid) for m in bordered]
         self.level_origin = np.zeros((LEVELS, 2), np.int32)
@@ -118,32 +122,65 @@ class HierBillboards(Passes):
         for t in (self.pyramids, self.maps):
             t.repeat_x = t.repeat_y = False
         self.albedo_maps = albedo_maps(ctx, bordered)
-        self.objects += [occ_vbo, self.pyramids, self.maps, self.albedo_maps]
+        self.objects += [self.pyramids, self.maps, self.albedo_maps]
         self.hf = {"u_hf_cells": (res + 1, res + 1), "u_hf_top": bordered[0].pyramid.top}
+        # the copies' quads hold every hit: the surface is within a texel or two of the model's sphere
+        self.quad_radius = self.radius + 2.0 * float(self.texel.max())
         defines = (f"BOARDS {len(boards)}", f"MAX_ITER {4 * (res + 1)}", f"HF_START_LEVEL {OCCUPANCY_LEVEL}")
-        stages = {"billboards": defines + ("OCCUPANCY",) + (("COARSE_DEPTH",) if coarse is not None else ())
+        defines += ("INSTANCED",) if instances is not None else ()
+        stages = {"billboards": defines + (("OCCUPANCY",) if instances is None else ())
+                  + (("COARSE_DEPTH",) if coarse is not None else ())
                   + (("ALBEDO_MAPS",) if self.albedo_maps is not None else ())}
         if shadow_mesh is None:
             stages["shadow billboards"] = defines + ("SHADOW",)
         for stage, d in stages.items():
             # the light's pass reads neither the maps (no shading) nor an occupancy pre-pass
             lack = ("u_maps", "u_occupancy", "u_board_texels") if "SHADOW" in d else ()
-            prog = gl.program(ctx, "fullscreen.vert", "billboard_hier.frag", d, lack)
-            self.draws[stage] = (prog, gl.vertex_array(ctx, prog, []))
+            if instances is None:
+                prog = gl.program(ctx, "fullscreen.vert", "billboard_hier.frag", d, lack)
+                self.draws[stage] = (prog, gl.vertex_array(ctx, prog, []))
+            else:
+                prog = gl.program(ctx, "bounding_quad.vert", "billboard_hier.frag", d, lack)
+                self.draws[stage] = (prog, gl.vertex_array(ctx, prog, [(self.corners_quad, "2f", "in_corner"),
+                                                                        (self.model, "16f/i", "in_model")]))
+
+    def _occupancy_boxes(self, bordered, origin, edges, res: int) -> None:
+        """Pass 3's geometry: per billboard the boxes of its occupied cells (pyramid.occupied_boxes), a
+        quarter texel and 1e-4 depths larger than the cells (rounding must not start a ray past a surface)."""
+        tris, self.occ_ranges = [], []
+        for m, o, e in zip(bordered, origin, edges):
+            box = pyramid.occupied_boxes(m.pyramid, OCCUPANCY_LEVEL).astype(np.float64)
+            box[:, 0] -= (0.25, 0.25, 1e-4)
+            box[:, 1] += (0.25, 0.25, 1e-4)
+            box[..., :2] = (box[..., :2] - 0.5) / res                   # sample coordinates -> unit box
+            box = np.clip(box, 0.0, 1.0)
+            unit = box[:, None, 0] + CUBE[None].astype(np.float64) * (box[:, None, 1] - box[:, None, 0])
+            self.occ_ranges.append((sum(len(t) for t in tris), 36 * len(box)))
+            tris.append((o + unit.reshape(-1, 3) @ e).astype(np.float32))
+        occ_vbo = self.ctx.buffer(np.concatenate(tris).tobytes())
+        self.objects.append(occ_vbo)
+        self.occ_prog = gl.program(self.ctx, "billboard_occupancy.vert", "billboard_occupancy.frag")
+        self.occ_vao = gl.vertex_array(self.ctx, self.occ_prog, [(occ_vbo, "3f", "in_pos")])
+
+    def place(self, instances) -> None:
+        """Draw these copies (world matrices, at most as many as built with) from now on."""
+        self.model.write(copies.model_columns(instances, self.centre, self.anchor))
+        self.placed = len(instances)
 
     # ----------------------------------------------------------------------------------------- passes
 
     def passes(self, camera, target) -> list:
         """The frame's passes in order, as (name, callable): render runs them, the profile times each."""
         eye = camera.eye - self.anchor
-        k = 1.0 + self.behind / max(float(np.linalg.norm(eye)), self.radius)
-        push = translation(eye) @ np.diag([k, k, k, 1.0]) @ translation(-eye)   # the coarse mesh, pushed back
         to_anchor = camera.view() @ translation(self.anchor)
         view_proj = camera.projection() @ to_anchor
+        push = pushed(view_proj, self.behind, eye=eye, radius=self.radius, copies=self.model is not None)
         out = [("shadow", self._shadow)]
         if "coarse depth" in self.draws:
-            out.append(("coarse depth", lambda: self._coarse_depth(view_proj @ push, target.size)))
-        if self.count:
+            out.append(("coarse depth", lambda: self._coarse_depth(push, target.size)))
+        if self.count and self.model is not None:
+            out.append(("billboards", lambda: self._frame(view_proj, eye, target, None)))
+        elif self.count:
             state = {}
             out.append(("occupancy", lambda: state.update(occupancy=self._occupancy(
                 camera, target.size, infinite_far(camera.projection()) @ to_anchor, eye))))
@@ -151,7 +188,7 @@ class HierBillboards(Passes):
         else:
             out.append(("clear", target.begin))
         if "coarse" in self.draws:
-            out.append(("coarse", lambda: self._coarse(view_proj @ push, eye)))
+            out.append(("coarse", lambda: self._coarse(push, eye)))
         return out
 
     def _shadow(self) -> None:
@@ -159,16 +196,16 @@ class HierBillboards(Passes):
         self.shadow.begin()
         if "shadow mesh" in self.draws:
             prog, vao = self.draws["shadow mesh"]
-            push = translation(-np.asarray(self.light.direction, np.float64) * self.behind)
-            gl.set_uniforms(prog, u_mvp=self.shadow.view_proj @ push)
+            gl.set_uniforms(prog, **pushed(self.shadow.view_proj, self.behind, light=self.light.direction,
+                                           copies=self.model is not None))
             ctx.polygon_offset = RasterPasses.POLYGON_OFFSET
-            vao.render()
+            vao.render(instances=self.placed or 1)
             ctx.polygon_offset = (0.0, 0.0)
         elif self.count:   # the light's orthographic camera, nearest billboards to the light first
             self._boards("shadow billboards", self.shadow.view_proj, np.asarray(self.light.direction) * 4 * self.radius,
                          self.shadow.texture.size, None, None)
 
-    def _coarse_depth(self, mvp, size) -> None:
+    def _coarse_depth(self, push: dict, size) -> None:
         ctx = self.ctx
         if self.depth is None or self.depth.size != size:
             if self.depth is not None:
@@ -182,8 +219,8 @@ class HierBillboards(Passes):
         ctx.viewport = (0, 0, *size)
         self.depth_fbo.clear(depth=1.0)
         prog, vao = self.draws["coarse depth"]
-        gl.set_uniforms(prog, u_mvp=mvp)
-        vao.render()
+        gl.set_uniforms(prog, **push)
+        vao.render(instances=self.placed or 1)
 
     def _occupancy(self, camera, size, raster, eye) -> tuple[np.ndarray, np.ndarray]:
         """Pass 3: per billboard, in its own tile of one R32F texture, the ray parameter t at which each
@@ -230,22 +267,23 @@ class HierBillboards(Passes):
         if self.albedo_maps is not None:
             gl.bind_textures(prog, u_albedo_maps=self.albedo_maps)
         self.shadow.bind(prog, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel)
-        self._boards("billboards", view_proj, eye, target.size, self._rect(view_proj, target.size), occupancy,
+        rect = self._rect(view_proj, target.size) if self.model is None else None
+        self._boards("billboards", view_proj, eye, target.size, rect, occupancy,
                      u_eye=tuple(eye))
 
-    def _coarse(self, mvp, eye) -> None:
+    def _coarse(self, push: dict, eye) -> None:
         prog, vao = self.draws["coarse"]
         gl.set_shading(prog, self.light, self.material, self.coarse.uniform_albedo)
         self.coarse.bind(prog)
-        gl.set_uniforms(prog, u_mvp=mvp, u_eye=tuple(eye))
+        gl.set_uniforms(prog, **push, u_eye=tuple(eye))
         # known to within `behind` of the surface, it looks its shadow up that much further out
         self.shadow.bind(prog, normal_offset=NORMAL_OFFSET_TEXELS * self.shadow.texel + self.behind)
-        vao.render()
+        vao.render(instances=self.placed or 1)
 
     def _boards(self, stage: str, view_proj, viewer, viewport, rect, occupancy, **uniforms) -> None:
         """Pass 4 (or its light version): the billboards in order of the distance of their box centres from
         `viewer` (the shader orders each pixel's billboards by cost, ties in this order), the screen
-        triangle scissored to rect; occupancy: pass 3's (tiles, off)."""
+        triangle scissored to rect, or with copies a quad over each; occupancy: pass 3's (tiles, off)."""
         prog, vao = self.draws[stage]
         order = np.argsort(np.linalg.norm(self.centres - viewer, axis=1), kind="stable")
         gl.set_uniforms(prog, u_view_proj=view_proj,
@@ -258,6 +296,10 @@ class HierBillboards(Passes):
             gl.bind_textures(prog, u_occupancy=self.occupancy)
         gl.set_uniforms(prog, **arrays)
         gl.bind_textures(prog, u_pyramids=self.pyramids, u_maps=self.maps)
+        if self.model is not None:   # a quad over every copy's sphere (bounding_quad.vert)
+            gl.set_uniforms(prog, u_radius=self.quad_radius)
+            vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=self.placed)
+            return
         self.ctx.scissor = rect
         vao.render(moderngl.TRIANGLES, vertices=3)
         self.ctx.scissor = None

@@ -3,7 +3,7 @@ Unreal's impostor baker as used in Fortnite, Amplify Impostors).
 
 The bake (vdmbake.kernels.octahedral) holds N x N orthographic views of the object, on the lattice of an
 octahedral map of directions (full sphere or upper hemisphere), in one atlas of normal, depth and
-coverage. Each object is drawn as ONE screen-aligned quad over its bounding sphere (octahedral.vert).
+coverage. Each object is drawn as ONE screen-aligned quad over its bounding sphere (bounding_quad.vert).
 Per pixel (octahedral.frag, shaders/include/octahedral.glsl): the ray's direction picks the lattice
 triangle it falls in, i.e. three views and their barycentric weights; every view is intersected with
 the pixel's ray in its own frame, by
@@ -94,8 +94,9 @@ class Octahedral(Passes):
             self.texture_bytes += side * side * 3 * 2
         self.corners = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
         layout, reach, self.count, self.model = [(self.corners, "2f", "in_corner")], self.radius, 1, None
+        self.centre = self.anchor   # the atlas's frame; with copies the GPU space is about them (instances.enclosing)
         if instances is not None:
-            reach = copies.reach(instances, self.anchor, self.radius)
+            self.anchor, reach = copies.enclosing(instances, self.centre, self.radius)
             self.model = ctx.buffer(reserve=len(instances) * 64)
             layout.append((self.model, "16f/i", "in_model"))
             self.place(instances)
@@ -105,12 +106,12 @@ class Octahedral(Passes):
         self.draws = {}
         shaded = ("ALBEDO_ATLAS",) if self.albedo is not None else ()
         for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
-            prog = gl.program(ctx, "octahedral.vert", "octahedral.frag", defines + extra, may_lack)
+            prog = gl.program(ctx, "bounding_quad.vert", "octahedral.frag", defines + extra, may_lack)
             self.draws[stage] = (prog, gl.vertex_array(ctx, prog, layout))
 
     def place(self, instances) -> None:
         """Draw these copies (world matrices, at most as many as built with) from now on."""
-        self.model.write(copies.model_columns(instances, self.anchor))
+        self.model.write(copies.model_columns(instances, self.centre, self.anchor))
         self.count = len(instances)
 
     def _draw(self, stage: str, view_proj, viewport, **uniforms) -> None:
@@ -155,7 +156,7 @@ def build(ctx, src, variant):
     """One LAYOUT-NxR-METHOD variant (vdmbake.techniques.octahedral.Variant); its methods share the atlas."""
     atlas = src.bundle.read(src.part[variant.atlas], parts.OCTAHEDRAL)
     placed = src.instances   # the shadow map spans every copy: as many texels per atlas texel, up to the scene's
-    spread = 1.0 if placed is None else copies.reach(placed, atlas.centre, atlas.radius) / atlas.radius
+    spread = 1.0 if placed is None else copies.enclosing(placed, atlas.centre, atlas.radius)[1] / atlas.radius
     return Octahedral(ctx, atlas, src.scene.light, src.obj.material,
                       shadow_size(variant.resolution, src.options.shadow_scale * spread, src.shadow_map),
                       variant.method, instances=placed)
