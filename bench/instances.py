@@ -1,12 +1,17 @@
 """make bench-instances: many copies of one object (issue 23), the case impostors exist for. Per asset, one bake
-(the full mesh, coarse meshes, octahedral impostors), then fields of N copies (N = 1, 10, 100, 1000, 10000) at a
+(the full mesh, coarse meshes, hierarchical billboards with the coarse mesh filling holes and casting the
+shadows, octahedral impostors), then fields of N copies (N = 1, 10, 100, 1000, 10000) at a
 constant density (one copy per (SPACING r)^2 of ground, r the bounding radius, seeded turns and scales 0.8-1.2),
 seen by two cameras standing at the field's edge and looking across it (copies from near to far, as in a real
 scene). Every variant is timed interleaved (bench.interleave: GPU timer queries after a warm-up, medians), with its
 GPU bytes and per-pixel work (vdmrender.counters), and scored against the reference that traces every copy merged
 while that stays within MAX_REFERENCE_FACES (the memory guard's rule, vdmrender.render.BYTES_PER_FACE); beyond
 it the error is not measured, and said so. A variant whose frame would take longer than FRAME_BUDGET_S at the next
-N (its time growing with N) is not run there. The crossover: the smallest N at which each impostor's median time is below the full mesh's.
+N (its time growing with N) is not run there. Per-copy LOD (row lod@dluvLIMIT): one copy measured at SIZES pixels
+across (vdmrender.sweep's cameras, the same interleaved timing, its own reference) gives the chain of the cheapest
+variant within mean ΔLuv LIMIT per band of screen sizes (vdmrender.lod.chain); in every field each copy is then
+drawn per frame by the variant its screen size selects (vdmrender.lod.LodMix), as an engine would. The crossover:
+the smallest N at which each impostor's median time is below the full mesh's.
 
     python -m bench.instances -o out/bench [--quick]
 """
@@ -25,8 +30,8 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.common import instances
 from vdmbake.scene import Instances, Scatter
 
-from vdmrender import gl, images, refcache
-from vdmrender.camera import Camera, clip_planes
+from vdmrender import gl, images, lod, refcache, sweep
+from vdmrender.camera import Camera, cameras_for, clip_planes
 from vdmrender.render import BYTES_PER_FACE
 from vdmrender.techniques import variants
 
@@ -40,6 +45,8 @@ SPACING = 3.0                       # ground per copy: (SPACING r)^2
 MAX_REFERENCE_FACES = 12_000_000    # the merged reference's faces: about 7 GiB by the memory guard's estimate
 FRAME_BUDGET_S = 20.0               # wall time per frame a variant may be expected to take at the next N
 RESOLUTION = (960, 540)
+SIZES = (256, 64, 16)               # screen sizes of the one-copy sweep that picks the LOD chain, pixels across
+LIMIT = 3.0                         # the chain's limit on mean ΔLuv
 
 SCENE = """
 [render]
@@ -48,7 +55,11 @@ shadow_map = 2048
 [[objects]]
 name = "{name}"
 {source}
-techniques = {{ mesh = {{}}, {coarse}, octahedral = {{ variants = ["full-9x128-march", "full-9x64-virtual"] }} }}
+[objects.techniques]
+mesh = {{}}
+{coarse}
+billboards = {{ variants = ["greedy-hier+coarse"], resolution = {boards}, coarse_ratio = 0.1 }}
+octahedral = {{ variants = ["full-9x128-march", "full-9x64-virtual"] }}
 """
 
 
@@ -75,7 +86,7 @@ def cameras(centre, radius: float, n: int, w: int, h: int) -> list[Camera]:
 def run(out: Path, quick: bool, log) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     w, h = (160, 90) if quick else RESOLUTION
-    counts = (1, 4) if quick else COUNTS
+    counts, sizes = ((1, 4), (16,)) if quick else (COUNTS, SIZES)
     assets = {"sphere": ('primitive = "sphere"', 'coarse = { ratios = [0.1] }')} if quick else ASSETS
     ctx = gl.create_context()
     device = gl.renderer_name(ctx)
@@ -83,7 +94,8 @@ def run(out: Path, quick: bool, log) -> dict:
     try:
         for name, (source, coarse) in assets.items():
             scene_path, bundle_path = out / f"instances-{name}.toml", out / f"instances-{name}.bundle"
-            scene_path.write_text(SCENE.format(w=w, h=h, name=name, source=source, coarse=coarse))
+            scene_path.write_text(SCENE.format(w=w, h=h, name=name, source=source, coarse=coarse,
+                                               boards=32 if quick else 256))
             t0 = time.perf_counter()
             bake(scene_path, bundle_path, force=True)
             bundle = Bundle(bundle_path)
@@ -91,6 +103,9 @@ def run(out: Path, quick: bool, log) -> dict:
             bakes[name] = {"bake_s": round(time.perf_counter() - t0, 2), "steps_s": timing["steps_s"].get(name, {})}
             obj, entry = bundle.scene.objects[0], bundle.manifest["objects"][name]
             faces = bundle.manifest["parts"][entry["mesh"]]["faces"]
+            entries = chain(ctx, bundle, obj, entry, sizes, quick, log)
+            bakes[name]["chain"] = [{k: e[k] for k in ("variant", "min_px", "max_px", "meets")} for e in entries]
+            mixed = f"lod@dluv{LIMIT:g}"
             too_slow: set[str] = set()
             for n in counts:
                 copies = dataclasses.replace(obj, instances=field(n, entry["radius"]))
@@ -103,30 +118,69 @@ def run(out: Path, quick: bool, log) -> dict:
                     ref8 = [images.encode(ref.render(c), bundle.scene.render.background) for c in cams]
                     traced = round(time.perf_counter() - t0, 2)
                 builds = {v.label: v.build for v in chosen}
+                if mixed not in too_slow:
+                    builds[mixed] = mix(bundle, copies, entry, entries, {v.label: v.build for v in
+                                        variants(copies, entry, bundle, bundle.scene)})
                 measured = measure(ctx, builds, cams, ref8 or [None] * len(cams), bundle.scene.render.background,
                                    rounds=1 if quick else 3, score=ref8 is not None)
-                for v in chosen:
-                    m = measured[v.label]
-                    c = costs(ctx, v.build, cams[:1])
-                    rows.append({"asset": name, "faces": faces, "copies": n, "label": v.label, "technique": v.technique,
+                for label, build in builds.items():
+                    m = measured[label]
+                    c = costs(ctx, build, cams[:1])
+                    rows.append({"asset": name, "faces": faces, "copies": n, "label": label,
+                                 "technique": label.split("@")[0],
                                  **m, "gpu_bytes": c["bytes"], "primitives": c["total"]["primitives"],
                                  "fragments_px": round(c["total"]["fragments"] / max(c["covered"], 1), 2),
                                  "reference_s": traced,
                                  "error": "measured" if ref8 is not None else
                                  f"not measured: {n} x {faces} faces merged exceed {MAX_REFERENCE_FACES}"})
-                    log(f"{name} x{n}: {v.label:>28} {m['median_ms']:10.2f} ms  "
+                    log(f"{name} x{n}: {label:>32} {m['median_ms']:10.2f} ms  "
                         + (f"mean dLuv {m['mean_dluv']:.3f}" if m.get("mean_dluv") is not None else "(no reference)"))
                     grow = counts[counts.index(n) + 1] / n if n != counts[-1] else 1
                     if m["median_wall_ms"] * grow > FRAME_BUDGET_S * 1e3:   # its next frame would be over the budget
-                        too_slow.add(v.label)
+                        too_slow.add(label)
     finally:
         ctx.release()
-    result = {"device": device, "resolution": [w, h], "counts": list(counts), "bakes": bakes, "rows": rows,
+    result = {"device": device, "resolution": [w, h], "counts": list(counts), "sizes": list(sizes),
+              "bakes": bakes, "rows": rows,
               "crossover": crossover(rows), "how": __doc__.split("\n\n")[0]}
     (out / "instances.json").write_text(json.dumps(result, indent=1) + "\n")
     (out / "instances.md").write_text(table(result))
     plot(out / "instances.png", result)
     return result
+
+
+def chain(ctx, bundle, obj, entry, sizes, quick: bool, log) -> list[dict]:
+    """The LOD chain of one copy: every variant timed interleaved and scored against the copy's reference at each
+    screen size (vdmrender.sweep's cameras around the bench scene's own views), the cheapest within LIMIT per
+    band (vdmrender.lod.chain): lod.json's entries."""
+    one = dataclasses.replace(obj, instances=None)
+    scene = bundle.scene
+    w, h = scene.render.resolution
+    centre, radius = np.asarray(entry["centre"]), entry["radius"]
+    views = cameras_for(scene.camera, centre, radius, w, h)
+    ref, _ = refcache.object_reference(one, entry, bundle, scene)
+    chosen = variants(one, entry, bundle, scene)
+    rows = []
+    for size in sizes:
+        cams = sweep.sized(views, centre, radius, size)
+        ref8 = [images.encode(ref.render(c), scene.render.background) for c in cams]
+        measured = measure(ctx, {v.label: v.build for v in chosen}, cams, ref8, scene.render.background,
+                           rounds=1 if quick else 3)
+        rows += [{"size_px": size, "label": v.label, "technique": v.technique, "value": v.value, "spread_ms": None,
+                  **measured[v.label]} for v in chosen]
+    entries = lod.chain(rows, {"mean_dluv": LIMIT}, h)["entries"]
+    log(f"{obj.name}: chain within mean dLuv {LIMIT:g}: "
+        + ", ".join(f"({e['min_px']}, {e['max_px']}] {e['variant']}" for e in entries))
+    return entries
+
+
+def mix(bundle, obj, entry, entries, builds):
+    """The build of lod@dluvLIMIT: every copy of `obj` drawn by the chain's variant its screen size selects."""
+    world = instances.matrices(obj.instances, bundle.scene.camera.up, entry["centre"])
+    sphere = (entry["centre"], entry["radius"])
+    labels = list(dict.fromkeys(e["variant"] for e in entries))
+    return lambda ctx: lod.LodMix(ctx, {label: builds[label](ctx) for label in labels}, entries, world, sphere,
+                                  instances.enclosing(world, *sphere), bundle.scene.light, bundle.scene.render.shadow_map)
 
 
 def crossover(rows) -> dict:
@@ -157,6 +211,10 @@ def table(result) -> str:
     for asset, c in result["crossover"].items():
         lines.append(f"* {asset}: " + ", ".join(f"{k}: {v if v is not None else 'never (up to the largest count run)'}"
                                                  for k, v in c.items()))
+    lines += ["", f"Per-copy LOD chains (one copy at {', '.join(map(str, result['sizes']))} px across, the cheapest "
+              f"variant within mean ΔLuv {LIMIT:g} per band):", ""]
+    lines += [f"* {a}: " + ", ".join(f"({e['min_px']}, {e['max_px']}] px {e['variant']}" + ("" if e["meets"] else
+                                     " (over the limit)") for e in b["chain"]) for a, b in result["bakes"].items()]
     lines += ["", "Bake: " + "; ".join(f"{a} {b['bake_s']} s ({', '.join(f'{k} {v}' for k, v in b['steps_s'].items())})"
                                        for a, b in result["bakes"].items())]
     return "\n".join(lines) + "\n"
