@@ -227,14 +227,17 @@ def plot(path: Path, result) -> None:
     import matplotlib.pyplot as plt
 
     assets = list(dict.fromkeys(r["asset"] for r in result["rows"]))
+    labels = list(dict.fromkeys(r["label"] for r in result["rows"]))   # one colour per variant in every panel
+    colour = {label: plt.get_cmap("tab10")(i % 10) for i, label in enumerate(labels)}
     fig, axes = plt.subplots(2, len(assets), figsize=(6 * len(assets), 8), squeeze=False)
     for k, asset in enumerate(assets):
         mine = [r for r in result["rows"] if r["asset"] == asset]
         for label in dict.fromkeys(r["label"] for r in mine):
             pts = [r for r in mine if r["label"] == label]
-            axes[0, k].plot([r["copies"] for r in pts], [r["median_ms"] for r in pts], "o-", label=label)
+            style = dict(color=colour[label], label=label, linestyle="--" if label.startswith("lod@") else "-")
+            axes[0, k].plot([r["copies"] for r in pts], [r["median_ms"] for r in pts], "o", **style)
             err = [r for r in pts if r.get("mean_dluv") is not None]
-            axes[1, k].plot([r["copies"] for r in err], [r["mean_dluv"] for r in err], "o-", label=label)
+            axes[1, k].plot([r["copies"] for r in err], [r["mean_dluv"] for r in err], "o", **style)
         for ax, what in ((axes[0, k], "median GPU time per frame [ms]"), (axes[1, k], "mean ΔL*u*v* (merged reference)")):
             ax.set_xscale("log")
             ax.set_xlabel("copies")
