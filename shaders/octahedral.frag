@@ -46,6 +46,9 @@ void main() {
     // The surface is known to about an atlas texel, and the light's views differ from the eye's:
     // the shadow lookup moves that far along the normal, on top of the shadow map's own offset.
     float texel = 2.0 * u_capture / (float(textureSize(u_atlas, 0).x) / float(u_views));
+#ifdef INSTANCED
+    texel *= length(v_model[0].xyz);   // a copy's texels are as large as its scale makes them
+#endif
     float lit = shadow_lit(p + n * (u_atlas_texels * texel), n);
 #if !defined(ALBEDO_ATLAS)
     albedo = u_albedo;

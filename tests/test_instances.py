@@ -286,3 +286,31 @@ def test_surface_copies_far_from_the_object_look_as_near_it(tmp_path):
         assert abs(far["mean_dluv"] - near["mean_dluv"]) < 0.05 and far["iou"] > near["iou"] - 0.002, (label, far, near)
         a, b = frames(out, "near", label), frames(out, "far", label)
         assert len(a) == len(b) > 0 and all((np.abs(x - y).max(-1) > 2).mean() < 0.002 for x, y in zip(a, b)), label
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_copies_scaled_by_orders_of_magnitude_look_as_at_unit_scale(tmp_path, scale):
+    """Stress: the overlapping pair with both copies (and their offset) scaled by 1e-3 or 1e3, the cameras framing
+    them: a scene scaled as a whole looks the same, so the frames equal the unit pair's (rays taken into a copy's
+    frame divide by s^2; shadow offsets, the coarse mesh's push and the shadow map follow the copies' size).
+    Measured: identical frames but for hier+coarse (2 of 4096 pixels; mean ΔLuv 2.78 -> 2.84 at 1e-3, 2.77 at
+    1e3). It found two faults of the octahedral impostor: its shadow offset in atlas texels ignored the copy's scale,
+    and its shadow map was sized for copies of the object's size (16 texels at 1e-3): 1.67 -> 10.35 ΔLuv."""
+    light = np.array([0.45, -0.55, 0.7]) / np.linalg.norm([0.45, -0.55, 0.7])
+    techniques = ('techniques = { mesh = {}, coarse = { ratios = [0.3] }, octahedral = { variants = ["full-9x64-march"] }, '
+                  'billboards = { resolution = 32, variants = ["greedy-improved", "greedy-hier+coarse"] } }\n')
+    text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "1024")
+    for name, s in (("unit", 1.0), ("scaled", scale)):
+        b = 2.3 * s * light
+        text += (f'[[objects]]\nname = "{name}"\nprimitive = "torus"\n' + techniques +
+                 f'[[objects.instances.placements]]\nscale = {s}\n'
+                 f'[[objects.instances.placements]]\ntranslate = {b.tolist()}\nscale = {0.8 * s}\nrotate_deg = [30, 50, 10]\n')
+    res, out = bake_and_render(tmp_path, text)
+    assert res.exit_code == 0, res.output
+    rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
+    for label in ("reference", "mesh", "coarse@0.3", "octahedral@full-9x64-march", *BOARDS[:2]):
+        a, b = frames(out, "unit", label), frames(out, "scaled", label)
+        assert len(a) == len(b) > 0 and all((np.abs(x - y).max(-1) > 2).mean() < 0.002 for x, y in zip(a, b)), label
+        if label != "reference":
+            assert abs(rows["scaled", label]["mean_dluv"] - rows["unit", label]["mean_dluv"]) < 0.1, label

@@ -155,8 +155,9 @@ def shadow_size(resolution: int, scale: float, scene_size: int) -> int:
 def build(ctx, src, variant):
     """One LAYOUT-NxR-METHOD variant (vdmbake.techniques.octahedral.Variant); its methods share the atlas."""
     atlas = src.bundle.read(src.part[variant.atlas], parts.OCTAHEDRAL)
-    placed = src.instances   # the shadow map spans every copy: as many texels per atlas texel, up to the scene's
-    spread = 1.0 if placed is None else copies.enclosing(placed, atlas.centre, atlas.radius)[1] / atlas.radius
+    placed = src.instances   # the shadow map spans every copy: as many texels per atlas texel of the smallest copy,
+    spread = 1.0 if placed is None else (    # up to the scene's
+        copies.enclosing(placed, atlas.centre, atlas.radius)[1] / (atlas.radius * copies.scales(placed).min()))
     return Octahedral(ctx, atlas, src.scene.light, src.obj.material,
                       shadow_size(variant.resolution, src.options.shadow_scale * spread, src.shadow_map),
                       variant.method, instances=placed)
