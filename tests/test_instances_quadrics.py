@@ -231,3 +231,25 @@ def test_place_draws_the_copies_it_is_given(ctx):
         assert 0 < covered[1] < 0.6 * covered[0]   # two copies of five drawn
         r.release()
     target.release()
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_copies_scaled_by_orders_of_magnitude_look_as_at_unit_scale(tmp_path, scale):
+    """Stress: the overlapping pair (B towards the light, turned, 0.75 of A) with both copies and their offset
+    scaled by 1e-3 or 1e3, the orbit framing them: a scene scaled as a whole looks the same, so every impostor and
+    tessellated frame equals the unit pair's (Sigg's bounds and the ray casts of the placed quadrics, the shadow
+    map and its offsets follow the copies' size)."""
+    radius = 1.69
+    text = head(96, 1024)
+    for name, s in (("unit", 1.0), ("scaled", scale)):
+        text += (f'[[objects]]\nname = "{name}"\n' + SHAPE + TECHNIQUES +
+                 placements(((0, 0, 0), (0, 0, 0), s), (1.4 * radius * s * LIGHT, (30, 60, 10), 0.75 * s)))
+    res, out = bake_and_render(tmp_path, text)
+    assert res.exit_code == 0, res.output
+    rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
+    for label in ("reference", "impostor@direct", "impostor@deferred", "impostor@outlines", "tessellated@3"):
+        a, b = frames(out, "unit", label), frames(out, "scaled", label)
+        assert len(a) == len(b) == 2 and all((np.abs(x - y).max(-1) > 2).mean() < 0.002 for x, y in zip(a, b)), label
+        if label != "reference":   # measured: identical frames and errors at both scales
+            assert abs(rows["scaled", label]["mean_dluv"] - rows["unit", label]["mean_dluv"]) < 0.05, label
