@@ -1,7 +1,7 @@
 """Instances of quadrics objects (issue 23): molecules and inline spheres and cylinders drawn many times from one
 bake by `impostor` and `tessellated`, every copy in one instanced draw per pass and kind
 (vdmrender.techniques.impostor.Copies), against a reference that traces every copy merged
-(vdmrender.refcache.placed_quadrics)."""
+(vdmbake.common.instances.placed_quadrics)."""
 import importlib.util
 import json
 
@@ -100,7 +100,7 @@ def shadowed_share(bundle_path, name: str) -> float:
     from vdmbake.bundle import parts
     from vdmbake.bundle.directory import Bundle
     from vdmrender.reference import QuadricTracer
-    from vdmrender.refcache import placed_quadrics
+    from vdmbake.common.instances import placed_quadrics
 
     bundle = Bundle(bundle_path)
     obj = next(o for o in bundle.scene.objects if o.name == name)

@@ -55,9 +55,9 @@ def test_code_fingerprint_follows_imports_and_edits(tmp_path, monkeypatch):
 
 
 def test_reference_code_covers_what_the_reference_runs():
-    mods = vdmbake.imported_closure(["vdmrender.reference", "vdmrender.camera"])
+    mods = vdmbake.imported_closure(refcache.REFERENCE_ROOTS)
     assert {"vdmrender.reference", "vdmrender.quadric_math", "vdmrender.shading", "vdmrender.camera",
-            "vdmbake.common.embree", "vdmbake.common.geometry"} <= set(mods)
+            "vdmbake.common.embree", "vdmbake.common.geometry", "vdmbake.common.instances"} <= set(mods)
     assert "vdmrender.gl" not in mods                 # GL code does not invalidate the cached reference
     meso = vdmbake.imported_closure(["vdmrender.passes.mesostructure"])
     assert "vdmrender.passes.mesostructure" in meso

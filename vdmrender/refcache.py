@@ -6,7 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import asdict, replace
+from dataclasses import asdict
 
 import numpy as np
 
@@ -20,11 +20,14 @@ from .techniques import Source
 from .passes import mesostructure
 
 
+# What every reference runs: the tracers, the cameras' pixel rays and the placing of an object's copies.
+REFERENCE_ROOTS = ("vdmrender.reference", "vdmrender.camera", "vdmbake.common.instances")
+
+
 def reference_code(mesostructure: bool) -> str:
-    """The fingerprint of the code a reference runs: the tracers, the cameras' pixel rays and what
-    they import (for a mesostructure, also the displaced mesh it traces), as installed."""
-    roots = ["vdmrender.reference", "vdmrender.camera"] + (["vdmrender.passes.mesostructure"] if mesostructure
-                                                           else [])
+    """The fingerprint of the code a reference runs: REFERENCE_ROOTS and what they import (for a mesostructure,
+    also the displaced mesh it traces), as installed."""
+    roots = list(REFERENCE_ROOTS) + (["vdmrender.passes.mesostructure"] if mesostructure else [])
     return code_fingerprint(imported_closure(roots))
 
 
@@ -67,24 +70,8 @@ def object_reference(obj, entry, bundle, scene):
         return reference.MeshReference(mesh, scene.light, obj.material), None
     q = bundle.read(entry["quadrics"], parts.QUADRICS)
     if obj.instances:   # every copy, merged (the memory guard counts them: render.geometry_bytes)
-        q = placed_quadrics(q, instances.matrices(obj.instances, scene.camera.up, entry["centre"]))
+        q = instances.placed_quadrics(q, instances.matrices(obj.instances, scene.camera.up, entry["centre"]))
     return reference.QuadricReference(q, scene.light, obj.material), None
-
-
-def placed_quadrics(q, m: np.ndarray):
-    """Every copy of the quadrics q (vdmbake.kernels.quadrics.QuadricSet) placed by the world matrices m
-    (similarities, vdmbake.common.instances), merged into one set: centres and end points by each matrix, radii
-    by its scale, colours kept."""
-    scale = instances.scales(m)[:, None]
-
-    def moved(p):   # (N, 3) points -> (copies * N, 3)
-        return (np.einsum("cij,nj->cni", m[:, :3, :3], p) + m[:, None, :3, 3]).reshape(-1, 3)
-
-    s, c = q.spheres, q.cylinders
-    spheres = np.concatenate([moved(s[:, :3]), (scale * s[:, 3]).reshape(-1, 1)], 1)
-    cylinders = np.concatenate([moved(c[:, :3]), moved(c[:, 3:6]), (scale * c[:, 6]).reshape(-1, 1)], 1)
-    return replace(q, spheres=spheres, sphere_rgb=np.tile(q.sphere_rgb, (len(m), 1)),
-                   cylinders=cylinders, cylinder_rgb=np.tile(q.cylinder_rgb, (len(m), 1)))
 
 
 def cached_reference(out, folder: str, key: str, count: int):

@@ -8,6 +8,8 @@ about up, s uniformly in its range, from numpy's PCG64 generator seeded by the s
 places)."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..assets.meshes import rotation_xyz
@@ -98,3 +100,19 @@ def placed(mesh, m: np.ndarray):
         parts.append(TriMesh(mesh.vertices @ a[:3, :3].T + a[:3, 3], mesh.faces, mesh.normals @ rot.T, mesh.uvs,
                              colors=mesh.colors, texture=mesh.texture))
     return TriMesh.concatenate(parts)
+
+
+def placed_quadrics(q, m: np.ndarray):
+    """Every copy of the quadrics q (vdmbake.kernels.quadrics.QuadricSet) placed by the world matrices m, merged
+    into one set (what the reference traces): centres and end points by each similarity, radii by its scale,
+    colours kept."""
+    scale = scales(m)[:, None]
+
+    def moved(p):   # (N, 3) points -> (copies * N, 3)
+        return (np.einsum("cij,nj->cni", m[:, :3, :3], p) + m[:, None, :3, 3]).reshape(-1, 3)
+
+    s, c = q.spheres, q.cylinders
+    spheres = np.concatenate([moved(s[:, :3]), (scale * s[:, 3]).reshape(-1, 1)], 1)
+    cylinders = np.concatenate([moved(c[:, :3]), moved(c[:, 3:6]), (scale * c[:, 6]).reshape(-1, 1)], 1)
+    return dataclasses.replace(q, spheres=spheres, sphere_rgb=np.tile(q.sphere_rgb, (len(m), 1)),
+                               cylinders=cylinders, cylinder_rgb=np.tile(q.cylinder_rgb, (len(m), 1)))
