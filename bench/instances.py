@@ -30,7 +30,7 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.common import instances
 from vdmbake.scene import Instances, Scatter
 
-from vdmrender import gl, images, lod, refcache, sweep
+from vdmrender import gl, images, lod, refcache, render, sweep
 from vdmrender.camera import Camera, cameras_for, clip_planes
 from vdmrender.render import BYTES_PER_FACE
 from vdmrender.techniques import variants
@@ -105,7 +105,8 @@ def run(out: Path, quick: bool, log) -> dict:
             faces = bundle.manifest["parts"][entry["mesh"]]["faces"]
             entries = chain(ctx, bundle, obj, entry, sizes, quick, log)
             bakes[name]["chain"] = [{k: e[k] for k in ("variant", "min_px", "max_px", "meets")} for e in entries]
-            mixed = f"lod@dluv{LIMIT:g}"
+            chain_name = f"dluv{LIMIT:g}"
+            mixed = f"lod@{chain_name}"
             too_slow: set[str] = set()
             for n in counts:
                 copies = dataclasses.replace(obj, instances=field(n, entry["radius"]))
@@ -118,9 +119,9 @@ def run(out: Path, quick: bool, log) -> dict:
                     ref8 = [images.encode(ref.render(c), bundle.scene.render.background) for c in cams]
                     traced = round(time.perf_counter() - t0, 2)
                 builds = {v.label: v.build for v in chosen}
-                if mixed not in too_slow:
-                    builds[mixed] = mix(bundle, copies, entry, entries, {v.label: v.build for v in
-                                        variants(copies, entry, bundle, bundle.scene)})
+                if mixed not in too_slow:   # as vdmrender draws the row lod@CHAIN
+                    world = instances.matrices(copies.instances, bundle.scene.camera.up, entry["centre"])
+                    builds[mixed] = render.mixed(copies, entry, bundle, bundle.scene, chain_name, entries, world).build
                 measured = measure(ctx, builds, cams, ref8 or [None] * len(cams), bundle.scene.render.background,
                                    rounds=1 if quick else 3, score=ref8 is not None)
                 for label, build in builds.items():
@@ -172,15 +173,6 @@ def chain(ctx, bundle, obj, entry, sizes, quick: bool, log) -> list[dict]:
     log(f"{obj.name}: chain within mean dLuv {LIMIT:g}: "
         + ", ".join(f"({e['min_px']}, {e['max_px']}] {e['variant']}" for e in entries))
     return entries
-
-
-def mix(bundle, obj, entry, entries, builds):
-    """The build of lod@dluvLIMIT: every copy of `obj` drawn by the chain's variant its screen size selects."""
-    world = instances.matrices(obj.instances, bundle.scene.camera.up, entry["centre"])
-    sphere = (entry["centre"], entry["radius"])
-    labels = list(dict.fromkeys(e["variant"] for e in entries))
-    return lambda ctx: lod.LodMix(ctx, {label: builds[label](ctx) for label in labels}, entries, world, sphere,
-                                  instances.enclosing(world, *sphere), bundle.scene.light, bundle.scene.render.shadow_map)
 
 
 def crossover(rows) -> dict:

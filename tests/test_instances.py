@@ -82,6 +82,27 @@ def frames(out, obj, label):
     return [np.asarray(Image.open(p).convert("RGB"), int) for p in sorted(folder.glob("[0-9][0-9][0-9].png"))]
 
 
+LIGHT = np.array([0.45, -0.55, 0.7]) / np.linalg.norm([0.45, -0.55, 0.7])   # the scenes' default light
+SURFACES = ('techniques = { mesh = {}, coarse = { ratios = [0.3] }, octahedral = { variants = ["full-9x64-march"] }, '
+            'billboards = { resolution = 32, variants = ["greedy-improved", "greedy-hier+coarse"] } }')
+
+
+def torus_pair(name: str, techniques: str, at=(0.0, 0.0, 0.0), s: float = 1.0) -> str:
+    """An object of two torus copies: A at `at`, B 2.3 s towards the light from it (between A and the light, partly
+    in front of it), turned and 0.8 of A; both scaled by s."""
+    at = np.asarray(at, float)
+    b = at + 2.3 * s * LIGHT
+    return (f'[[objects]]\nname = "{name}"\nprimitive = "torus"\n{techniques}\n'
+            f'[[objects.instances.placements]]\ntranslate = {at.tolist()}\nscale = {s}\n'
+            f'[[objects.instances.placements]]\ntranslate = {b.tolist()}\nscale = {0.8 * s}\nrotate_deg = [30, 50, 10]\n')
+
+
+def share_apart(out, a: str, b: str, label: str) -> list[float]:
+    """Per frame, the share of pixels whose 8-bit colours differ by more than 2 between objects a and b."""
+    fa, fb = frames(out, a, label), frames(out, b, label)
+    assert len(fa) == len(fb) > 0, label
+    return [float((np.abs(x - y).max(-1) > 2).mean()) for x, y in zip(fa, fb)]
+
 @pytest.mark.gl
 def test_one_copy_in_place_draws_as_the_object_alone(tmp_path):
     one = ('[[objects]]\nname = "b"\nprimitive = "sphere"\n' + TECHNIQUES +
@@ -101,8 +122,7 @@ def test_one_copy_in_place_draws_as_the_object_alone(tmp_path):
 def test_overlapping_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_path):
     """Copy B stands between copy A and the light and partly in front of it: the instanced draws and the merged
     reference agree on every pixel's depth order and on B's shadow over A."""
-    light = np.array([0.45, -0.55, 0.7]) / np.linalg.norm([0.45, -0.55, 0.7])
-    b = 2.3 * light
+    b = 2.3 * LIGHT
     pair = ('[[objects]]\nname = "pair"\nprimitive = "sphere"\ntechniques = { mesh = {} }\n'
             '[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n'
             f'[[objects.instances.placements]]\ntranslate = [{b[0]}, {b[1]}, {b[2]}]\nscale = 0.8\n')
@@ -119,9 +139,9 @@ def test_overlapping_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_p
     obj = bundle.scene.objects[0]
     placed = instances.placed(bundle.surface(bundle.manifest["objects"]["pair"]),
                               instances.matrices(obj.instances, bundle.scene.camera.up, (0, 0, 0)))
-    lit_side = np.array([light + 0.2 * d for d in np.eye(3)])
+    lit_side = np.array([LIGHT + 0.2 * d for d in np.eye(3)])
     lit_side /= np.linalg.norm(lit_side, axis=1, keepdims=True)
-    assert RayScene(placed.vertices, placed.faces).occluded(lit_side * 1.001, np.tile(light, (3, 1))).all()
+    assert RayScene(placed.vertices, placed.faces).occluded(lit_side * 1.001, np.tile(LIGHT, (3, 1))).all()
     assert row["coverage"] > 0.05
 
 
@@ -249,13 +269,8 @@ def test_billboard_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_pat
     of it, against the merged reference. Measured at 96x96 (4 cameras): mean ΔLuv 2.57 (improved), 2.80
     (hier+coarse), 2.98 (hier), IoU 0.967-0.971; with the normals left unturned 7.25-7.80: the copies are smaller
     on screen than the torus framed alone (1.44, 0.62, 0.94 there), so their silhouette texels weigh more."""
-    light = np.array([0.45, -0.55, 0.7]) / np.linalg.norm([0.45, -0.55, 0.7])
-    b = 2.3 * light
     boards = 'billboards = { resolution = 32, variants = ["greedy-improved", "greedy-hier+coarse", "greedy-hier"] }'
-    pair = (f'[[objects]]\nname = "pair"\nprimitive = "torus"\ntechniques = {{ mesh = {{}}, {boards} }}\n'
-            '[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n'
-            f'[[objects.instances.placements]]\ntranslate = [{b[0]}, {b[1]}, {b[2]}]\nscale = 0.8\n'
-            'rotate_deg = [30, 50, 10]\n')
+    pair = torus_pair("pair", f"techniques = {{ mesh = {{}}, {boards} }}")
     res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[96, 96]").replace("256", "1024") + pair)
     assert res.exit_code == 0, res.output
     rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
@@ -268,24 +283,15 @@ def test_surface_copies_far_from_the_object_look_as_near_it(tmp_path):
     """Every surface technique, the pair of copies placed 1.7e4 units from the object itself, the cameras with
     them: drawn about the copies' own sphere (instances.enclosing), not the object's centre, the frames are the
     near pair's (float32 coordinates stay small, the shadow map spans the copies, not the 1.7e4 units between)."""
-    light = np.array([0.45, -0.55, 0.7]) / np.linalg.norm([0.45, -0.55, 0.7])
-    techniques = ('techniques = { mesh = {}, coarse = { ratios = [0.3] }, octahedral = { variants = ["full-9x64-march"] }, '
-                  'billboards = { resolution = 32, variants = ["greedy-improved", "greedy-hier+coarse"] } }\n')
     text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "1024")
-    shift = np.array([1e4, -1e4, 1e4])
-    for name, at in (("near", np.zeros(3)), ("far", shift)):
-        b = at + 2.3 * light
-        text += (f'[[objects]]\nname = "{name}"\nprimitive = "torus"\n' + techniques +
-                 f'[[objects.instances.placements]]\ntranslate = {at.tolist()}\n'
-                 f'[[objects.instances.placements]]\ntranslate = {b.tolist()}\nscale = 0.8\nrotate_deg = [30, 50, 10]\n')
+    text += torus_pair("near", SURFACES) + torus_pair("far", SURFACES, at=(1e4, -1e4, 1e4))
     res, out = bake_and_render(tmp_path, text)
     assert res.exit_code == 0, res.output
     rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
     for label in ("mesh", "coarse@0.3", "octahedral@full-9x64-march", *BOARDS[:2]):
         near, far = rows["near", label], rows["far", label]
         assert abs(far["mean_dluv"] - near["mean_dluv"]) < 0.05 and far["iou"] > near["iou"] - 0.002, (label, far, near)
-        a, b = frames(out, "near", label), frames(out, "far", label)
-        assert len(a) == len(b) > 0 and all((np.abs(x - y).max(-1) > 2).mean() < 0.002 for x, y in zip(a, b)), label
+        assert max(share_apart(out, "near", "far", label)) < 0.002, label
 
 
 @pytest.mark.gl
@@ -297,20 +303,12 @@ def test_copies_scaled_by_orders_of_magnitude_look_as_at_unit_scale(tmp_path, sc
     Measured: identical frames but for hier+coarse (2 of 4096 pixels; mean ΔLuv 2.78 -> 2.84 at 1e-3, 2.77 at
     1e3). It found two faults of the octahedral impostor: its shadow offset in atlas texels ignored the copy's scale,
     and its shadow map was sized for copies of the object's size (16 texels at 1e-3): 1.67 -> 10.35 ΔLuv."""
-    light = np.array([0.45, -0.55, 0.7]) / np.linalg.norm([0.45, -0.55, 0.7])
-    techniques = ('techniques = { mesh = {}, coarse = { ratios = [0.3] }, octahedral = { variants = ["full-9x64-march"] }, '
-                  'billboards = { resolution = 32, variants = ["greedy-improved", "greedy-hier+coarse"] } }\n')
     text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "1024")
-    for name, s in (("unit", 1.0), ("scaled", scale)):
-        b = 2.3 * s * light
-        text += (f'[[objects]]\nname = "{name}"\nprimitive = "torus"\n' + techniques +
-                 f'[[objects.instances.placements]]\nscale = {s}\n'
-                 f'[[objects.instances.placements]]\ntranslate = {b.tolist()}\nscale = {0.8 * s}\nrotate_deg = [30, 50, 10]\n')
+    text += torus_pair("unit", SURFACES) + torus_pair("scaled", SURFACES, s=scale)
     res, out = bake_and_render(tmp_path, text)
     assert res.exit_code == 0, res.output
     rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
     for label in ("reference", "mesh", "coarse@0.3", "octahedral@full-9x64-march", *BOARDS[:2]):
-        a, b = frames(out, "unit", label), frames(out, "scaled", label)
-        assert len(a) == len(b) > 0 and all((np.abs(x - y).max(-1) > 2).mean() < 0.002 for x, y in zip(a, b)), label
+        assert max(share_apart(out, "unit", "scaled", label)) < 0.002, label
         if label != "reference":
             assert abs(rows["scaled", label]["mean_dluv"] - rows["unit", label]["mean_dluv"]) < 0.1, label

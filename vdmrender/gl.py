@@ -204,6 +204,12 @@ def vertex_array(ctx, prog, content: list, index=None, subset: bool = False):
     return ctx.vertex_array(prog, fixed, index)
 
 
+def quad_corners(ctx):
+    """A buffer of a screen-aligned quad's corners (+-1, +-1) as a triangle strip: the in_corner of the stages that
+    cover a projected bound (sphere.vert, cylinder.vert, bounding_quad.vert)."""
+    return ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
+
+
 def release(*objects) -> None:
     """Release GL objects (vertex arrays, buffers, textures, framebuffers, shadow maps); None is skipped."""
     for o in objects:

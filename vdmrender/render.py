@@ -272,7 +272,7 @@ def _render_all(harness, out, bundle, scene, only, opts, device, log, chains=Non
         mixes = {c["name"]: c["objects"][obj.name]["entries"] for c in (chains or {}).get("chains", [])
                  if world is not None}
         mine = render_object(harness, out, bundle, scene, obj, cams,
-                             chosen + [_mixed(obj, entry, bundle, scene, name, entries, world)
+                             chosen + [mixed(obj, entry, bundle, scene, name, entries, world)
                                        for name, entries in mixes.items()], opts, device, log)
         for row in mine:
             if row["technique"] == "lod":
@@ -281,7 +281,7 @@ def _render_all(harness, out, bundle, scene, only, opts, device, log, chains=Non
     return rows
 
 
-def _mixed(obj, entry, bundle, scene, name: str, entries: list[dict], world) -> Variant:
+def mixed(obj, entry, bundle, scene, name: str, entries: list[dict], world) -> Variant:
     """The variant lod@NAME of an instanced object whose copies `world` places: every copy drawn by the variant of
     chain NAME its screen size selects, per frame (vdmrender.lod.LodMix)."""
     builds = {v.label: v.build for v in variants(obj, entry, bundle, scene)}

@@ -77,7 +77,7 @@ class HierBillboards(Passes):
         if instances is not None:   # the GPU space about the copies (instances.enclosing)
             self.anchor, reach = copies.enclosing(instances, self.centre, self.radius)
             self.model = ctx.buffer(reserve=len(instances) * 64)
-            self.corners_quad = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
+            self.corners_quad = gl.quad_corners(ctx)
             self.objects += [self.model, self.corners_quad]
             self.place(instances)
         self.shadow = ShadowMap(ctx, shadow_size, light.direction, reach)

@@ -68,7 +68,7 @@ class Impostors(Passes):
             self.copies, instanced = Copies(ctx, q, instances), ("INSTANCED",)
             self.anchor, radius = self.copies.anchor, self.copies.radius
         self.faces = None
-        corners = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
+        corners = gl.quad_corners(ctx)
         s, c = q.instances(centre)
         self.buffers = [corners]
         self.draws = []   # (pass, program, vao, kind, rows, quadrics)

@@ -92,7 +92,7 @@ class Octahedral(Passes):
             self.albedo.filter = (moderngl.LINEAR, moderngl.LINEAR)
             self.albedo.repeat_x = self.albedo.repeat_y = False
             self.texture_bytes += side * side * 3 * 2
-        self.corners = ctx.buffer(np.array([-1, -1, 1, -1, -1, 1, 1, 1], "f4").tobytes())
+        self.corners = gl.quad_corners(ctx)
         layout, reach, self.count, self.model = [(self.corners, "2f", "in_corner")], self.radius, 1, None
         self.centre = self.anchor   # the atlas's frame; with copies the GPU space is about them (instances.enclosing)
         if instances is not None:
