@@ -19,12 +19,14 @@ from .assets import meso_albedo
 from .assets.molecules import STYLES
 from .assets.primitives import PRIMITIVES
 from .schema import (REQUIRED, printable, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, ListOf, Number, Reader,
-                     Table, Tables, Text, Type,
+                     Square, Table, Tables, Text, Type,
                      Vector, dump, read, setting)
 from .techniques import REGISTRY
 
 MAX_SCENE_BYTES = 64 << 20
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
+MAX_SPP = 256    # the reference's samples per pixel, at most (16 x 16)
+ANTIALIAS = ("none", "msaa2", "msaa4", "msaa8", "ssaa2", "ssaa3", "ssaa4")
 
 
 class VariantSets(Type):
@@ -89,6 +91,17 @@ class Render:
                                "the reference traces every object together")
     sweep: Sweep | None = setting(None, Table(Sweep), "[render.sweep]: error and cost against screen size, and LOD "
                                   "chains from them (`vdmrender --sizes` too)")
+    reference_spp: int = setting(1, Square(MAX_SPP), "samples per pixel of the reference, N x N stratified and "
+                                 "box-filtered in linear colour (what a viewer sees of the pixel; 1: the pixel centre "
+                                 "only); every row also keeps the error against the pixel-centre reference "
+                                 "(`aliased_*`); `vdmrender --reference-spp`")
+    antialias: str = setting("none", Choice(*ANTIALIAS), "how each variant's frames are anti-aliased, as shipped: "
+                             "`msaaN` N samples per pixel (GL multisampling: edges of triangles, not of what a "
+                             "fragment stage discards), `ssaaK` rendered K x K larger and box-filtered down on the "
+                             "GPU (timed as the pass `resolve`); `vdmrender --antialias`")
+    mipmaps: bool = setting(False, Boolean(), "mipmap the textures the techniques read (albedo maps, billboard "
+                            "maps, octahedral atlases) and read VDM's tables at the level of the pixel's footprint "
+                            "(Wang 2003 sec. 4); false: level 0 only")
 
 
 @dataclass(frozen=True)

@@ -74,6 +74,20 @@ class Integer(Type):
         return int(raw)
 
 
+class Square(Integer):
+    """A perfect square N x N in [1, hi] (samples on a grid of N by N)."""
+
+    def __init__(self, hi: int):
+        super().__init__(1, hi)
+        self.text = f"a square number in [1, {hi}] (1, 4, 9, 16, ...: N x N)"
+
+    def parse(self, raw):
+        v = super().parse(raw)
+        if math.isqrt(v) ** 2 != v:
+            raise Invalid
+        return v
+
+
 class Number(Type):
     def __init__(self, lo: float = -math.inf, hi: float = math.inf, open_lo: bool = False):
         self.lo, self.hi, self.open_lo = lo, hi, open_lo
