@@ -5,7 +5,8 @@
 // Compiled per variant: K eigenfunctions (the group loop unrolls); REFINE > 0 finishes the view ray's
 // hit and decides the self-shadow on the height field itself (beyond the paper: refine_view,
 // shadow_march); ORIGINAL_LOOKUP: the first implementation's lookup (float weights mip-mapped, phi
-// always interpolated, a uniform loop bound), kept to measure against.
+// always interpolated, a uniform loop bound), kept to measure against; MIPMAPS (the scene's render.mipmaps):
+// the weights read at the mip level of the pixel's footprint (Wang2003 §4, vdm_lookup).
 // Counts (cost_count.glsl): the view ray and the light ray are a search each (a lookup stands for its ray);
 // the steps are REFINE's height-field samples (refine_view's REFINE + 1, shadow_march's REFINE).
 #include "cost_count.glsl"
@@ -54,14 +55,26 @@ vec2 vdm_lookup(vec2 T, float theta, float phi, float c, vec2 dx, vec2 dy) {
 }
 #else
 const int GROUPS = (K + 3) / 4;     // eigenfunctions 4g..4g+3 in one RGBA texel; unused ones have E = 0
-uniform sampler2DArray u_W;         // layer g * n_phi + phi: weights of eigenfunctions 4g..4g+3, repeat
+uniform sampler2DArray u_W;         // layer g * n_phi + phi: weights of eigenfunctions 4g..4g+3, repeat (MIPMAPS:
+                                    // mip-mapped per layer)
 uniform vec4 u_W_scale[GROUPS];     // weight = stored * scale + offset (8-bit storage; 1 and 0 for floats)
 uniform vec4 u_W_offset[GROUPS];
 
 // (d_VDM, theta_MVM) at tile coordinate T for the view (theta, phi) at curvature c. The samplers
-// interpolate x, y, theta and c at the tables' finest level (the reference is one ray per pixel, and
-// filtering a displacement blurs the hits); phi is interpolated by hand between array layers
-// (wrapping), or the nearest phi is taken where REFINE finishes the hit anyway.
+// interpolate x, y, theta and c; phi is interpolated by hand between array layers (wrapping), or the
+// nearest phi is taken where REFINE finishes the hit anyway. x and y at the tables' finest level (against
+// a reference of one ray per pixel centre, filtering a displacement blurs the hits) or, under MIPMAPS, at
+// the level of the pixel's footprint (dx, dy: Wang2003 §4, "VDM as a texture map is easily anti-aliased by
+// mip-mapping"). The mean of W over a footprint is the mean of the rows of A = W E^T it stands for (§3.3:
+// the reconstruction is linear), so a level of W's mip chain is the SVD of the footprint's mean table,
+// truncated at the same k; 8-bit codes average as the weights do (weight = code * scale + offset is
+// affine). The eigenfunctions (theta, c) are not mip-mapped: a pixel's footprint spans texture space, while
+// its rays' directions and curvature barely change across it.
+#ifdef MIPMAPS
+#define W_AT(T, layer, dx, dy) textureGrad(u_W, vec3(T, layer), dx, dy)
+#else
+#define W_AT(T, layer, dx, dy) texture(u_W, vec3(T, layer))
+#endif
 vec2 vdm_lookup(vec2 T, float theta, float phi, float c, vec2 dx, vec2 dy) {
     float p = phi * (float(u_n_phi) / (2.0 * PI)) - 0.5;
     float p0 = floor(p), f = p - p0;
@@ -71,10 +84,9 @@ vec2 vdm_lookup(vec2 T, float theta, float phi, float c, vec2 dx, vec2 dy) {
     vec2 r = vec2(0.0);
     for (int g = 0; g < GROUPS; ++g) {
 #if REFINE > 0
-        vec4 w = FETCH(texture(u_W, vec3(T, g * u_n_phi + (f < 0.5 ? i0 : i1))));
+        vec4 w = FETCH(W_AT(T, g * u_n_phi + (f < 0.5 ? i0 : i1), dx, dy));
 #else
-        vec4 w = mix(FETCH(texture(u_W, vec3(T, g * u_n_phi + i0))),
-                     FETCH(texture(u_W, vec3(T, g * u_n_phi + i1))), f);
+        vec4 w = mix(FETCH(W_AT(T, g * u_n_phi + i0, dx, dy)), FETCH(W_AT(T, g * u_n_phi + i1, dx, dy)), f);
 #endif
         w = w * u_W_scale[g] + u_W_offset[g];
         r.x += dot(w, FETCH(texture(u_E_vdm, vec3(tc, g))));
@@ -154,7 +166,11 @@ void main() {
     if (miss) discard;
 #endif
     vec2 T1 = T - curved_ray(t, 0.0, stV, -V.z, cV).x * V.xy;
+#ifdef MIPMAPS
+    float h = depth_at(T1, dx, dy);                   // Wang2003 §3.2: h, at the footprint's level as the tables
+#else
     float h = depth_at_lod0(T1);                      // Wang2003 §3.2: h as given by the height field
+#endif
     vec3 P = v_pos - Vw * (t * world_length(F, V));
     // 3. Shadow determination, along the light ray bent with c_L as the tables are (the paper ignores
     //    curvature here).

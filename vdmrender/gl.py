@@ -230,14 +230,22 @@ def set_shading(prog, light, material, albedo: bool = True) -> None:
                  u_shininess=material.shininess, **({"u_albedo": tuple(material.albedo)} if albedo else {}))
 
 
-def albedo_texture(ctx, albedo_map: np.ndarray):
+def albedo_texture(ctx, albedo_map: np.ndarray, mipmaps: bool = False):
     """An albedo map (vdmbake.common.texture: uint8 sRGB, row 0 at v = 0) as a texture read as its numpy twin reads
-    it: the texels decoded to linear (half floats), linear filtering, wrap-around, no mipmaps."""
+    it: the texels decoded to linear (half floats), linear filtering, wrap-around, no mipmaps. mipmaps (the scene's
+    render.mipmaps): a mip chain and trilinear filtering, the pixel's footprint averaged as a filtered reference
+    averages it. The chain is built from the linear texels, so each level is the mean reflectance the reference's
+    samples would average, not the mean of sRGB codes. No anisotropic filtering: moderngl sets it and llvmpipe
+    (Mesa 22.3) offers 16x, but its anisotropic path filters magnified texels too (a checker magnified 2.6x came
+    out up to 0.34 off the bilinear frame: tests/test_mipmaps.py), which would blur every close-up."""
     h, w = albedo_map.shape[:2]
     tex = ctx.texture((w, h), 3, np.ascontiguousarray(texture.linear(albedo_map), np.float16).tobytes(),
                       dtype="f2", alignment=1)
     tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
     tex.repeat_x = tex.repeat_y = True
+    if mipmaps:
+        tex.build_mipmaps()
+        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
     return tex
 
 

@@ -6,7 +6,7 @@
 uniform vec2 u_tiling;          // tiles over the UV square
 uniform float u_depth;          // mesostructure depth, texture units
 uniform sampler2D u_height;     // heights in [0, 1] (1 = reference surface), repeat, mip-mapped
-uniform sampler2D u_normals;    // texture-space unit normals of the mesostructure, repeat
+uniform sampler2D u_normals;    // texture-space unit normals of the mesostructure, repeat (MIPMAPS: mip-mapped)
 uniform mat4 u_mvp;
 
 in vec3 v_pos;
@@ -73,21 +73,54 @@ vec3 world_normal(Frame F, vec3 n) {
     return normalize(F.Iu * n.x + F.Iv * n.y + F.N * (n.z / F.sn));
 }
 
+#ifdef MIPMAPS
+// The pixel's footprint in tile coordinates (MIPMAPS, the scene's render.mipmaps): the screen derivatives of the
+// base surface's T = uv * tiling, where the pixel's ray enters the mesostructure. VDM is "anti-aliased by
+// mip-mapping" (Wang2003 §4) at this footprint; the hit's own T' jumps at every occlusion edge, and its
+// derivatives would blur the whole quad there. Derivatives of an interpolated input hold in any control flow.
+void footprint(out vec2 dx, out vec2 dy) {
+    vec2 T = v_uv * u_tiling;
+    dx = dFdx(T);
+    dy = dFdy(T);
+}
+
+// The mesostructure's shading normal at T, the mean over the pixel's footprint renormalised (as engines filter
+// normal maps). Kept at its mean's length, the Lambert term would be the footprint's mean n . L (linear in n),
+// but level 0's bilinear filter shortens the normals between texels too, which would darken every magnified
+// brick edge against the reference's unit normals; the renormalised mean overshoots the mean diffuse term
+// where the footprint's normals spread (Toksvig's filtering would fix that; not done).
+vec3 mesostructure_normal(Frame F, vec2 T) {
+    vec2 dx, dy;
+    footprint(dx, dy);
+    return world_normal(F, FETCH(textureGrad(u_normals, T, dx, dy)).xyz);
+}
+#else
 // The mesostructure's shading normal at T in world space, read at the finest level: the reference
 // shades the displaced mesh with these normals at its vertices, unfiltered (mip-mapped normals blur
 // the shading against it; docs/tuning.md has the figures).
 vec3 mesostructure_normal(Frame F, vec2 T) {
     return world_normal(F, FETCH(textureLod(u_normals, T, 0.0)).xyz);
 }
+#endif
 
 // The albedo at tile coordinate T: the mesostructure's colour tile, which repeats with the height field
 // (TILE_ALBEDO: an albedo map, albedo.glsl; the reference reads it at the traced hit's T), or the
 // material's constant.
 #ifdef TILE_ALBEDO
 #include "albedo.glsl"
+#ifdef MIPMAPS
+// The colour tile's mean over the pixel's footprint (gl.albedo_texture's mip chain): a filtered reference
+// averages the reflectance its samples hit there.
+vec3 tile_albedo(vec2 T) {
+    vec2 dx, dy;
+    footprint(dx, dy);
+    return FETCH(textureGrad(u_albedo_map, T, dx, dy)).rgb;
+}
+#else
 vec3 tile_albedo(vec2 T) {
     return albedo_map(T);
 }
+#endif
 #else
 uniform vec3 u_albedo;
 vec3 tile_albedo(vec2 T) {

@@ -24,13 +24,13 @@ CUBE = CORNERS[np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], 
                          [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])].reshape(-1, 3)
 
 
-def coarse_draws(ctx, mesh, centre, model=None) -> tuple[dict, MeshInputs]:
+def coarse_draws(ctx, mesh, centre, model=None, mipmaps: bool = False) -> tuple[dict, MeshInputs]:
     """The coarse mesh (Vichitvejpaisal2005 §3.4) uploaded once about the object's centre, with the asset's colours
     where it carries them (raster.MeshInputs), and drawn by mesh.vert two ways: {"depth": (program, vao) writing depth only
     (depth.frag), "shaded": (program, vao) (mesh.frag)}; and its inputs (the shaded pass binds them). model: the
     buffer of the copies' matrices (one per instance, INSTANCED, pushed per copy: `pushed`), or None for an object
-    drawn once."""
-    inputs = MeshInputs(ctx, mesh, centre)
+    drawn once. mipmaps: its albedo map mip-mapped (the scene's render.mipmaps)."""
+    inputs = MeshInputs(ctx, mesh, centre, mipmaps)
     placed = ("INSTANCED", "PUSHED") if model is not None else ()
     attributes = inputs.attributes + ([(model, "16f/i", "in_model")] if model is not None else [])
     draws = {}

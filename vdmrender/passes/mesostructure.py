@@ -93,8 +93,12 @@ class MesostructurePass(RasterPasses):
         seen from behind, so the frame pass lets the rasteriser cull those faces (back_faces: on llvmpipe
         a discard at the top of a stage still costs about the whole stage). defines: of the stage, e.g.
         ("FLAT",) for relief's straight rays. The albedo is the material's (u_albedo), or the tile albedo read
-        at the hit's tile coordinate where the mesostructure has one (TILE_ALBEDO, mesostructure.glsl)."""
+        at the hit's tile coordinate where the mesostructure has one (TILE_ALBEDO, mesostructure.glsl).
+        The scene's render.mipmaps (MIPMAPS): the normal map and the colour tile mip-mapped and read at the pixel's
+        footprint (mesostructure.glsl); the searches keep their own levels (below)."""
         mesh = src.bundle.read(src.entry["mesh"], parts.MESH)
+        if src.mipmaps:
+            defines = (*defines, "MIPMAPS")
         tile = tile_albedo(src)
         if tile is not None:
             defines, self.UNIFORM_ALBEDO = (*defines, "TILE_ALBEDO"), False
@@ -115,11 +119,16 @@ class MesostructurePass(RasterPasses):
         meso = maps(src)
         h, n = meso.heights, meso.normals
         # Height fields are indexed [v, u] with row 0 at v = 0 (vdmbake.assets.heightfields); GL's first row is
-        # t = 0, so the arrays go up as they are and texture(T) reads h at T = (u, v).
+        # t = 0, so the arrays go up as they are and texture(T) reads h at T = (u, v). The normals are mip-mapped
+        # only under render.mipmaps (their mean, unnormalised, is the footprint's mean diffuse term:
+        # mesostructure.glsl); the heights always are: pom's search reads them at the footprint's level (what a
+        # minified march sees), the others (relief's pyramid, vdm's depth_at_lod0) at level 0, which the ray's
+        # hit needs.
         self.textures = {
-            "u_normals": texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True, False)}
+            "u_normals": texture(ctx.texture(h.shape[::-1], 3, n.astype("f4").tobytes(), dtype="f4"), True,
+                                 src.mipmaps)}
         if tile is not None:
-            self.textures["u_albedo_map"] = gl.albedo_texture(ctx, tile)
+            self.textures["u_albedo_map"] = gl.albedo_texture(ctx, tile, src.mipmaps)
         self.uniforms = {"u_tiling": tuple(m.tiling), **uniforms}
         if heights:
             self.textures["u_height"] = texture(ctx.texture(h.shape[::-1], 1, h.astype("f4").tobytes(), dtype="f4"),

@@ -89,9 +89,10 @@ class RasterPasses(Passes):
 class MeshInputs:
     """What mesh.vert reads of one triangle mesh, uploaded once: anchor-relative positions, normals and,
     where the asset has them, its colours per vertex (VERTEX_COLOR) and texture coordinates with its albedo
-    map (ALBEDO_MAP, vdmbake.common.texture); the material's albedo (u_albedo) where it has neither."""
+    map (ALBEDO_MAP, vdmbake.common.texture); the material's albedo (u_albedo) where it has neither. mipmaps: the
+    albedo map mip-mapped (gl.albedo_texture; the scene's render.mipmaps)."""
 
-    def __init__(self, ctx, mesh, anchor):
+    def __init__(self, ctx, mesh, anchor, mipmaps: bool = False):
         vbo, nbo, self.index = (ctx.buffer(np.ascontiguousarray(a, dtype=dt).tobytes()) for a, dt in
                                 ((mesh.vertices - anchor, "f4"), (mesh.normals, "f4"), (mesh.faces, "i4")))
         self.buffers, self.defines = [vbo, nbo, self.index], ()
@@ -107,7 +108,7 @@ class MeshInputs:
             self.buffers.append(tbo)
             self.attributes.append((tbo, "2f", "in_uv"))
             self.defines += ("ALBEDO_MAP",)
-            self.albedo_map = gl.albedo_texture(ctx, mesh.texture)
+            self.albedo_map = gl.albedo_texture(ctx, mesh.texture, mipmaps)
         self.uniform_albedo = not self.defines   # u_albedo only where the asset has no colour of its own
 
     def bind(self, prog) -> None:
@@ -123,9 +124,9 @@ class RasterMesh(RasterPasses):
     """One triangle mesh with per-vertex normals and the material's albedo, or the asset's own: colours per
     vertex and an albedo map read at its texture coordinates, where it has them (MeshInputs). instances: (N, 4, 4)
     world matrices of its copies (vdmbake.common.instances), drawn by one instanced draw per pass (INSTANCED), the
-    shadow map covering them all."""
+    shadow map covering them all. mipmaps: its albedo map mip-mapped (the scene's render.mipmaps)."""
 
-    def __init__(self, ctx, mesh, light, material, shadow_size: int, instances=None):
+    def __init__(self, ctx, mesh, light, material, shadow_size: int, instances=None, mipmaps: bool = False):
         self.centre, radius = mesh.bounding_sphere()   # the data is uploaded about the object's centre
         anchor, attributes, defines, buffers = self.centre, [], (), []
         self.model = None
@@ -135,7 +136,7 @@ class RasterMesh(RasterPasses):
             attributes, defines, buffers = [(self.model, "16f/i", "in_model")], ("INSTANCED",), [self.model]
         super().__init__(ctx, light, material, anchor, radius, shadow_size)
         self.faces = len(mesh.faces)
-        self.inputs = MeshInputs(ctx, mesh, self.centre)
+        self.inputs = MeshInputs(ctx, mesh, self.centre, mipmaps)
         self.UNIFORM_ALBEDO = self.inputs.uniform_albedo
         self.add("mesh.vert", self.inputs.defines + defines, buffers, self.inputs.attributes + attributes,
                  self.inputs.index)

@@ -31,6 +31,11 @@ class Source:
         return self.scene.render.shadow_map
 
     @property
+    def mipmaps(self) -> bool:
+        """The scene's render.mipmaps: textures and tables read at the pixel footprint's mip level."""
+        return self.scene.render.mipmaps
+
+    @property
     def instances(self):
         """(N, 4, 4) world matrices of the object's copies (vdmbake.common.instances); None: drawn once."""
         i = self.obj.instances

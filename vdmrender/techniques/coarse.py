@@ -7,4 +7,4 @@ from ..passes.raster import RasterMesh
 def build(ctx, src, ratio):
     rel = next(m["mesh"] for m in src.part["meshes"] if m["ratio"] == ratio)
     return RasterMesh(ctx, src.bundle.surface(src.entry, rel), src.scene.light, src.obj.material, src.shadow_map,
-                      src.instances)
+                      src.instances, src.mipmaps)

@@ -11,4 +11,4 @@ from ..passes.raster import RasterMesh
 def build(ctx, src, level):
     rel = next(m["mesh"] for m in src.part["meshes"] if m["level"] == level)
     return RasterMesh(ctx, textured(src.bundle.read(rel, parts.MESH), src), src.scene.light, src.obj.material,
-                      src.shadow_map)
+                      src.shadow_map, mipmaps=src.mipmaps)

@@ -10,4 +10,4 @@ from ..passes.raster import RasterMesh
 def build(ctx, src, value):
     mesh = src.bundle.surface(src.entry)
     return RasterMesh(ctx, textured(mesh, src) if src.obj.mesostructure else mesh, src.scene.light,
-                      src.obj.material, src.shadow_map, src.instances)
+                      src.obj.material, src.shadow_map, src.instances, src.mipmaps)

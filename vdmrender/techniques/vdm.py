@@ -40,7 +40,9 @@ class VDMPass(MesostructurePass):
     first k only with k compiled in; E_vdm and E_mvm as clamped, linearly filtered tables. refine > 0 finishes
     the view ray's hit and the self-shadow on the height field. original: the first implementation's lookup
     (float weights, mip-mapped, k as a uniform), kept to measure the gain; as_float: the weights dequantised
-    on upload (to measure what their storage costs)."""
+    on upload (to measure what their storage costs). Under the scene's render.mipmaps (MIPMAPS) W gets its mip
+    chain, built on upload from the stored weights (a level's weights are the mean of the finer level's, which is
+    the truncated SVD of the mean table: vdm.frag's vdm_lookup), so the bundle stores level 0 only."""
 
     def __init__(self, ctx, src, k, refine: int = 0, original: bool = False, as_float: bool = False):
         m, part = src.obj.mesostructure, src.part
@@ -85,7 +87,7 @@ class VDMPass(MesostructurePass):
                              "lower k (or phi) in the scene.")
         data = np.ascontiguousarray(W if dtype != "f4" else W.astype(np.float32))
         self.textures["u_W"] = texture(ctx.texture_array((m.size, m.size, g * m.phi), 4, data.tobytes(), dtype=dtype),
-                                       True, original)
+                                       True, original or src.mipmaps)
         self.textures["u_E_vdm"] = texture(ctx.texture_array(
             (m.theta, n_c, g), 4, np.ascontiguousarray(E_vdm.transpose(0, 2, 3, 1), "f4").tobytes(), dtype="f4"),
             False, False)
