@@ -127,7 +127,8 @@ def test_corrupted_entry_is_detected_and_baked_again(tmp_path):
     timing = json.loads((tmp_path / "b.bundle" / "timing.json").read_text())
     assert timing["cache"]["corrupt_entries"] == 1
     assert files(tmp_path / "b.bundle") == files(tmp_path / "plain.bundle")
-    assert PartCache(cache).verify() == {"entries": len(entries(cache)), "removed_damaged": 0}
+    assert PartCache(cache).verify() == {"entries": len(entries(cache)), "removed_damaged": 0,
+                                         "not_removed": 0}
     st = PartCache(cache).stats()
     assert st["corrupt"] == 1 and st["hits"] >= 1
 
@@ -135,9 +136,9 @@ def test_corrupted_entry_is_detected_and_baked_again(tmp_path):
 def test_truncated_and_foreign_entries_are_misses(tmp_path):
     c = PartCache(tmp_path / "c")
     key, other = "ab" * 32, "cd" * 32
-    c.put(key, {"x": "@part:a"}, ["line"], [("a.ply", "mesh", {"faces": 1}, b"hello")])
+    c.put(key, {"x": "@part:a.ply"}, ["line"], [("a.ply", "mesh", {"faces": 1}, b"hello")])
     got = c.get(key)
-    assert got.entry == {"x": "@part:a"} and got.parts == [("a.ply", "mesh", {"faces": 1}, b"hello")]
+    assert got.entry == {"x": "@part:a.ply"} and got.parts == [("a.ply", "mesh", {"faces": 1}, b"hello")]
     c.path(other).parent.mkdir(parents=True, exist_ok=True)
     c.path(other).write_bytes(c.path(key).read_bytes())              # an entry under another key's name
     assert c.get(other) is None and not c.path(other).exists()
@@ -150,10 +151,10 @@ def test_lru_eviction_keeps_the_recently_used(tmp_path):
     c = PartCache(tmp_path / "c", max_bytes=3500)   # three entries of about 1.1 kB
     keys = [f"{i:02x}" * 32 for i in range(4)]
     for i, k in enumerate(keys[:3]):
-        c.put(k, {}, [], [("p", "mesh", {}, bytes(800))])
+        c.put(k, {"m": "@part:p"}, [], [("p", "mesh", {}, bytes(800))])
         os.utime(c.path(k), (1000 + i, 1000 + i))                     # k0 oldest
     assert c.get(keys[0]) is not None                                 # a hit: now the most recent
-    c.put(keys[3], {}, [], [("p", "mesh", {}, bytes(800))])          # over the bound: the oldest (k1) goes
+    c.put(keys[3], {"m": "@part:p"}, [], [("p", "mesh", {}, bytes(800))])          # over the bound: the oldest (k1) goes
     assert c.path(keys[0]).exists() and not c.path(keys[1]).exists() and c.path(keys[3]).exists()
     assert c.counters.evicted == 1 and c.stats()["bytes"] <= 3500
 
@@ -164,7 +165,7 @@ from vdmbake.library.cache import PartCache
 c = PartCache(sys.argv[1])
 blob = bytes(range(256)) * 4000            # 1 MB: a write takes long enough to overlap
 for i in range(int(sys.argv[2])):
-    c.put("ee" * 32, {"n": 1}, [], [("p.exr", "vdm", {}, blob)])
+    c.put("ee" * 32, {"n": "@part:p.exr"}, [], [("p.exr", "vdm", {}, blob)])
     got = c.get("ee" * 32)
     assert got is not None and got.parts[0][3] == blob, "torn or lost"
 assert c.counters.corrupt == 0
@@ -180,7 +181,7 @@ def test_two_processes_storing_one_key_leave_one_entry(tmp_path):
     for p in ps:
         assert p.wait(120) == 0, p.stderr.read().decode()
     assert [p.name for p in (cache / "entries").rglob("*") if p.is_file()] == ["ee" * 32]
-    assert PartCache(cache).verify() == {"entries": 1, "removed_damaged": 0}
+    assert PartCache(cache).verify() == {"entries": 1, "removed_damaged": 0, "not_removed": 0}
 
 
 def test_two_bakes_of_the_same_steps_at_once(tmp_path):

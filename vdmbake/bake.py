@@ -24,7 +24,7 @@ from .kernels import curvature, quadric_mesh, quadrics, vdm
 from .assets import heightfields, meso_albedo, primitives
 from .bundle import parts, staging
 from .bundle.parts.mesostructure import check_reference
-from .bundle.directory import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter
+from .bundle.directory import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter, RefusedBundle
 from .errors import InputError
 from .assets.meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
 from .assets.references import reached_files
@@ -150,8 +150,27 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
         log(f"{out}: up to date (inputs, settings and bake code unchanged); use --force to bake again")
         return {"up_to_date": True, "bundle": str(out)}
     log(f"{out}: baking ({reason})")
-    writer = BundleWriter(out)
     token = _CACHE.set(cache)
+    try:
+        try:
+            return _write(scene, scene_path, out, digest, code, inputs, log, cache)
+        except RefusedBundle as e:
+            if cache is None or not cache.counters.taken:
+                raise
+            n = part_cache.refuse_taken(cache)     # an entry passed its own checks but not the bundle's
+            log(f"{out}: {e}; the {n} cache entries it took removed, baking without them")
+            return _write(scene, scene_path, out, digest, code, inputs, log, cache)
+    finally:
+        _CACHE.reset(token)
+        if cache is not None:
+            cache.record(scene=str(scene_path))
+
+
+def _write(scene: Scene, scene_path: Path, out: Path, digest: str, code: str, inputs: dict, log,
+           cache: part_cache.PartCache | None) -> dict:
+    """The bundle of `scene` written at `out` (bake's work once it is known to be stale): its statistics."""
+    base = scene_path.parent
+    writer = BundleWriter(out)
     try:
         objects, timing, steps, t_all = {}, {}, {}, time.perf_counter()
         for obj in scene.objects:
@@ -174,10 +193,6 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
     except BaseException:
         writer.abort()
         raise
-    finally:
-        _CACHE.reset(token)
-        if cache is not None:
-            cache.record(scene=str(scene_path))
     return {"up_to_date": False, "bundle": str(out), **stats, **took, "bake_s": round(time.perf_counter() - t_all, 3)}
 
 
@@ -211,7 +226,7 @@ def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict
         def step(log_, technique=technique, options=options):
             return technique.bake(Job(obj, options, *made["base"], writer, log_, steps))
         entry["techniques"][name] = part_cache.run_step(cache, writer, tkey, prefix, f"{obj.name}/{name}", step, say,
-                                                        prepare)
+                                                        prepare, technique=name)
     return entry
 
 

@@ -104,12 +104,19 @@ def main(scenes: tuple[Path, ...], out: Path | None, force: bool, jobs: int | No
     if scenes and out is None:
         raise click.UsageError("missing option '-o' / '--output': the bundle (one scene) or the folder of bundles.")
     if cache_clear:
-        cache.clear()
-        click.echo(f"cleared the part cache {cache.root}", err=True)
+        done = guarded(cache.clear, debug)
+        if done["left"] or done["stats_left"]:
+            fail(InputError(f"{cache.root}: could not clear the part cache: {done['removed']} entries removed, "
+                            f"{done['left']} left{', and stats.log' if done['stats_left'] else ''} "
+                            f"({done['reason']}); is it read-only?"), debug)
+        click.echo(f"cleared the part cache {cache.root} ({done['removed']} entries removed)", err=True)
     if cache_verify:
-        found = cache.verify()
+        found = guarded(cache.verify, debug)
         click.echo(f"{cache.root}: {found['entries']} entries intact, {found['removed_damaged']} damaged removed",
                    err=True)
+        if found["not_removed"]:
+            fail(InputError(f"{cache.root}: {found['not_removed']} damaged entries could not be removed (is the "
+                            "cache read-only?); they stay misses until removed."), debug)
     code = 0
     if scenes:
         found, many = guarded(lambda: batch.expand(scenes), debug)
@@ -118,7 +125,7 @@ def main(scenes: tuple[Path, ...], out: Path | None, force: bool, jobs: int | No
         else:
             code = _many(found, out, many, force, jobs, scheduler, cache, verbose, as_json, debug)
     if cache_stats:
-        st = cache.stats()
+        st = guarded(cache.stats, debug)
         if as_json and not scenes:
             click.echo(json.dumps(st, indent=1))
         else:
@@ -126,7 +133,8 @@ def main(scenes: tuple[Path, ...], out: Path | None, force: bool, jobs: int | No
             click.echo(f"cache {st['cache']}: {st['entries']} entries, {st['bytes'] / 2**20:.1f} MiB of "
                        f"{st['max_bytes'] / 2**30:.3g} GiB; {st['bakes']} bakes: steps {st['hits']} from cache, "
                        f"{st['misses']} baked (hit rate {rate}), {st['corrupt']} damaged entries re-baked, "
-                       f"{st['evicted']} evicted", err=bool(scenes))
+                       f"{st['evicted']} evicted" + (f"; {st['skipped_lines']} unreadable lines of stats.log "
+                                                     "skipped" if st["skipped_lines"] else ""), err=bool(scenes))
     raise SystemExit(code)
 
 

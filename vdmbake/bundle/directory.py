@@ -28,6 +28,10 @@ TIMING = "timing.json"  # wall times: kept out of the manifest so the manifest's
 MAX_MANIFEST_BYTES = 256 << 20
 
 
+class RefusedBundle(InputError):
+    """A bundle staged but refused by the reader's own check (Bundle), so not committed."""
+
+
 def _sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
@@ -67,6 +71,9 @@ class BundleWriter:
         """Write a packed part at `rel` (suffix included) after check_packed (unless `checked`: the caller made
         them); the parts of a bake step come here whether baked or taken from the part cache (vdmbake.cache).
         Returns (rel, the value read back; None if `checked`)."""
+        pure = PurePosixPath(rel)
+        if pure.is_absolute() or ".." in pure.parts or "\\" in rel:
+            raise InputError(f"{self.stage.path}: part path {rel!r} leaves the bundle; refusing to write it.")
         read = None if checked else self.check_packed(rel, kind, data, meta)
         self.stage.file(rel).write_bytes(data)
         self.parts[rel] = {"kind": kind.name, "sha256": _sha256(data), "bytes": len(data), **meta}
@@ -85,6 +92,11 @@ class BundleWriter:
                     **manifest, "parts": self.parts}
         self.stage.file(TIMING).write_text(dumps(timing))
         self.stage.file(MANIFEST).write_text(dumps(manifest))  # last: its presence marks a complete bundle
+        try:
+            Bundle(self.stage.tmp)          # what the renderer checks first: a bake never commits what it refuses
+        except InputError as e:
+            raise RefusedBundle(f"{self.stage.path}: the bundle baked fails the reader's check ({e}); not "
+                                "committed") from None
         self.stage.commit()
 
     def abort(self) -> None:

@@ -11,15 +11,17 @@ from ..errors import InputError
 from ..schema import printable
 
 
-def read_regular(path: Path, what: str, size: int | None = None, limit: int | None = None) -> bytes:
+def read_regular(path: Path, what: str, size: int | None = None, limit: int | None = None,
+                 follow: bool = True) -> bytes:
     """The bytes of the regular file at `path`; `size`: the exact size expected; `limit`: the most
-    accepted. Raises InputError naming `path` and `what` it is; FileNotFoundError passes through."""
+    accepted; `follow=False`: a symbolic link at `path` is refused too. Raises InputError naming `path`
+    and `what` it is; FileNotFoundError passes through."""
     shown = printable(str(path))
     if "\x00" in str(path):   # no file system has such a name (os.open would raise ValueError)
         raise InputError(f"{shown}: a path with a NUL character names no file; refusing the {what}.")
     try:
         # O_NONBLOCK: opening a FIFO for reading returns at once instead of waiting for a writer.
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | (0 if follow else os.O_NOFOLLOW))
     except FileNotFoundError:
         raise
     except OSError as e:

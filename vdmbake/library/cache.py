@@ -21,8 +21,13 @@ An entry is one file, `entries/KEY[:2]/KEY`: a first line `VDMCACHE1 <sha256 of 
 header's length (8 bytes), the header (JSON: the key, the manifest entry of the step, its log lines,
 each part's name, kind, metadata, size and sha256) and the parts' bytes. Every read checks the whole
 file against that sha256 and the key inside against the name: a damaged entry is deleted, counted as
-corrupt and baked again. Writes go to a temporary file in the same folder, fsynced, then os.replace:
-readers see the old entry, no entry, or the complete new one, never a torn one, and two processes (or
+corrupt and baked again. An entry is input from whoever can write the cache folder (a shared one: anyone with
+write access there), so it is read as any other input: a regular file within a size bound (no FIFO, device or
+link), a header of bounded depth, part names that are plain names of the step's own parts (`in_layout`: no
+`..`, no path, no other step's part), a manifest block naming exactly the parts it carries; and the bundle made
+from it passes the reader's own check before it is committed (BundleWriter.commit; vdmbake.bake bakes again
+without the entries it took when it does not). Writes go to a temporary file in the same folder, fsynced, then
+os.replace: readers see the old entry, no entry, or the complete new one, never a torn one, and two processes (or
 machines on one shared file system) writing the same key leave one complete entry (the bake is
 deterministic: both wrote the same bytes). A hit sets the entry's modification time (the LRU clock,
 kept in mtime because atime is often not updated); after each store, entries beyond the size bound
@@ -44,7 +49,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import code_fingerprint, imported_closure
+from ..bundle.budget import BUDGET
 from ..errors import InputError
+from ..formats.safeio import read_regular
 
 MAGIC = b"VDMCACHE1"
 ENV = "VDM_CACHE"
@@ -53,6 +60,10 @@ DEFAULT_MAX_BYTES = 10 << 30
 STALE_TMP_S = 3600            # temporary files older than this are a killed writer's: removed by eviction
 LIBRARIES = ("numpy", "embreex", "trimesh", "fast-simplification", "OpenEXR", "gemmi", "pillow", "scikit-image")
 _SIZE = re.compile(r"(\d+(?:\.\d+)?)\s*([kmgt]?)i?b?", re.I)
+MAX_DEPTH = 32                # a step's manifest block nests a few levels; deeper is no entry of ours
+_PLAIN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]*")
+# The parts of an object step (what vdmbake.bake._object_parts writes); a technique step's start with its name.
+OBJECT_PARTS = frozenset({"mesh", "quadrics", "viewer-mesh", "albedo", "mesostructure", "mesostructure-albedo"})
 
 
 def parse_size(text: str | int) -> int:
@@ -145,6 +156,7 @@ class Counters:
     parts_from_cache: int = 0
     bytes_from_cache: int = 0
     events: list = field(default_factory=list)    # (step, "hit" | "baked" | "corrupt"), for timing.json
+    taken: list = field(default_factory=list)     # the keys of the hits, to refuse if their bundle is refused
 
     def as_dict(self) -> dict:
         return {k: getattr(self, k) for k in ("hits", "misses", "corrupt", "stored", "evicted",
@@ -184,15 +196,11 @@ class PartCache:
         """The verified entry of `key`, or None (a miss; a damaged entry is removed and counted as corrupt)."""
         p = self.path(key)
         try:
-            with open(p, "rb") as f:
-                data = f.read()
+            data = self._read(p)
         except FileNotFoundError:
             self.counters.misses += 1
             return None
-        except OSError:
-            self.counters.misses += 1
-            return None
-        entry = self._parse(key, data)
+        entry = None if data is None else self._parse(key, data)
         if entry is None:
             self.counters.corrupt += 1
             self.counters.misses += 1
@@ -205,6 +213,18 @@ class PartCache:
         self.counters.hits += 1
         return entry
 
+    def _read(self, path) -> bytes | None:
+        """An entry's bytes, read as any other input: a regular file (a FIFO would block, a link to a device never
+        end) no larger than the cache's bound; None if it is not one. FileNotFoundError passes through."""
+        try:
+            return read_regular(path, "cache entry", limit=min(self.max_bytes, BUDGET), follow=False)
+        except InputError:
+            return None
+        except OSError as e:
+            if isinstance(e, FileNotFoundError):
+                raise
+            return None
+
     @staticmethod
     def _parse(key: str, data: bytes) -> Entry | None:
         try:
@@ -214,19 +234,22 @@ class PartCache:
                 return None
             n = int.from_bytes(body[:8], "little")
             header = json.loads(body[8:8 + n])
-            if header.get("key") != key:
+            if header.get("key") != key or not isinstance(header["entry"], dict):
                 return None
             parts, at = [], 8 + n
             for p in header["parts"]:
+                if (type(p["bytes"]) is not int or not isinstance(p["meta"], dict) or not isinstance(p["kind"], str)
+                        or not isinstance(p["name"], str) or not _PLAIN.fullmatch(p["name"])):
+                    return None
                 blob = body[at:at + p["bytes"]]
                 at += p["bytes"]
                 if len(blob) != p["bytes"] or hashlib.sha256(blob).hexdigest() != p["sha256"]:
                     return None
                 parts.append((p["name"], p["kind"], p["meta"], blob))
-            if at != len(body):
+            if at != len(body) or not _carries(header["entry"], [name for name, *_ in parts]):
                 return None
             return Entry(header["entry"], header.get("log", []), parts)
-        except (ValueError, KeyError, TypeError, AttributeError):
+        except (ValueError, KeyError, TypeError, AttributeError, RecursionError):   # RecursionError: nested too deep
             return None
 
     def discard(self, key: str) -> None:
@@ -328,58 +351,122 @@ class PartCache:
         self.counters = Counters()
 
     def stats(self) -> dict:
-        """Size, entry count and bound, and the hit counts summed over stats.log."""
+        """Size, entry count and bound, and the hit counts summed over stats.log; `skipped_lines`: the lines it
+        could not read as counts (a torn write's bytes, a line that is JSON but not counts), left out of the sums."""
         found = self._scan()
         sums = {k: 0 for k in Counters().as_dict()}
-        bakes = 0
-        try:
-            lines = (self.root / "stats.log").read_text().splitlines()
-        except OSError:
-            lines = []
-        for line in lines:
-            try:
-                rec = json.loads(line)
-            except ValueError:
-                continue                         # a line cut by a full disk
+        bakes = skipped = 0
+        for line in self._stats_lines():
+            rec = _counts(line)
+            if rec is None:
+                skipped += 1
+                continue
             bakes += 1
             for k in sums:
-                sums[k] += int(rec.get(k, 0))
+                sums[k] += rec.get(k, 0)
         steps = sums["hits"] + sums["misses"]
         return {"cache": str(self.root), "entries": len(found), "bytes": sum(s for _, s, _ in found),
                 "max_bytes": self.max_bytes, "bakes": bakes, **sums,
-                "hit_rate": round(sums["hits"] / steps, 4) if steps else None}
+                "hit_rate": round(sums["hits"] / steps, 4) if steps else None, "skipped_lines": skipped}
+
+    def _stats_lines(self) -> list[bytes]:
+        """The non-empty lines of stats.log, read as any other input (a regular file within the size bound)."""
+        try:
+            data = read_regular(self.root / "stats.log", "cache statistics", limit=min(self.max_bytes, BUDGET))
+        except FileNotFoundError:
+            return []
+        return [line for line in data.split(b"\n") if line.strip()]
 
     def verify(self) -> dict:
-        """Read every entry through the checks of get(); remove the damaged ones. Returns the counts."""
-        good = bad = 0
+        """Read every entry through the checks of get(); remove the damaged ones. Returns the counts, with
+        `not_removed`: damaged entries that could not be removed (a read-only cache)."""
+        good = bad = left = 0
         for _, _, path in self._scan():
             key = Path(path).name
             try:
-                data = Path(path).read_bytes()
-            except OSError:
+                data = self._read(path)
+            except FileNotFoundError:
                 continue
-            if self._parse(key, data) is None:
-                bad += 1
+            if data is None or self._parse(key, data) is None:
                 try:
                     os.unlink(path)
+                    bad += 1
+                except FileNotFoundError:
+                    bad += 1
                 except OSError:
-                    pass
+                    left += 1
             else:
                 good += 1
-        return {"entries": good, "removed_damaged": bad}
+        return {"entries": good, "removed_damaged": bad, "not_removed": left}
 
-    def clear(self) -> None:
-        """Remove every entry and the statistics."""
-        shutil.rmtree(self.entries, ignore_errors=True)
+    def clear(self) -> dict:
+        """Remove every entry and the statistics. Returns how many entries were removed and what is left (a
+        read-only cache: `left` entries, `stats_left`), with the first reason."""
+        before, errors = len(self._scan()), []
+        shutil.rmtree(self.entries, onerror=lambda fn, path, exc: errors.append(f"{path}: {exc[1]}"))
         try:
             (self.root / "stats.log").unlink()
-        except OSError:
+        except FileNotFoundError:
             pass
+        except OSError as e:
+            errors.append(f"{e.filename}: {e}")
+        left = len(self._scan())
+        return {"removed": before - left, "left": left, "stats_left": (self.root / "stats.log").exists(),
+                "reason": errors[0] if errors else None}
+
+
+def _counts(line: bytes) -> dict | None:
+    """One stats.log line's counts, or None if it is not one: UTF-8 JSON, an object whose counters are
+    non-negative integers."""
+    try:
+        rec = json.loads(line.decode("utf-8"))
+    except (ValueError, RecursionError):            # UnicodeDecodeError is a ValueError
+        return None
+    if not isinstance(rec, dict):
+        return None
+    counts = {k: rec.get(k, 0) for k in Counters().as_dict()}
+    if not all(type(v) is int and 0 <= v < 2**63 for v in counts.values()):
+        return None
+    return counts
 
 
 # --------------------------------------------------------------------------------------------- steps
 
 PART_PREFIX = "@part:"
+
+
+def in_layout(name, kind: str, technique: str | None) -> bool:
+    """Whether an entry may carry a part `name` of `kind`: a plain file name (no separator, no `..`, nothing
+    hidden) with the kind's suffix, one of the step's own parts: the object step's OBJECT_PARTS, a technique
+    step's its name or its name and a dash (coarse-0.5.ply). So an entry writes only inside its object's folder
+    and never replaces another step's part."""
+    from ..bundle.parts import KINDS
+
+    if not isinstance(name, str) or not _PLAIN.fullmatch(name) or kind not in KINDS:
+        return False
+    suffix = KINDS[kind].suffix
+    stem = name[:-len(suffix)] if suffix and name.endswith(suffix) else None
+    if technique is None:
+        return stem in OBJECT_PARTS
+    return stem is not None and (stem == technique or stem.startswith(technique + "-"))
+
+
+def _carries(entry, names: list) -> bool:
+    """Whether a step's manifest block names (as `@part:NAME`) exactly the parts the entry carries, each once,
+    and nests no deeper than MAX_DEPTH."""
+    return len(set(names)) == len(names) and _named(entry, 0) == set(names)
+
+
+def _named(value, depth: int) -> set:
+    if depth > MAX_DEPTH:
+        raise ValueError("nested too deep")
+    if isinstance(value, dict):
+        return set().union(*(_named(v, depth + 1) for v in value.values()))
+    if isinstance(value, list):
+        return set().union(*(_named(v, depth + 1) for v in value))
+    if isinstance(value, str) and value.startswith(PART_PREFIX):
+        return {value[len(PART_PREFIX):]}
+    return set()
 
 
 def _relative(value, prefix: str, rels: set):
@@ -404,11 +491,13 @@ def _absolute(value, prefix: str):
     return value
 
 
-def run_step(cache: "PartCache | None", writer, key: str | None, prefix: str, name: str, make, log, prepare=None):
+def run_step(cache: "PartCache | None", writer, key: str | None, prefix: str, name: str, make, log, prepare=None,
+             technique: str | None = None):
     """One bake step through the cache: the step's manifest entry. On a hit its parts go into `writer`
     (each read back through its kind's checks first, as a freshly baked part is) and its log lines are
     said again; on a miss `prepare()` then `make(log)` bake it, and what it wrote (every part under `prefix`)
-    is stored under `key`. Without a cache: make(log)."""
+    is stored under `key`. `technique`: the technique whose step it is (None: the object's own parts), which
+    part names the entry may carry (in_layout). Without a cache: make(log)."""
     if cache is None or key is None:
         return make(log)
     hit = cache.get(key)
@@ -416,6 +505,9 @@ def run_step(cache: "PartCache | None", writer, key: str | None, prefix: str, na
         from ..bundle.parts import KINDS
 
         try:
+            for n, k, _, _ in hit.parts:
+                if not in_layout(n, k, technique):
+                    raise InputError(f"part name {n!r} is not one of the step's own ({technique or 'object'})")
             checked = [(prefix + n, KINDS[k], m, d) for n, k, m, d in hit.parts]
             for rel, kind, meta, data in checked:
                 writer.check_packed(rel, kind, data, meta)
@@ -431,6 +523,7 @@ def run_step(cache: "PartCache | None", writer, key: str | None, prefix: str, na
             for line in hit.log:
                 log(f"{line} (from cache)")
             cache.counters.events.append((name, "hit"))
+            cache.counters.taken.append(key)
             cache.counters.parts_from_cache += len(checked)
             cache.counters.bytes_from_cache += sum(len(d) for *_, d in checked)
             return _absolute(hit.entry, prefix)
@@ -450,9 +543,22 @@ def run_step(cache: "PartCache | None", writer, key: str | None, prefix: str, na
     cache.counters.events.append((name, "baked"))
     try:
         relative = _relative(entry, prefix, {rel for rel, *_ in made})
-        if any(not rel.startswith(prefix) for rel, *_ in made) or prefix in json.dumps(relative):
-            return entry      # a step that writes outside its object, or names a part it did not write: not cached
-        cache.put(key, relative, lines, [(rel[len(prefix):], k, m, d) for rel, k, m, d in made])
+        own = [(rel[len(prefix):], k, m, d) for rel, k, m, d in made if rel.startswith(prefix)]
+        if (len(own) < len(made) or prefix in json.dumps(relative) or not _carries(relative, [n for n, *_ in own])
+                or not all(in_layout(n, k, technique) for n, k, *_ in own)):
+            return entry      # not an entry a read would accept (a part outside its object, a path not its own)
+        cache.put(key, relative, lines, own)
     except (OSError, TypeError, ValueError) as e:
         log(f"{name}: warning: not stored in the cache {cache.root} ({e})")
     return entry
+
+
+def refuse_taken(cache: PartCache) -> int:
+    """The entries a bake took, removed after the bundle made with them failed the reader's check (an entry
+    that passes its own checks but not the bundle's: crafted, or from a foreign version of the code); the
+    counters start again, those entries counted as corrupt. Returns how many."""
+    taken = cache.counters.taken
+    for key in taken:
+        cache.discard(key)
+    cache.counters = Counters(corrupt=cache.counters.corrupt + len(taken))
+    return len(taken)
