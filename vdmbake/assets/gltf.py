@@ -17,6 +17,72 @@ from .references import gltf_buffer, gltf_tree
 ALBEDO = "vdm_albedo"   # the vertex attribute that carries a primitive's colour through trimesh's to_mesh
 _REPEAT = 10497          # glTF 2.0 §5.26: the sampler's default wrapS/wrapT, as the renderer and the reference wrap
 _COLOUR_TYPES = {5121: np.dtype("u1"), 5123: np.dtype("<u2"), 5126: np.dtype("<f4")}   # COLOR_0's (§3.7.2.1)
+_COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}                # §3.6.2.2
+_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}          # what a primitive's attributes and indices are
+
+
+def check_accessors(files: dict, origin: str) -> None:
+    """Every accessor a mesh primitive reads (its attributes and indices) checked against its bufferView and buffer
+    and against the primitive's other attributes (glTF 2.0 §3.6.2, §3.7.2.1), before trimesh or colour_0 reads a
+    byte: a component type and type of a vertex attribute, a count shared by every attribute, a byteStride no
+    smaller than the element (else elements overlap), offsets aligned to the component, and every element within
+    the view and the view within the buffer. InputError names the file, the accessor and what is wrong."""
+    tree = gltf_tree(files)
+    buffer = functools.cache(lambda i: gltf_buffer(files, tree, i, origin))
+    try:
+        for m, mesh in enumerate(tree.get("meshes", [])):
+            for p, prim in enumerate(mesh["primitives"]):
+                where = f"{origin}: mesh {m} primitive {p}"
+                used = [*prim["attributes"].items()] + ([("indices", prim["indices"])] if "indices" in prim else [])
+                counts = {name: _accessor(tree, index, buffer, f"{where} {name} (accessor {index})")
+                          for name, index in used}
+                attributes = {name: n for name, n in counts.items() if name != "indices"}
+                if len(set(attributes.values())) > 1:
+                    raise InputError(f"{where}: its attributes have different counts ({printable(repr(attributes))});"
+                                     " glTF 2.0 gives every attribute of a primitive one entry per vertex; fix the file.")
+    except (KeyError, IndexError, TypeError, AttributeError) as e:
+        raise InputError(f"{origin}: cannot read its meshes' accessors ({type(e).__name__}: "
+                         f"{printable(str(e))}); fix the file.") from None
+
+
+def _accessor(tree: dict, index, buffer, shown: str) -> int:
+    """The count of accessor `index`, after checking its layout in its bufferView and buffer (§3.6.2.4)."""
+    if type(index) is not int or not 0 <= index < len(tree["accessors"]):
+        raise InputError(f"{shown}: no such accessor (the file has {len(tree['accessors'])}); fix the file.")
+    a = tree["accessors"][index]
+    size, width, count = _COMPONENT_BYTES.get(a.get("componentType")), _WIDTHS.get(a.get("type")), a.get("count")
+    if size is None or width is None or type(count) is not int or count < 1:
+        raise InputError(f"{shown}: componentType {printable(repr(a.get('componentType')))}, type "
+                         f"{printable(repr(a.get('type')))}, count {printable(repr(count))}; glTF 2.0 allows a "
+                         f"componentType of {sorted(_COMPONENT_BYTES)}, a type of {list(_WIDTHS)} for a primitive "
+                         "and a count of at least 1; fix the file.")
+    if "bufferView" not in a:
+        return count                                  # zeros (or sparse): no bytes to lay out
+    views = tree["bufferViews"]
+    if type(a["bufferView"]) is not int or not 0 <= a["bufferView"] < len(views):
+        raise InputError(f"{shown}: bufferView {printable(repr(a['bufferView']))} does not exist; fix the file.")
+    view, item = views[a["bufferView"]], size * width
+    offset, view_offset, length = a.get("byteOffset", 0), view.get("byteOffset", 0), view.get("byteLength")
+    stride = view.get("byteStride", item)
+    if not all(type(x) is int and x >= 0 for x in (offset, view_offset, length, stride)):
+        raise InputError(f"{shown}: byteOffset {printable(repr(offset))}, bufferView byteOffset "
+                         f"{printable(repr(view_offset))}, byteLength {printable(repr(length))}, byteStride "
+                         f"{printable(repr(stride))}; glTF 2.0 gives non-negative integers; fix the file.")
+    if stride < item:
+        raise InputError(f"{shown}: bufferView {a['bufferView']}'s byteStride {stride} is smaller than one element "
+                         f"({width} x {size} bytes = {item}), so its elements would overlap; fix the file.")
+    if offset % size or (view_offset + offset) % size or stride % size:
+        raise InputError(f"{shown}: byteOffset {offset} (bufferView's {view_offset}, byteStride {stride}) is not a "
+                         f"multiple of its component's {size} bytes, as glTF 2.0 requires; fix the file.")
+    end = offset + stride * (count - 1) + item
+    if end > length:
+        raise InputError(f"{shown}: {count} elements from byteOffset {offset} with stride {stride} end at byte {end}"
+                         f", past bufferView {a['bufferView']}'s byteLength {length}; fix the file.")
+    data = buffer(view["buffer"])
+    if view_offset + length > len(data):
+        raise InputError(f"{shown}: bufferView {a['bufferView']} ends at byte {view_offset + length}, past its "
+                         f"buffer {view['buffer']} of {len(data)} bytes; fix the file.")
+    return count
 
 
 def gltf_albedo(scene, files: dict, textures: bool, origin: str) -> None:

@@ -15,7 +15,7 @@ from ..common import texture
 from ..common.colour import srgb8_to_linear
 from ..errors import InputError
 from ..schema import printable
-from .gltf import ALBEDO, gltf_albedo
+from .gltf import ALBEDO, check_accessors, gltf_albedo
 from .references import check_picture, described, names_texture, reached_files
 
 
@@ -238,6 +238,8 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
             check_picture(f.data, f"{printable(str(f.path))} (the {described(chain, f.what)})")
     resolver = {chain[-1]: f.data for chain, f in files.items() if len(chain) > 1}
     gltf = path.suffix[1:].lower() in ("gltf", "glb")
+    if gltf:
+        check_accessors(files, shown)
     limit = Image.MAX_IMAGE_PIXELS
     try:
         Image.MAX_IMAGE_PIXELS = texture.MAX_PIXELS
