@@ -38,8 +38,9 @@ def check_accessors(files: dict, origin: str) -> None:
                           for name, index in used}
                 attributes = {name: n for name, n in counts.items() if name != "indices"}
                 if len(set(attributes.values())) > 1:
-                    raise InputError(f"{where}: its attributes have different counts ({printable(repr(attributes))});"
-                                     " glTF 2.0 gives every attribute of a primitive one entry per vertex; fix the file.")
+                    raise InputError(f"{where}: its attributes have different counts ({printable(repr(attributes))})"
+                                     "; glTF 2.0 gives every attribute of a primitive one entry per vertex; fix the "
+                                     "file.")
     except (KeyError, IndexError, TypeError, AttributeError) as e:
         raise InputError(f"{origin}: cannot read its meshes' accessors ({type(e).__name__}: "
                          f"{printable(str(e))}); fix the file.") from None
