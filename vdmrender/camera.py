@@ -48,14 +48,20 @@ class Camera:
         return np.array([[f / a, 0, 0, 0], [0, f, 0, 0],
                          [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)], [0, 0, -1, 0]])
 
-    def pixel_rays(self) -> tuple[np.ndarray, np.ndarray]:
+    def pixel_rays(self, offset: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """World-space directions through every pixel centre, scaled so that one unit of the ray
-        parameter is one unit of view depth (camera-space z = -1); (H*W, 3) float64, row-major."""
+        parameter is one unit of view depth (camera-space z = -1); (H*W, 3) float64, row-major.
+        offset: (H, W, 2) positions within each pixel, (x right, y down) in [0, 1), instead of its centre
+        (the filtered reference's samples: reference.filtered)."""
         t = np.tan(np.radians(self.fov_deg) / 2)
         a = self.width / self.height
-        x = ((np.arange(self.width) + 0.5) / self.width * 2 - 1) * t * a
-        y = (1 - (np.arange(self.height) + 0.5) / self.height * 2) * t
-        X, Y = np.meshgrid(x, y)
+        X, Y = np.meshgrid(np.arange(self.width, dtype=float), np.arange(self.height, dtype=float))
+        if offset is None:
+            X, Y = X + 0.5, Y + 0.5
+        else:
+            X, Y = X + offset[..., 0], Y + offset[..., 1]
+        X = (X / self.width * 2 - 1) * t * a
+        Y = (1 - Y / self.height * 2) * t
         d_cam = np.stack([X, Y, -np.ones_like(X)], -1).reshape(-1, 3)
         return np.broadcast_to(self.eye, d_cam.shape), d_cam @ self.basis()
 

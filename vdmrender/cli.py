@@ -10,7 +10,7 @@ import click
 
 from vdmbake import __version__
 from vdmbake.errors import InputError, fail, guarded
-from vdmbake.scene import MAX_SIDE, REGISTRY
+from vdmbake.scene import ANTIALIAS, MAX_SIDE, MAX_SPP, REGISTRY
 
 from . import gl
 from . import many as many_bundles
@@ -81,11 +81,20 @@ def _sizes(ctx, param, value):
               help="Also render every view with the object this many pixels across on screen (its bounding sphere's "
                    "projected diameter; the camera moves, the frame stays), e.g. 512,128,32: error and cost against "
                    "screen size (sweep.csv, error_vs_size.png, cost_vs_size.png); overrides render.sweep.sizes.")
+@click.option("--reference-spp", type=click.Choice([str(n * n) for n in range(1, 17) if n * n <= MAX_SPP]),
+              metavar="N", help="Samples per pixel of the reference (a square: 1, 4, 9, 16, ... 256): N x N stratified, "
+                                "box-filtered in linear colour, what a viewer sees of each pixel; the error that decides "
+                                "(sweeps, LOD chains) is against it, and every row keeps the error against the pixel "
+                                "centres beside it (aliased_*). Overrides render.reference_spp (default 1).")
+@click.option("--antialias", type=click.Choice(ANTIALIAS),
+              help="Render every variant as it would be shipped: msaaN (GL multisampling) or ssaaK (K x K larger, "
+                   "box-filtered down on the GPU); its time and counters include the resolve pass. Overrides "
+                   "render.antialias (default none).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
 def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample_s, device, max_error, baseline, max_error_increase,
-         max_slowdown, compare_devices, counters, flip, heat_max, sizes, as_json, debug):
+         max_slowdown, compare_devices, counters, flip, heat_max, sizes, reference_spp, antialias, as_json, debug):
     """Render each BUNDLE (made by vdmbake) into OUTPUT and report error against run time.
 
     For every object, each technique variant (a technique at one value of its quality
@@ -94,7 +103,10 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
     independent reference is traced on the CPU with Embree. Each frame's error is the
     mean CIE-Luv distance to the reference over the union of both coverage masks (the
     enhanced-billboards thesis's eq. 2.2), with NVIDIA FLIP over the same pixels beside
-    it. Time is the GPU's: per frame the sum of its passes' GL timer queries, after a
+    it. With --reference-spp N the reference is each pixel's mean over N samples, and with
+    --antialias the variants are anti-aliased, so the error is what a viewer sees, and it
+    falls with screen size where detail goes below a pixel; the point-sampled error stays
+    beside it (aliased_mean_dluv). Time is the GPU's: per frame the sum of its passes' GL timer queries, after a
     warm-up that lasts until the times are steady, median over every timed frame, with
     the spread, wall time and CPU submit time beside it (the harness's own clear of the
     target is timed apart). A frame where neither the variant nor the reference covers a
@@ -102,7 +114,8 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
 
     \b
     OUTPUT/frames/OBJECT/VARIANT/NNN.png     rendered frames
-    OUTPUT/reference/OBJECT/NNN.png (.exr)   the reference (cached by content and code hash)
+    OUTPUT/reference/OBJECT/NNN.png (.exr)   the reference (cached by content and code hash);
+                                             with --reference-spp, the pixel centres' in point/
     OUTPUT/heatmaps/OBJECT/VARIANT/NNN.png   per-pixel ΔLuv, 0 to --heat-max
     OUTPUT/overview/OBJECT.png               everything on one sheet
     OUTPUT/composite/                        with render.composite: every object in one frame per
@@ -133,7 +146,8 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
       vdmrender out/default.bundle -o out/new --baseline out/default/report.json \\
           --max-error-increase 0.05 --max-slowdown 1.25 --sample-s 1.5
       vdmrender out/default.bundle -o out/gpu --device cuda:0 --warmup-s 2 --sample-s 1
-      vdmrender out/lod-bunny.bundle -o out/lod-bunny --sizes 512,256,128,64,32,16
+      vdmrender out/lod-bunny.bundle -o out/lod-bunny --sizes 512,256,128,64,32,16 \\
+          --reference-spp 16 --antialias ssaa2
       vdmrender out/library/bundles -o out/library/renders --baseline old/report.json --max-error-increase 0.1
     """
     if (max_error_increase is not None or max_slowdown is not None) and baseline is None:
@@ -144,7 +158,8 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
                    warmup_s=warmup_s, sample_s=sample_s,
                    device=device, heat_max=heat_max, flip=flip, baseline=baseline,
                    max_error_increase=max_error_increase, max_slowdown=max_slowdown, compare_devices=compare_devices,
-                   counters=counters, sizes=sizes)
+                   counters=counters, sizes=sizes, reference_spp=reference_spp and int(reference_spp),
+                   antialias=antialias)
     if debug:
         gl.STRICT = True
     found, many = guarded(lambda: many_bundles.bundles(bundles), debug)

@@ -99,23 +99,23 @@ def scene_sphere(bundle, scene) -> tuple[np.ndarray, float]:
     return enclosing_sphere([objs[o.name]["centre"] for o in scene.objects], [objs[o.name]["radius"] for o in scene.objects])
 
 
-def reference_frames(out, bundle, scene, cams, log):
-    """The composite reference frames (linear RGBA float32), traced or from the previous run's cache."""
+def reference_frames(out, bundle, scene, cams, log, spp: int = 1, folder: str = f"{FOLDER}/reference"):
+    """The composite reference frames (linear RGBA float32) at `spp` samples per pixel (reference.filtered),
+    traced or from the previous run's cache in `folder`."""
     entries = bundle.manifest["objects"]
     geometry = {o.name: {**refcache.reference_geometry(o, entries[o.name], bundle), "material": asdict(o.material)}
                 for o in scene.objects}
     key = refcache.reference_key(geometry, cams, scene.light, scene.material, scene.render.background,
-                                 refcache.reference_code(any(o.mesostructure for o in scene.objects)))
+                                 refcache.reference_code(any(o.mesostructure for o in scene.objects)), spp)
 
     def trace(cams):
         ref = reference.CompositeReference(refcache.object_reference(o, entries[o.name], bundle, scene)[0]
                                            for o in scene.objects)
-        frames = [ref.render(c) for c in cams]
+        frames = [reference.filtered(ref.render, c, spp) for c in cams]
         return frames, [None] * len(frames), ref.rays_cast
 
-    frames, _, info = refcache.load_or_trace(out, f"{FOLDER}/reference", key, cams, trace, scene.render.background,
-                                             "composite", log)
-    return frames, info
+    return refcache.load_or_trace(out, folder, key, cams, trace, scene.render.background,
+                                  "composite" + (f" ({spp} spp)" if spp > 1 else ""), log)
 
 
 def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[dict]:
@@ -128,9 +128,9 @@ def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[di
     ctx = harness.ctx
     centre, radius = scene_sphere(bundle, scene)
     cams = cameras_for(scene.camera, centre, radius, *harness.target.size)
-    ref_frames, ref_info = reference_frames(out, bundle, scene, cams, log)
-    ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
-    sheet, rows = [("reference", ref8)], []
+    refs = scoring.References.traced(lambda spp, folder: reference_frames(out, bundle, scene, cams, log, spp, folder),
+                                     f"{FOLDER}/reference", opts.reference_spp, scene.render.background)
+    sheet, rows = [("reference", refs.filtered)], []
     entries = bundle.manifest["objects"]
     for k, chosen in enumerate(sets, start=1):
         def build(chosen=chosen):
@@ -141,13 +141,14 @@ def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[di
             return Composite(ctx, builds, centre, radius, scene.light, scene.render.shadow_map)
 
         label = set_label(chosen)
-        cost, frames = harness.measure(build, cams, f"composite {k}")
-        scores, heats, enc = scoring.score_frames(frames, ref8, [None] * len(frames), out, f"{FOLDER}/frames/{k}",
+        cost, frames, aliased = harness.measure(build, cams, f"composite {k}")
+        scores, heats, enc = scoring.score_frames(frames, refs.filtered, refs.classes, out, f"{FOLDER}/frames/{k}",
                                           f"{FOLDER}/heatmaps/{k}", opts.heat_max, scene.render.background, opts.flip,
                                           f"composite {k} scoring")
         row = {"set": k, "label": label, "variants": dict(chosen), "frames": len(cams),
                "expect_empty": all(o.expect_empty for o in scene.objects), **cost,
-               **summarise(scores), "device": device, "reference_cached": ref_info["cached"]}
+               **summarise(scores), **refs.aliased(aliased, frames, scene.render.background, scores), "device": device,
+               "reference_cached": refs.cached}
         rows.append(row)
         sheet += [(f"{k}: {label}", enc), (f"{k}: error", heats)]
         log(f"composite {k} ({label}): {scoring.row_line(row)}")

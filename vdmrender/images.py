@@ -10,11 +10,14 @@ from vdmbake.common.colour import to_srgb8
 
 
 def encode(linear_rgba: np.ndarray, background) -> np.ndarray:
-    """(H, W, 4) linear float + coverage -> (H, W, 4) uint8 sRGB over the background, alpha = coverage."""
-    cov = linear_rgba[..., 3] > 0
-    rgb = np.where(cov[..., None], np.nan_to_num(linear_rgba[..., :3], nan=0.0, posinf=1.0, neginf=0.0),
-                   np.asarray(background, np.float32))
-    return np.concatenate([to_srgb8(rgb), (cov * 255).astype(np.uint8)[..., None]], -1)
+    """(H, W, 4) linear float + coverage -> (H, W, 4) uint8 sRGB over the background, alpha = coverage (any
+    coverage > 0 at least 1). The colour is premultiplied by coverage, as a box-filtered frame holds it (a GL
+    frame's covered pixels have coverage 1): rgb + (1 - coverage) background."""
+    alpha = np.clip(np.nan_to_num(linear_rgba[..., 3], nan=0.0), 0.0, 1.0)
+    cov = alpha > 0
+    rgb = np.where(cov[..., None], np.nan_to_num(linear_rgba[..., :3], nan=0.0, posinf=1.0, neginf=0.0)
+                   + (1 - alpha[..., None]) * np.asarray(background, np.float32), np.asarray(background, np.float32))
+    return np.concatenate([to_srgb8(rgb), np.ceil(alpha * 255).astype(np.uint8)[..., None]], -1)
 
 
 def save_rgb(path: Path, rgba8: np.ndarray) -> None:

@@ -24,7 +24,7 @@ NOISE = 0.1   # a difference in median GPU time below this share is not taken as
               # configs/lod-bunny.toml on the shared 2-core llvmpipe machine moved by 14% in the median, 42% at p90:
               # there, bands below 32 px can flip between runs; README, "What to ship at each screen size")
 TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
-MEASURED = ("mean_dluv", "p95_dluv", "flip_mean", "iou", "median_ms", "spread_ms", "empty_frames")
+MEASURED = ("mean_dluv", "p95_dluv", "flip_mean", "iou", "aliased_mean_dluv", "median_ms", "spread_ms", "empty_frames")
 
 
 def meets(row: dict, limits: dict) -> bool:
@@ -73,11 +73,14 @@ def _object_chains(rows: list[dict], limits: dict, height: int) -> dict:
     return {**chain(rows, limits, height), **({"meshes_only": chain(meshes, limits, height)} if meshes else {})}
 
 
-def chains(sweep_rows: list[dict], lod_sets, device: str, resolution) -> dict:
-    """lod.json's content: per set of limits, per object, its chain."""
+def chains(sweep_rows: list[dict], lod_sets, device: str, resolution, filtering: dict | None = None) -> dict:
+    """lod.json's content: per set of limits, per object, its chain; `filtering`: what the errors judged are
+    against (report.json's: the reference's samples per pixel, the frames' anti-aliasing)."""
     objects = list(dict.fromkeys(r["object"] for r in sweep_rows))
+    filtering = filtering or {"reference_spp": 1, "antialias": "none"}
     return {"device": device, "resolution": list(resolution), "sizes_px": sorted({r["size_px"] for r in sweep_rows},
                                                                                   reverse=True),
+            "error": {"reference_spp": filtering["reference_spp"], "antialias": filtering["antialias"]},
             "band": "an entry is chosen where the object's bounding sphere spans more than min_px and at most "
                     "max_px pixels on screen; screen_coverage: the same as shares of the frame's height",
             "rule": __doc__.split("\n\n", 1)[1].replace("\n", " "),
@@ -92,8 +95,10 @@ def table(lod: dict) -> str:
     def num(x, digits):
         return "-" if x is None else f"{x:.{digits}f}"
 
+    seen = lod.get("error") or {"reference_spp": 1, "antialias": "none"}
     lines = [f"LOD chains on {lod['device']}, frame {lod['resolution'][0]}x{lod['resolution'][1]}, sizes measured "
-             f"{', '.join(map(str, lod['sizes_px']))} px. {lod['rule']}", ""]
+             f"{', '.join(map(str, lod['sizes_px']))} px; errors against the reference at {seen['reference_spp']} "
+             f"samples per pixel, frames anti-aliased {seen['antialias']}. {lod['rule']}", ""]
     for c in lod["chains"]:
         limits = ", ".join(f"{k} {'>=' if k == 'iou' else '<='} {v:g}" for k, v in c["limits"].items())
         for obj, ch in c["objects"].items():

@@ -2,7 +2,8 @@
 its GPU time by timer queries (vdmrender.timing), the GPU's clocks around the timing where NVML is there
 (vdmrender.device: a clock that moved means the time did not hold), its work in device-independent
 counters (vdmrender.counters: one more frame per camera from an instrumented build), and its frames read
-back for scoring."""
+back for scoring: as shipped, under the run's anti-aliasing mode (vdmrender.antialias; what is timed and
+counted), and point-sampled, one sample per pixel (the `aliased_*` error beside the filtered one)."""
 from __future__ import annotations
 
 import os
@@ -11,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import counters, device, gl, timing
+from . import antialias, counters, device, gl, timing
 
 
 # Test-only knob: VDM_TEST_DOUBLE_PASS=NAME runs every pass of that name twice, timed and counted (a regression
@@ -47,28 +48,37 @@ def is_light_pass(name: str) -> bool:
 class Harness:
     """One run's GL context, frame target, timer and budget, shared by every variant it measures."""
     ctx: object
-    target: gl.Target
+    target: gl.Target           # the frame's size, one sample per pixel
     budget: timing.Budget
     count: bool = True          # also count each variant's work (an instrumented build, one frame per camera)
+    aa: str = "none"            # the anti-aliasing mode variants are timed, counted and scored in (vdmbake.scene.ANTIALIAS)
 
     def __post_init__(self):
-        self.timer = timing.FrameTimer(self.ctx, self.target)
+        self.shipped = self.target if self.aa == "none" else antialias.target(self.ctx, *self.target.size, self.aa)
+        self.timer = timing.FrameTimer(self.ctx, self.shipped)
+        self.plain = timing.FrameTimer(self.ctx, self.target)
         self.clears = []
+
+    def _shipped(self, renderer):
+        """The renderer as the run ships it: drawing into the anti-aliased target, then its resolve."""
+        return renderer if self.aa == "none" else antialias.Resolved(renderer)
 
     def clear_ms(self) -> float | None:
         """The harness's clear of the target (timed after each variant's sampling, while the clocks are as
         warm as the variants'; median over variants): not charged to any technique."""
         return round(float(np.median(self.clears)), 4) if self.clears else None
 
-    def measure(self, build: Callable, cams, desc: str) -> tuple[dict, list]:
-        """Build a renderer, time its frames, read them back, release it: (row fields, frames)."""
+    def measure(self, build: Callable, cams, desc: str) -> tuple[dict, list, list]:
+        """Build a renderer, time its frames, read them back, release it: (row fields, frames as shipped, frames
+        point-sampled: the same list without anti-aliasing)."""
         renderer = built(build)
         try:
             before = device.nvml_clocks()
-            stats, frames = timing.time_variant(self.timer, renderer, cams, self.budget, desc)
+            stats, frames = timing.time_variant(self.timer, self._shipped(renderer), cams, self.budget, desc)
             self.clears.append(self.timer.clear_ms())
             after = device.nvml_clocks()
             stats["faces"] = getattr(renderer, "faces", None)
+            aliased = frames if self.aa == "none" else [self.plain.read(renderer, c, k) for k, c in enumerate(cams)]
         finally:
             renderer.release()
         if self.count:
@@ -76,7 +86,7 @@ class Harness:
         if before and after and len(after["gpus"]) == 1:   # with several, NVML's order is not EGL's
             stats["sm_clock_mhz"] = [before["gpus"][0]["sm_clock_mhz"], after["gpus"][0]["sm_clock_mhz"]]
             stats["clock_reasons"] = after["gpus"][0]["clock_reasons"]
-        return stats, frames
+        return stats, frames, aliased
 
     def counted(self, build: Callable, cams) -> tuple[dict, dict, dict]:
         """The variant's work over every camera's frame (exact integers: a --baseline compares them exactly),
@@ -85,7 +95,7 @@ class Harness:
         with counters.counting(self.ctx):
             renderer = built(build)
         try:
-            c = counters.count_frames(self.ctx, renderer, cams, self.target)
+            c = counters.count_frames(self.ctx, self._shipped(renderer), cams, self.shipped)
             total, passes, covered = c["total"], c["passes"], c["covered"]
             total.update(covered=covered, bytes=counters.resident_bytes(renderer))
         finally:
@@ -97,4 +107,6 @@ class Harness:
         return total, passes, per_pixel
 
     def release(self) -> None:
+        if self.shipped is not self.target:
+            self.shipped.release()
         self.target.release()

@@ -48,7 +48,8 @@ def compare(frame: np.ndarray, reference: np.ndarray, classes: np.ndarray | None
     """Error of one frame against the reference; both (H, W, 4) uint8 sRGB + coverage alpha.
 
     Vichitvejpaisal2005 eq. 2.2 averages over object pixels; here those are the union of both coverage masks,
-    so a missing or an extra silhouette pixel counts. `classes` (vdmrender.borders, (H, W)): pixels
+    so a missing or an extra silhouette pixel counts. The IoU weighs each pixel by its coverage (box-filtered
+    frames cover edge pixels in part; for frames covering pixels wholly or not at all it is the masks' IoU). `classes` (vdmrender.borders, (H, W)): pixels
     that see an open border or the surface from inside are scored apart ("apart": their count and
     values); "mean" and "iou" are over the other, surface pixels, "mean_all" and "iou_all" over every
     pixel. A frame with no pixel to score has no data: it is `empty`, its mean and IoU are None, never
@@ -56,11 +57,13 @@ def compare(frame: np.ndarray, reference: np.ndarray, classes: np.ndarray | None
     """
     a, b = frame[..., 3] > 0, reference[..., 3] > 0
     union = a | b
+    both, either = np.minimum(frame[..., 3], reference[..., 3]), np.maximum(frame[..., 3], reference[..., 3])
     dist = delta_luv(frame[..., :3], reference[..., :3])
     apart = np.zeros_like(union) if classes is None else (classes != 0)
     scored = union & ~apart
     d = dist[scored]
-    iou = lambda m: float((a & b & m).sum() / (union & m).sum()) if (union & m).any() else None  # noqa: E731
+    # coverage overlap: intersection over union of the coverage fractions (of the masks where both are 0 or 1)
+    iou = lambda m: float(both[m].sum(dtype=np.int64) / either[m].sum(dtype=np.int64)) if (union & m).any() else None  # noqa: E731
     return {"dist": np.where(union, dist, 0.0), "union": union, "scored": scored, "values": d, "empty": not scored.any(),
             "mean": float(d.mean()) if d.size else None, "iou": iou(~apart),
             "mean_all": float(dist[union].mean()) if union.any() else None, "iou_all": iou(np.ones_like(union)),

@@ -31,10 +31,10 @@ def reference_code(mesostructure: bool) -> str:
     return code_fingerprint(imported_closure(roots))
 
 
-def reference_key(geometry: dict, cams, light, material, background, code: str) -> str:
+def reference_key(geometry: dict, cams, light, material, background, code: str, spp: int = 1) -> str:
     """The cache key of a reference: what it traces, under which light, material, background and cameras,
-    with which code."""
-    blob = {"code": code, "geometry": geometry, "light": asdict(light), "material": asdict(material),
+    at how many samples per pixel, with which code."""
+    blob = {"code": code, "geometry": geometry, "light": asdict(light), "material": asdict(material), "spp": spp,
             "background": list(background),
             "cameras": [[c.eye.tolist(), c.target.tolist(), c.up.tolist(), c.fov_deg, c.width, c.height,
                          c.near, c.far] for c in cams]}
@@ -118,17 +118,18 @@ def load_or_trace(out, folder: str, key: str, cams, trace, background, what: str
 
 
 def object_frames(out, obj, entry, bundle, scene, cams, log, folder: str | None = None,
-                  what: str | None = None) -> tuple[list, list, dict]:
-    """One object's reference frames (in `folder`, reference/OBJECT by default; logged as `what`) and, for a
-    mesostructure object, each frame's pixel classes (vdmrender.borders: open border, inside)."""
+                  what: str | None = None, spp: int = 1) -> tuple[list, list, dict]:
+    """One object's reference frames (in `folder`, reference/OBJECT by default; logged as `what`) at `spp` samples
+    per pixel (reference.filtered) and, for a mesostructure object, each frame's pixel classes
+    (vdmrender.borders: open border, inside; of the pixel centres)."""
     key = reference_key(reference_geometry(obj, entry, bundle), cams, scene.light, obj.material,
-                        scene.render.background, reference_code(obj.mesostructure is not None))
+                        scene.render.background, reference_code(obj.mesostructure is not None), spp)
 
     def trace(cams):
         ref, skirt = object_reference(obj, entry, bundle, scene)
-        frames = [ref.render(c) for c in cams]
+        frames = [reference.filtered(ref.render, c, spp) for c in cams]
         classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
         return frames, classes, ref.scene.rays_cast
 
     return load_or_trace(out, folder or f"reference/{obj.name}", key, cams, trace, scene.render.background,
-                         what or obj.name, log)
+                         f"{what or obj.name}" + (f" ({spp} spp)" if spp > 1 else ""), log)

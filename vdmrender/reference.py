@@ -1,7 +1,10 @@
-"""The references, independent of the GL path: a primary ray through every pixel centre plus
-one shadow ray per hit, shaded in float64 with the numpy twin of the shared model.
-Meshes are traced by Embree; spheres and cylinders analytically in float64."""
+"""The references, independent of the GL path: a primary ray through every pixel centre (or through N x N
+stratified points of every pixel, box-filtered: `filtered`) plus one shadow ray per hit, shaded in float64
+with the numpy twin of the shared model. Meshes are traced by Embree; spheres and cylinders analytically in
+float64."""
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -43,11 +46,11 @@ class MeshReference:
         """Shadow rays from other objects (composite frames): (N,) True where this mesh blocks them."""
         return self.scene.occluded(origins, dirs)
 
-    def render(self, camera, others=(), depth: bool = False):
+    def render(self, camera, others=(), depth: bool = False, offset=None):
         """(H, W, 4) float32: linear RGB and coverage, row 0 at the top. others: references whose
         objects also block this one's shadow rays (composite frames); depth: also return each pixel's view
-        depth (_depth)."""
-        eye, d = camera.pixel_rays()
+        depth (_depth); offset: each pixel's ray through this point of it (Camera.pixel_rays), not its centre."""
+        eye, d = camera.pixel_rays(offset)
         # Start on the near plane and stop at the far plane, as the rasteriser clips (d has view depth 1).
         hits = self.scene.intersect(eye + d * camera.near, d, camera.far - camera.near)
         hit = hits.prim >= 0
@@ -213,9 +216,9 @@ class QuadricReference:
                                         np.zeros(len(origins)), np.full(len(origins), np.inf), stop_at_any=True)
         return np.isfinite(t)
 
-    def render(self, camera, others=(), depth: bool = False):
+    def render(self, camera, others=(), depth: bool = False, offset=None):
         """As MeshReference.render."""
-        eye, d = camera.pixel_rays()
+        eye, d = camera.pixel_rays(offset)
         scale = np.linalg.norm(d, axis=1)         # d has view depth 1: near/far become distances
         du = d / scale[:, None]
         t, n, idx = self.tracer.first_hit(np.ascontiguousarray(eye), du, camera.near * scale, camera.far * scale)
@@ -246,8 +249,34 @@ class CompositeReference:
     def rays_cast(self) -> int:
         return sum(r.scene.rays_cast for r in self.refs)
 
-    def render(self, camera) -> np.ndarray:
-        out = [r.render(camera, [o for o in self.refs if o is not r], depth=True) for r in self.refs]
+    def render(self, camera, offset=None) -> np.ndarray:
+        out = [r.render(camera, [o for o in self.refs if o is not r], depth=True, offset=offset) for r in self.refs]
         depth = np.stack([d for _, d in out])
         nearest = depth.argmin(0)[None, ..., None]            # ties go to the first object of the scene
         return np.take_along_axis(np.stack([f for f, _ in out]), nearest, 0)[0]
+
+
+def strata(camera, spp: int):
+    """The N x N sample points of every pixel (spp = N^2), one per stratum (cell of an N x N grid), jittered
+    within it (stratified sampling: error on an edge falls as 1/N, no grid pattern to alias with the scene's);
+    seeded per stratum, so a run's reference is deterministic. Yields (H, W, 2) offsets (Camera.pixel_rays)."""
+    n = math.isqrt(spp)
+    if n == 1:
+        yield None   # the pixel centre: the point-sampled reference, as every GL frame without AA samples
+        return
+    for k in range(spp):
+        jitter = np.random.default_rng(k).random((camera.height, camera.width, 2))
+        yield (np.array([k % n, k // n]) + jitter) / n
+
+
+def filtered(render, camera, spp: int) -> np.ndarray:
+    """The box-filtered frame of `render(camera, offset=...)` (a reference's render): the mean over the pixel's
+    stratified samples (strata) of linear RGB times coverage, and of coverage, i.e. premultiplied colour and the
+    fraction of the pixel the object covers; what a viewer sees of the pixel over the background is then
+    rgb + (1 - coverage) background (images.encode)."""
+    total = np.zeros((camera.height, camera.width, 4))
+    for offset in strata(camera, spp):
+        f = render(camera, offset=offset).astype(np.float64)
+        total[..., :3] += f[..., :3] * f[..., 3:]
+        total[..., 3] += f[..., 3]
+    return (total / spp).astype(np.float32)

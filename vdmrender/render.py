@@ -67,6 +67,15 @@ class Options:
     compare_devices: bool = False                # compare times with a baseline from another device
     counters: bool = True                        # count each variant's work (vdmrender.counters)
     sizes: tuple[int, ...] | None = None         # screen-size sweep (vdmrender.sweep), overrides render.sweep.sizes
+    reference_spp: int | None = None             # the reference's samples per pixel, overrides render.reference_spp
+    antialias: str | None = None                 # the variants' anti-aliasing (vdmbake.scene.ANTIALIAS), overrides render.antialias
+
+
+def filtering(opts: Options, scene) -> Options:
+    """The options with the reference's samples per pixel and the anti-aliasing mode resolved (the scene's where
+    the options leave them)."""
+    return dataclasses.replace(opts, reference_spp=opts.reference_spp or scene.render.reference_spp,
+                               antialias=opts.antialias or scene.render.antialias)
 
 
 def check_memory(width: int, height: int, available: int | None = None, geometry: tuple[int, str] = (0, "")) -> None:
@@ -129,7 +138,10 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     plan = budget(opts, scene)
     only = _technique_filter(opts, scene)
     old = baseline.load(opts.baseline) if opts.baseline else None
+    opts = filtering(opts, scene)
+    ssaa = int(opts.antialias[4:]) if opts.antialias.startswith("ssaa") else 1
     check_memory(width, height, geometry=geometry_bytes(bundle))
+    check_memory(ssaa * width, ssaa * height)   # the supersampled target (llvmpipe keeps it in RAM)
     ctx = gl.create_context(opts.device)
     device = gl.renderer_name(ctx)
     why_not = old and baseline.times_comparable(old, {"time": "gpu", "device": device}, opts.compare_devices)
@@ -138,7 +150,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         raise InputError(f"--max-slowdown with --baseline {opts.baseline}: {why_not}.")
     device_info, nvml = gpu.describe(ctx), gpu.nvml_clocks()
     out = StagedDir(out_path, "report.json", "vdmrender output folder")
-    harness = measure.Harness(ctx, gl.Target(ctx, width, height), plan, opts.counters)
+    harness = measure.Harness(ctx, gl.Target(ctx, width, height), plan, opts.counters, opts.antialias)
     try:
         # the sweep first: its LOD chains choose per copy in an instanced object's lod@CHAIN row
         sized = {}
@@ -147,7 +159,8 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
             rows_by_size = _sweep(harness, out, bundle, scene, only, opts, device, log, sorted(sizes, reverse=True))
             sized["sweep"] = {"sizes_px": sorted(sizes, reverse=True), "how": SWEEP, "rows": rows_by_size}
             if scene.render.sweep and scene.render.sweep.lod:
-                sized["lod"] = lod.chains(rows_by_size, scene.render.sweep.lod, device, (width, height))
+                sized["lod"] = lod.chains(rows_by_size, scene.render.sweep.lod, device, (width, height),
+                                          filtering_note(opts))
                 for c in sized["lod"]["chains"]:
                     for obj, ch in c["objects"].items():
                         log(f"LOD chain {c['name']} of {obj}: " + ", ".join(
@@ -168,7 +181,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                            "mean_dluv_apart, and every pixel together in mean_dluv_all, iou_all",
                   "flip": "NVIDIA FLIP (LDR, 67 pixels per degree) of the sRGB frames, averaged over the same "
                           "pixels as the error (flip_mean pools a variant's frames like mean_dluv)" if opts.flip else "not computed",
-                  "heatmap_max_dluv": opts.heat_max, "rows": rows}
+                  "heatmap_max_dluv": opts.heat_max, "filtering": filtering_note(opts), "rows": rows}
         if composite_rows:   # render.composite: every object in one frame, per variant set (vdmrender.composite)
             result["composite"] = composite_rows
         result.update(sized)
@@ -192,18 +205,29 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     return result
 
 
-def _measure(harness, v, cams, ref8, classes, out, obj, opts, background, prefix="", what=None):
+def filtering_note(opts: Options) -> dict:
+    """How the frames and the reference were filtered (report.json's `filtering`)."""
+    n = int(opts.reference_spp ** 0.5)
+    return {"reference_spp": opts.reference_spp, "reference_filter": "box" if n > 1 else "none (pixel centre)",
+            "reference_samples": f"{n} x {n} stratified, jittered within each stratum (seeded)" if n > 1 else "1",
+            "antialias": opts.antialias,
+            "aliased": "aliased_*: the variant's frames without anti-aliasing against the pixel-centre reference "
+                       "(one sample per pixel on both sides), beside the error against what a viewer sees"}
+
+
+def _measure(harness, v, cams, refs, out, obj, opts, background, prefix="", what=None):
     """One variant: time it, read its frames back, compare each with the reference, write its
     frames and heat maps (under `prefix`). Returns its report row and the frames and heat maps for the
     overview. A frame with no pixel to score has no data: it is flagged `empty`, has no error, counts in
     `empty_frames` and stays out of the row's averages (metrics.summarise)."""
     name, what = obj.name, what or obj.name
-    cost, frames = harness.measure(lambda: v.build(harness.ctx), cams, f"{what}: {v.label}")
-    scores, heats, enc = scoring.score_frames(frames, ref8, classes, out, f"{prefix}frames/{name}/{v.label}",
+    cost, frames, aliased = harness.measure(lambda: v.build(harness.ctx), cams, f"{what}: {v.label}")
+    scores, heats, enc = scoring.score_frames(frames, refs.filtered, refs.classes, out, f"{prefix}frames/{name}/{v.label}",
                                       f"{prefix}heatmaps/{name}/{v.label}", opts.heat_max, background, opts.flip,
                                       f"{what}: {v.label} scoring")
     row = {"object": name, "technique": v.technique, "knob": v.knob, "value": v.value, "label": v.label,
-           "frames": len(cams), "expect_empty": obj.expect_empty, **cost, **summarise(scores)}
+           "frames": len(cams), "expect_empty": obj.expect_empty, **cost, **summarise(scores),
+           **refs.aliased(aliased, frames, background, scores)}
     return row, enc, heats
 
 
@@ -211,14 +235,13 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, 
     """One object's variants from cameras `cams`, against its reference: their report rows; frames, heat maps,
     reference and overview sheet written under `prefix` (a screen-size sweep's sizes/NNNpx/)."""
     entry, what = bundle.manifest["objects"][obj.name], what or obj.name
-    ref_frames, ref_classes, ref_info = refcache.object_frames(out, obj, entry, bundle, scene, cams, log,
-                                                               f"{prefix}reference/{obj.name}", what)
-    ref8 = [images.encode(f, scene.render.background) for f in ref_frames]
-    sheet, rows = [("reference", ref8)], []
+    refs = scoring.References.traced(
+        lambda spp, folder: refcache.object_frames(out, obj, entry, bundle, scene, cams, log, folder, what, spp),
+        f"{prefix}reference/{obj.name}", opts.reference_spp, scene.render.background)
+    sheet, rows = [("reference", refs.filtered)], []
     for v in chosen:
-        row, enc, heats = _measure(harness, v, cams, ref8, ref_classes, out, obj, opts, scene.render.background,
-                                   prefix, what)
-        rows.append({**row, "device": device, "reference_cached": ref_info["cached"]})
+        row, enc, heats = _measure(harness, v, cams, refs, out, obj, opts, scene.render.background, prefix, what)
+        rows.append({**row, "device": device, "reference_cached": refs.cached})
         sheet += [(v.label, enc), (f"{v.label} error", heats)]
         log(f"{what}: {v.label:>14}  {scoring.row_line(row)}"
             + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")

@@ -4,8 +4,47 @@ from __future__ import annotations
 
 import numpy as np
 
+from dataclasses import dataclass
+
 from . import images, progress
 from .metrics import compare, flip_values
+
+
+@dataclass
+class References:
+    """An object's or a composite's reference frames as scoring reads them (uint8 sRGB over the background,
+    coverage alpha): `filtered`, at the run's samples per pixel (what a viewer sees; the error that decides),
+    and `point`, the pixel-centre reference the `aliased_*` error is against (the same list at 1 spp)."""
+    filtered: list
+    classes: list
+    point: list
+    cached: bool
+
+    @classmethod
+    def traced(cls, load, folder: str, spp: int, background) -> "References":
+        """load(spp, folder) -> (frames, classes, info), refcache.load_or_trace's: the filtered reference in
+        `folder`, and at more than 1 spp the pixel-centre one in FOLDER/point."""
+        frames, classes, info = load(spp, folder)
+        filtered = [images.encode(f, background) for f in frames]
+        if spp == 1:
+            return cls(filtered, classes, filtered, info["cached"])
+        point, _, point_info = load(1, f"{folder}/point")
+        return cls(filtered, classes, [images.encode(f, background) for f in point],
+                   info["cached"] and point_info["cached"])
+
+    def aliased(self, frames, shipped, background, scores) -> dict:
+        """The `aliased_*` fields of a row: its point-sampled frames (measure.Harness) against the pixel-centre
+        reference, mean and p95 ΔLuv and IoU as the row's own (`scores`: score_frames' of the frames as `shipped`,
+        which are these when neither side is filtered)."""
+        if self.point is self.filtered and frames is shipped:
+            cs = scores
+        else:
+            cs = [compare(images.encode(f, background), r8, cls) for f, r8, cls in zip(frames, self.point, self.classes)]
+        d = np.concatenate([c["values"] for c in cs])
+        ious = [c["iou"] for c in cs if not c["empty"]]
+        return {"aliased_mean_dluv": round(float(d.mean()), 4) if d.size else None,
+                "aliased_p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else None,
+                "aliased_iou": round(float(np.mean(ious)), 6) if ious else None}
 
 
 def score_frames(frames, ref8, classes, out, frame_dir: str, heat_dir: str, heat_max, background, flip, desc: str):

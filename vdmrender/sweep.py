@@ -15,7 +15,7 @@ from .report import flat as report_flat
 
 COLUMNS = ["object", "size_px", "distance_radii", "label", "technique", "value", "median_ms", "spread_ms", "q1_ms",
            "q3_ms", "fragments_px", "fetches_px", "steps_px", "mean_dluv", "p95_dluv", "flip_mean", "iou",
-           "empty_frames", "frames", "device"]
+           "aliased_mean_dluv", "aliased_p95_dluv", "aliased_iou", "empty_frames", "frames", "device"]
 
 
 def distance_for(size_px: float, radius: float, fov_deg: float, height: int) -> float:
@@ -46,13 +46,22 @@ def write(folder: Path, report: dict) -> None:
         w.writeheader()
         w.writerows(report_flat(r) for r in rows)   # per-pixel work spelled as report.csv spells it
     for name, field, label, log in (
-            ("error_vs_size.png", "mean_dluv", "mean ΔL*u*v* against the reference (eq. 2.2)", False),
+            ("error_vs_size.png", "mean_dluv", f"mean ΔL*u*v* against the reference (eq. 2.2)\n{seen(report)}", False),
             ("cost_vs_size.png", "median_ms", "median GPU time per frame, timer queries [ms] (log)", True)):
         plot(folder / name, report, field, label, log)
 
 
+def seen(report: dict) -> str:
+    """What the error plot's solid lines compare: the reference's filter and the frames' anti-aliasing."""
+    f = report.get("filtering") or {"reference_spp": 1, "antialias": "none"}
+    solid = f"reference {f['reference_spp']} spp, frames AA {f['antialias']}"
+    return solid + ("; dashed: 1 spp both" if f["reference_spp"] > 1 or f["antialias"] != "none" else "")
+
+
 def plot(path: Path, report: dict, field: str, ylabel: str, log_y: bool) -> None:
-    """`field` against the object's size on screen, one panel per object, one line per variant."""
+    """`field` against the object's size on screen, one panel per object, one line per variant; the error
+    against what a viewer sees (filtered: report.json's `filtering`) solid, its point-sampled `aliased_` twin
+    dashed in the same colour where the two differ."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -65,7 +74,12 @@ def plot(path: Path, report: dict, field: str, ylabel: str, log_y: bool) -> None
         mine = [r for r in rows if r["object"] == obj]
         for label in dict.fromkeys(r["label"] for r in mine):
             pts = sorted((r["size_px"], r[field]) for r in mine if r["label"] == label and r[field] is not None)
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=label, markersize=3)
+            line, = ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label=label, markersize=3)
+            twin = sorted((r["size_px"], r.get(f"aliased_{field}")) for r in mine
+                          if r["label"] == label and r.get(f"aliased_{field}") is not None)
+            if twin and [p[1] for p in twin] != [p[1] for p in pts]:
+                ax.plot([p[0] for p in twin], [p[1] for p in twin], "--", color=line.get_color(), linewidth=0.8,
+                        alpha=0.7)
         ax.set_xscale("log", base=2)
         sizes = sorted({r["size_px"] for r in mine})
         ax.set_xticks(sizes, [str(s) for s in sizes])

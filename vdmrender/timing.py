@@ -84,6 +84,11 @@ class FrameTimer:
             passes.update({k: max(rest, 0.0) / len(over) for k in over})
         return Sample(index, wall if over else sum(passes.values()), wall, (t1 - t0) * 1e3, passes, bool(over))
 
+    def read(self, renderer, camera, index: int = 0):
+        """One frame of `renderer`, untimed, read back (linear RGBA float32, row 0 at the top)."""
+        self.frame(renderer, camera, index)
+        return self.target.read()
+
     def clear_ms(self, count: int = 5) -> float:
         """The harness's own clear of the target, timed apart (median GPU ms of `count`)."""
         q, out = self._query(0), []
@@ -160,8 +165,4 @@ def time_variant(timer: FrameTimer, renderer, cams, budget: Budget, desc: str = 
     t0 = time.perf_counter()
     samples = sample(timer, renderer, cams, budget, desc)
     stats = summarise(samples, warm, time.perf_counter() - t0)
-    frames = []
-    for k, cam in enumerate(cams):
-        timer.frame(renderer, cam, k)
-        frames.append(timer.target.read())
-    return stats, frames
+    return stats, [timer.read(renderer, cam, k) for k, cam in enumerate(cams)]
