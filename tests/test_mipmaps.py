@@ -164,3 +164,42 @@ def frame_of(ctx, renderer, cam) -> np.ndarray:
         return target.read()
     finally:
         target.release()
+
+
+# ----------------------------------------------------------------------------- colour maps of billboards and atlases
+
+@pytest.fixture(scope="module")
+def bunny(tmp_path_factory):
+    """pymeshlab's textured bunny baked for billboards (both renderers) and an octahedral atlas, small maps."""
+    pytest.importorskip("pymeshlab")   # a test extra: only its sample meshes are used
+    d = tmp_path_factory.mktemp("bunny")
+    (d / "s.toml").write_text(f"""
+[render]
+resolution = [{SIZE}, {SIZE}]
+shadow_map = 256
+[camera]
+up = [0, 0, 1]
+orbit = {{ count = 1, elevation_deg = 20, azimuth_deg = 30, distance = 2.6, fov_deg = 40 }}
+[[objects]]
+name = "bunny"
+mesh = "pkg:pymeshlab/tests/sample_meshes/bunny10k_textured.obj"
+transform = {{ rotate_deg = [90, 0, 0] }}
+[objects.techniques]
+billboards = {{ variants = ["greedy-hier", "greedy-improved"], resolution = 64 }}
+octahedral = {{ variants = ["full-5x64-march"] }}
+""")
+    bake(d / "s.toml", d / "b.bundle")
+    bundle, scene, obj, entry, cams = interleave.scene_of(d / "b.bundle")
+    return (bundle, scene, obj, entry), cams[0]
+
+
+@pytest.mark.parametrize("label", ["billboards@greedy-hier", "billboards@greedy-improved", "octahedral@full-5x64-march"])
+def test_colour_maps_are_read_at_the_footprints_level(ctx, bunny, label):
+    """The bunny 32 px across: with mipmaps its colour maps are read above level 0 (the colours change, finite),
+    the coverage and the searched depth do not (the same pixels, the same shading besides the colour)."""
+    baked, cam = bunny
+    on, off = builds(baked, True)[label], builds(baked, False)[label]
+    a, b = frame(ctx, on(ctx), cam), frame(ctx, off(ctx), cam)
+    assert np.isfinite(a).all()
+    np.testing.assert_array_equal(a[..., 3], b[..., 3])
+    assert np.abs(a - b)[..., :3].max() > 0.01

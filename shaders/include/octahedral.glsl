@@ -9,12 +9,16 @@
 // HEMI: the views cover the upper hemisphere of u_basis (hemi-octahedral map), else the full sphere.
 // ALBEDO_ATLAS: u_albedo_atlas, laid out as u_atlas, holds the surface's linear albedo (an asset with its own
 // colours; the covered neighbours' mean around silhouettes), read at each view's hit and blended as the normal.
+// MIPMAPS (the scene's render.mipmaps): u_albedo_atlas holds colour x coverage and coverage with a short mip
+// chain (passes/boards.py covered_colours; octahedral.py MAX_LEVEL), read at the level of the hit coordinate's
+// derivatives, taken where every pixel of the quad runs them; rgb / a is the mean colour of what the footprint
+// covers. u_atlas is searched (depth) and its normals are decoded per texel: it stays at level 0.
 // Counts (cost_count.glsl): each view searched is a search; MARCH's steps are its samples and bisections,
 // VIRTUAL's one parallax step is one.
 #include "cost_count.glsl"
 uniform sampler2D u_atlas;
 #if defined(ALBEDO_ATLAS)
-uniform sampler2D u_albedo_atlas;   // RGB16F, linear filtering
+uniform sampler2D u_albedo_atlas;   // RGB16F, linear filtering (MIPMAPS: RGBA16F, premultiplied, mip-mapped)
 #endif
 uniform int u_views;          // N: views per side
 uniform mat3 u_basis;         // world -> map frame (z up)
@@ -232,7 +236,13 @@ bool impostor_hit(vec3 p0, vec3 seg, float radius, out float t, out vec3 n, out 
         vec3 nk = w[k] * atlas_normal(texel, e, u, v);
         if (kind != UNKNOWN) seen += w[k];
         if (kind == HIT) { hit += w[k]; tsum += w[k] * th; nhit += nk; }
-#if defined(ALBEDO_ATLAS)
+#if defined(ALBEDO_ATLAS) && defined(MIPMAPS)
+        vec2 at = (vec2(view[k]) + (o + d * th).xy) / float(u_views), gx = dFdx(at), gy = dFdy(at);
+        if (kind == HIT) {
+            vec4 c = FETCH(textureGrad(u_albedo_atlas, at, gx, gy));
+            chit += w[k] * c.rgb / max(c.a, 1e-4);
+        }
+#elif defined(ALBEDO_ATLAS)
         if (kind == HIT) chit += w[k] * FETCH(texture(u_albedo_atlas, (vec2(view[k]) + (o + d * th).xy) / float(u_views))).rgb;
 #endif
     }

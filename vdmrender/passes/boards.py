@@ -55,15 +55,38 @@ def pushed(view_proj, behind: float, *, eye=None, light=None, radius: float = 0.
     return {"u_mvp": view_proj @ translation(-np.asarray(light, np.float64) * behind)}
 
 
-def albedo_maps(ctx, bordered):
+def albedo_maps(ctx, bordered, boards=None):
     """The billboards' colour maps (Vichitvejpaisal2005 §3.1; vdmbake.kernels.billboard_maps.albedo_texels, bordered like
     their normal and depth maps) as one RGB16F texture array, linear filtering, one layer per billboard;
-    None where the bake stored none (an asset without colours: the material's albedo)."""
+    None where the bake stored none (an asset without colours: the material's albedo). boards (their alpha maps),
+    given under the scene's render.mipmaps: the colours weighted by coverage with their mip chain (covered_colours)."""
     if not bordered or any(m.albedo is None for m in bordered):
         return None
-    data = np.stack([np.asarray(m.albedo, np.float16) for m in bordered])
-    tex = ctx.texture_array((data.shape[2], data.shape[1], len(bordered)), 3, data.tobytes(), dtype="f2")
+    data = np.stack([np.asarray(m.albedo, np.float32) for m in bordered])
+    if boards is not None:
+        return covered_colours(ctx, data, np.stack([np.pad(np.asarray(b.alpha) > 0.5, 1) for b in boards]))
+    tex = ctx.texture_array((data.shape[2], data.shape[1], len(bordered)), 3, data.astype(np.float16).tobytes(),
+                            dtype="f2")
     tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    tex.repeat_x = tex.repeat_y = False
+    return tex
+
+
+def covered_colours(ctx, colour: np.ndarray, covered: np.ndarray, max_level: int = 1000):
+    """Colour maps of what a view or billboard covers, mip-mapped where a level must average the covered texels
+    only (the scene's render.mipmaps): RGBA16F of (colour x coverage, coverage), a texture array for (layers, h, w)
+    and a texture for (h, w). GL's chain averages both, so rgb / a (board_albedo.glsl, octahedral.glsl under
+    MIPMAPS) is the mean colour of the covered texels of the footprint at every level; a chain of the colours
+    themselves would mix in the empty texels (0 past the bake's few rings of fill) and darken every silhouette
+    as the level grows. max_level: the last level built (the octahedral atlas's tiles share one texture)."""
+    w = np.asarray(covered, np.float32)[..., None]
+    data = np.ascontiguousarray(np.concatenate([colour * w, w], -1), np.float16)
+    if data.ndim == 4:
+        tex = ctx.texture_array((data.shape[2], data.shape[1], data.shape[0]), 4, data.tobytes(), dtype="f2")
+    else:
+        tex = ctx.texture((data.shape[1], data.shape[0]), 4, data.tobytes(), dtype="f2")
+    tex.build_mipmaps(0, max_level)
+    tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
     tex.repeat_x = tex.repeat_y = False
     return tex
 

@@ -68,12 +68,13 @@ def surface_points(b) -> np.ndarray:
 
 class Billboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, method: str = "improved",
-                 hit_range: float = 0.01, coarse=None, bounds=None, instances=None):
+                 hit_range: float = 0.01, coarse=None, bounds=None, instances=None, mipmaps: bool = False):
         """boards: vdmbake.bundle.parts.Billboard (origin, axes, size, alpha, depth, normal maps); bordered: their
         vdmbake.bundle.parts.BorderedMaps; coarse: an optional TriMesh drawn with them; bounds: (centre, radius) of
         the model, which fits the shadow map (default: the box of the covered texels' points, and of the
         coarse mesh); instances: (N, 4, 4) world matrices of the object's copies (vdmbake.common.instances),
-        every copy in one instanced draw per pass, the shadow map covering them all (None: drawn once)."""
+        every copy in one instanced draw per pass, the shadow map covering them all (None: drawn once); mipmaps: the
+        colour maps and the coarse mesh's albedo map mip-mapped (the scene's render.mipmaps)."""
         if method not in METHODS:
             raise InputError(f"billboards: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
         if not hit_range > 0:
@@ -133,9 +134,9 @@ class Billboards(Passes):
                 t.repeat_x = t.repeat_y = False
             vbuf = ctx.buffer(np.ascontiguousarray(vertices, np.float32).tobytes())
             lbuf = ctx.buffer(layers.tobytes())
-            self.albedo_maps = albedo_maps(ctx, bordered)
+            self.albedo_maps = albedo_maps(ctx, bordered, boards if mipmaps else None)
             self.objects += [self.maps, self.alpha, vbuf, lbuf, self.albedo_maps]
-            shaded = ("ALBEDO_MAPS",) if self.albedo_maps is not None else ()
+            shaded = ("ALBEDO_MAPS",) + (("MIPMAPS",) if mipmaps else ()) if self.albedo_maps is not None else ()
             for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
                 prog = gl.program(ctx, "billboard.vert", "billboard.frag", defines + extra)
                 vao = gl.vertex_array(ctx, prog, [
@@ -143,7 +144,8 @@ class Billboards(Passes):
                     (lbuf, "1i", "in_layer"), (self.model, "16f/i", "in_model")])
                 self.draws.append((stage, prog, vao, "boards"))
         if coarse is not None:   # Vichitvejpaisal2005 §3.4: the coarse mesh, in both passes
-            draws, self.coarse = coarse_draws(ctx, coarse, self.centre, None if instances is None else self.model)
+            draws, self.coarse = coarse_draws(ctx, coarse, self.centre, None if instances is None else self.model,
+                                              mipmaps)
             self.objects.append(self.coarse)
             self.draws += [("shadow", *draws["depth"], "mesh"), ("frame", *draws["shaded"], "mesh")]
 
@@ -222,7 +224,8 @@ def build(ctx, src, variant):
     bounds = (np.asarray(src.entry["centre"]), src.entry["radius"])
     if variant.method == "hier":
         return HierBillboards(ctx, boards, bordered, src.scene.light, src.obj.material, src.shadow_map,
-                              coarse if variant.coarse else None, bounds, shadow_mesh=coarse, instances=src.instances)
+                              coarse if variant.coarse else None, bounds, shadow_mesh=coarse, instances=src.instances,
+                              mipmaps=src.mipmaps)
     method = "thesis" if variant.hit_range is not None else "improved"
     return Billboards(ctx, boards, bordered, src.scene.light, src.obj.material, src.shadow_map, method,
-                      variant.hit_range or 0.01, coarse, bounds, src.instances)
+                      variant.hit_range or 0.01, coarse, bounds, src.instances, src.mipmaps)

@@ -50,12 +50,12 @@ LEVELS = 16           # pyramid levels the shader's origin table holds (maps up 
 
 class HierBillboards(Passes):
     def __init__(self, ctx, boards, bordered, light, material, shadow_size: int, coarse=None, bounds=None,
-                 shadow_mesh=None, instances=None):
+                 shadow_mesh=None, instances=None, mipmaps: bool = False):
         """boards: vdmbake.bundle.parts.Billboard (their boxes: origin, axes, size); bordered: their
         vdmbake.bundle.parts.BorderedMaps with pyramids; coarse: an optional TriMesh that fills holes (Vichitvejpaisal2005 §3.4);
         shadow_mesh: the TriMesh that casts the shadows (None: the billboards do); bounds: (centre, radius)
         of the model; instances: (N, 4, 4) world matrices of the object's copies (vdmbake.common.instances),
-        None: drawn once."""
+        None: drawn once; mipmaps: the colour maps and the coarse mesh's albedo map mip-mapped (render.mipmaps)."""
         boards, bordered = list(boards), list(bordered)
         if not boards and coarse is None:
             raise InputError("billboards: nothing to draw (no billboard and no coarse mesh).")
@@ -86,7 +86,7 @@ class HierBillboards(Passes):
         uploaded = {}                             # a mesh filling holes and casting shadows is uploaded once
         for mesh in (coarse, shadow_mesh):
             if mesh is not None and id(mesh) not in uploaded:
-                uploaded[id(mesh)] = coarse_draws(ctx, mesh, self.centre, self.model)
+                uploaded[id(mesh)] = coarse_draws(ctx, mesh, self.centre, self.model, mipmaps)
                 self.objects.append(uploaded[id(mesh)][1])
         if coarse is not None:
             draws, self.coarse = uploaded[id(coarse)]
@@ -121,7 +121,7 @@ class HierBillboards(Passes):
         self.maps.filter = (moderngl.LINEAR, moderngl.LINEAR)
         for t in (self.pyramids, self.maps):
             t.repeat_x = t.repeat_y = False
-        self.albedo_maps = albedo_maps(ctx, bordered)
+        self.albedo_maps = albedo_maps(ctx, bordered, boards if mipmaps else None)
         self.objects += [self.pyramids, self.maps, self.albedo_maps]
         self.hf = {"u_hf_cells": (res + 1, res + 1), "u_hf_top": bordered[0].pyramid.top}
         # the copies' quads hold every hit: the surface is within a texel or two of the model's sphere
@@ -130,7 +130,8 @@ class HierBillboards(Passes):
         defines += ("INSTANCED",) if instances is not None else ()
         stages = {"billboards": defines + (("OCCUPANCY",) if instances is None else ())
                   + (("COARSE_DEPTH",) if coarse is not None else ())
-                  + (("ALBEDO_MAPS",) if self.albedo_maps is not None else ())}
+                  + (("ALBEDO_MAPS",) if self.albedo_maps is not None else ())
+                  + (("MIPMAPS",) if self.albedo_maps is not None and mipmaps else ())}
         if shadow_mesh is None:
             stages["shadow billboards"] = defines + ("SHADOW",)
         for stage, d in stages.items():

@@ -42,6 +42,7 @@ from vdmbake.common import instances as copies
 from vdmbake.errors import InputError
 
 from .. import gl
+from ..passes.boards import covered_colours
 from ..passes.raster import Passes
 from ..passes.shadowmap import ShadowMap, translation
 
@@ -49,6 +50,10 @@ METHODS = ("march", "virtual")
 TEXTURE_DTYPES = {"nu2": 2, "f4": 4}   # RGBA16 unorm (default), RGBA32F: bytes per channel
 NORMAL_OFFSET_TEXELS = 0.7   # shadow lookups move this far along the normal, in shadow-map texels (as impostors) ...
 ATLAS_TEXELS = 0.5           # ... plus this many atlas texels (the surface is known to about half a texel)
+# The albedo atlas's last mip level under render.mipmaps: its tiles share one texture and keep EMPTY = 3 rings of
+# empty texels (vdmbake.kernels.octahedral); at level 2 a bilinear read near a tile's edge reaches at most a
+# quarter-weighted texel of the next tile, at level 3 a whole one (the next view's colours bleed in).
+MAX_LEVEL = 2
 CLIP_TEXELS = 2.0            # rays are clipped to the bounding sphere grown by this many atlas texels (less than
                              # the bake's EMPTY rings), so that every search starts strictly in front of the surface
 
@@ -62,11 +67,12 @@ def atlas_texels(a) -> np.ndarray:
 
 class Octahedral(Passes):
     def __init__(self, ctx, atlas, light, material, shadow_size: int, method: str = "march",
-                 steps_per_texel: float = 1.0, dtype: str = "nu2", instances=None):
+                 steps_per_texel: float = 1.0, dtype: str = "nu2", instances=None, mipmaps: bool = False):
         """atlas: vdmbake.bundle.parts.OctahedralAtlas; method: "march" or "virtual"; steps_per_texel: the
         march's step density; dtype: the atlas texture's channel type ("nu2": 16-bit unorm, "f4":
         float32); instances: (N, 4, 4) world matrices of the object's copies (vdmbake.common.instances), one
-        quad each in one instanced draw (INSTANCED), the shadow map covering them all."""
+        quad each in one instanced draw (INSTANCED), the shadow map covering them all; mipmaps: the albedo atlas
+        mip-mapped (the scene's render.mipmaps: passes/boards.py covered_colours, up to MAX_LEVEL)."""
         if method not in METHODS:
             raise InputError(f"octahedral: method '{method}' is unknown; use one of {', '.join(METHODS)}.")
         if dtype not in TEXTURE_DTYPES:
@@ -87,7 +93,10 @@ class Octahedral(Passes):
         self.texture.repeat_x = self.texture.repeat_y = False
         self.texture_bytes = side * side * 4 * TEXTURE_DTYPES[dtype]
         self.albedo = None
-        if atlas.albedo is not None:
+        if atlas.albedo is not None and mipmaps:
+            self.albedo = covered_colours(ctx, np.asarray(atlas.albedo, np.float32), np.asarray(atlas.coverage), MAX_LEVEL)
+            self.texture_bytes += int(side * side * 4 * 2 * sum(4 ** -k for k in range(MAX_LEVEL + 1)))
+        elif atlas.albedo is not None:
             self.albedo = ctx.texture((side, side), 3, np.asarray(atlas.albedo, np.float16).tobytes(), dtype="f2")
             self.albedo.filter = (moderngl.LINEAR, moderngl.LINEAR)
             self.albedo.repeat_x = self.albedo.repeat_y = False
@@ -104,7 +113,7 @@ class Octahedral(Passes):
         defines = (method.upper(),) + (("HEMI",) if atlas.hemi else ()) + (("INSTANCED",) if instances is not None else ())
         may_lack = ("u_steps_per_texel",) if method == "virtual" else ()   # the single parallax step
         self.draws = {}
-        shaded = ("ALBEDO_ATLAS",) if self.albedo is not None else ()
+        shaded = ("ALBEDO_ATLAS",) + (("MIPMAPS",) if mipmaps else ()) if self.albedo is not None else ()
         for stage, extra in (("shadow", ("SHADOW",)), ("frame", shaded)):
             prog = gl.program(ctx, "bounding_quad.vert", "octahedral.frag", defines + extra, may_lack)
             self.draws[stage] = (prog, gl.vertex_array(ctx, prog, layout))
@@ -160,4 +169,4 @@ def build(ctx, src, variant):
         copies.enclosing(placed, atlas.centre, atlas.radius)[1] / (atlas.radius * copies.scales(placed).min()))
     return Octahedral(ctx, atlas, src.scene.light, src.obj.material,
                       shadow_size(variant.resolution, src.options.shadow_scale * spread, src.shadow_map),
-                      variant.method, instances=placed)
+                      variant.method, instances=placed, mipmaps=src.mipmaps)
