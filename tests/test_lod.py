@@ -16,6 +16,7 @@ from PIL import Image
 from scenes import RENDER, bake_and_render
 from vdmbake.bundle.directory import Bundle
 from vdmbake.export.gltf import up_to_y
+from vdmbake.scene import Thresholds
 from vdmrender import lod
 from vdmrender.sweep import distance_for
 
@@ -115,7 +116,7 @@ def test_costs_within_the_noise_tie_and_the_smaller_error_wins():
 
 def test_meshes_only_chain_leaves_impostors_out():
     rows = [row("mesh", 64, 9.0, 0.1), row("octahedral@x", 64, 1.0, 0.2), row("coarse@0.1", 64, 3.0, 0.9)]
-    out = lod._object_chains(rows, {"mean_dluv": 1.0}, 128)
+    out = lod._object_chains(rows, Thresholds(name="t", mean_dluv=1.0), 128)
     assert out["entries"][0]["variant"] == "octahedral@x"
     assert out["meshes_only"]["entries"][0]["variant"] == "coarse@0.1"
 
@@ -254,10 +255,12 @@ def test_export_refuses_a_lod_of_another_bundle(tmp_path):
     scene.write_text(RENDER + BALL)
     assert CliRunner().invoke(bake_main, [str(scene), "-o", str(tmp_path / "b")]).exit_code == 0
     lod_path = tmp_path / "lod.json"
+    identity = {"manifest_sha256": Bundle(tmp_path / "b").identity}   # tests/test_export_identity.py
     for text, message in (("{}", "not a lod.json"), (json.dumps({"device": "d", "resolution": [4, 4], "chains": [
             {"name": "a", "objects": {"rabbit": {"entries": [{"variant": "mesh", "technique": "mesh", "min_px": 0,
                                                               "max_px": 8, "meets": True, "screen_coverage": [2, 0],
-                                                              "measured": []}]}}}]}), "names object 'rabbit'"),
+                                                              "measured": []}]}}}], "bundle": identity}),
+                           "names object 'rabbit'"),
                           (json.dumps({"device": "d", "resolution": [4, 4], "chains": [{"name": "../up", "objects": {}}]}),
                            "chains[0].name is not 1-64 characters")):   # a chain's name is part of file names
         lod_path.write_text(text)

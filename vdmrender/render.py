@@ -161,6 +161,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
             if scene.render.sweep and scene.render.sweep.lod:
                 sized["lod"] = lod.chains(rows_by_size, scene.render.sweep.lod, device, (width, height),
                                           filtering_note(opts))
+                sized["lod"]["bundle"] = {"manifest_sha256": bundle.identity}   # vdmexport refuses another's
                 for c in sized["lod"]["chains"]:
                     for obj, ch in c["objects"].items():
                         log(f"LOD chain {c['name']} of {obj}: " + ", ".join(

@@ -112,7 +112,9 @@ class Bundle:
             raise InputError(f"{self.path}: not a bundle ({MANIFEST} missing); make one with vdmbake.")
         mf = self.part_path(MANIFEST)
         try:
-            self.manifest = json.loads(read_regular(mf, "manifest", limit=MAX_MANIFEST_BYTES))
+            data = read_regular(mf, "manifest", limit=MAX_MANIFEST_BYTES)
+            self.identity = _sha256(data)   # what ties a file made from the bundle (lod.json) to it
+            self.manifest = json.loads(data)
         except (OSError, ValueError, RecursionError) as e:
             raise InputError(f"{mf}: unreadable manifest ({type(e).__name__}: {str(e)[:200]}); re-bake with "
                              "vdmbake --force.") from None

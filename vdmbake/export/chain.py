@@ -5,6 +5,7 @@ that gives their layout and bands (docs/export.md)."""
 from __future__ import annotations
 
 import json
+import math
 import re
 import shutil
 from pathlib import Path
@@ -16,6 +17,7 @@ from ..bundle.staging import StagedDir
 from ..common.colour import to_srgb8
 from ..errors import InputError
 from ..formats.safeio import read_regular
+from ..scene import MAX_SIDE
 from ..schema import printable
 from ..techniques import REGISTRY
 from .gltf import Writer
@@ -25,6 +27,36 @@ SIDECAR = "vdm-impostors"
 
 
 NAME = re.compile(r"[A-Za-z0-9_-]{1,64}")   # a chain's name becomes part of file names, as the scene reader spells it
+MAX_PX = 4 * MAX_SIDE                       # the largest screen size a sweep measures (scene.Sweep.sizes)
+MAX_NUMBER = 1e300                          # what a measured value or a share may be, finite: copied into JSON
+
+
+def _finite(value, depth: int = 0) -> bool:
+    """Every number in `value` (a measured point: numbers, strings, None, nested lists and tables) finite and
+    within MAX_NUMBER, nested no deeper than a few levels."""
+    if depth > 8:
+        return False
+    if isinstance(value, dict):
+        return all(_finite(v, depth + 1) for v in value.values())
+    if isinstance(value, list):
+        return all(_finite(v, depth + 1) for v in value)
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return math.isfinite(value) and abs(value) <= MAX_NUMBER
+    return value is None or isinstance(value, (str, bool))
+
+
+def check_identity(lod: dict, bundle: Bundle, lod_path: Path) -> None:
+    """Refuse a lod.json rendered from another bundle than `bundle`: it records the sha256 of the manifest of the
+    bundle it measured (bundle.manifest_sha256), which a re-bake of the same inputs keeps."""
+    shown = printable(str(lod_path))
+    recorded = lod.get("bundle", {}).get("manifest_sha256") if isinstance(lod.get("bundle"), dict) else None
+    if recorded is None:
+        raise InputError(f"{shown} records no bundle identity (bundle.manifest_sha256): it was written by an older "
+                         f"vdmrender; render {bundle.path} again with this one and export with its lod.json.")
+    if recorded != bundle.identity:
+        raise InputError(f"{shown} was rendered from another bundle (manifest sha256 {printable(str(recorded))[:64]}"
+                         f"), not {bundle.path} ({bundle.identity}); export with the bundle the chain was rendered "
+                         "from, or render this bundle again.")
 
 
 def read_lod(path: Path) -> dict:
@@ -45,14 +77,14 @@ def read_lod(path: Path) -> dict:
             raise InputError(f"{shown}: {where} is not {want}; it is not a lod.json written by vdmrender, or was "
                              "edited: render again.")
 
-    def count(x) -> bool:
-        return type(x) is int and x >= 0
+    def count(x, most: int = MAX_PX) -> bool:
+        return type(x) is int and 0 <= x <= most
 
     need(isinstance(lod, dict), "the top level", "an object")
     need(isinstance(lod.get("device"), str), "'device'", "a string")
     res = lod.get("resolution")
-    need(isinstance(res, list) and len(res) == 2 and all(count(x) and x > 0 for x in res), "'resolution'",
-         "[width, height] in pixels")
+    need(isinstance(res, list) and len(res) == 2 and all(count(x, MAX_SIDE) and x > 0 for x in res), "'resolution'",
+         f"[width, height] in pixels, each 1 to {MAX_SIDE}")
     need(isinstance(lod.get("band", ""), str), "'band'", "a string")
     need(isinstance(lod.get("chains"), list), "'chains'", "a list")
     for i, c in enumerate(lod["chains"]):
@@ -71,8 +103,10 @@ def read_lod(path: Path) -> dict:
                     need(isinstance(e, dict) and isinstance(e.get("variant"), str) and isinstance(e.get("technique"), str)
                          and count(e.get("min_px")) and count(e.get("max_px")) and e["min_px"] <= e["max_px"]
                          and isinstance(e.get("meets"), bool) and isinstance(e.get("screen_coverage"), list)
-                         and isinstance(e.get("measured"), list), f"{at}[{k}]",
-                         "an entry {variant, technique, min_px <= max_px (pixels), meets, screen_coverage, measured}")
+                         and isinstance(e.get("measured"), list) and _finite(e["screen_coverage"])
+                         and _finite(e["measured"]), f"{at}[{k}]",
+                         f"an entry {{variant, technique, min_px <= max_px (pixels, 0 to {MAX_PX}), meets, "
+                         f"screen_coverage, measured (finite numbers within {MAX_NUMBER:g})}}")
     return lod
 
 
@@ -88,6 +122,7 @@ def variant_value(obj, label: str):
 
 def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None = None, log=lambda m: None) -> dict:
     bundle, lod = Bundle(bundle_path), read_lod(lod_path)
+    check_identity(lod, bundle, lod_path)
     chains = [c for c in lod["chains"] if only in (None, c["name"])]
     if not lod["chains"]:
         raise InputError(f"{printable(str(lod_path))} holds no chain; give the scene [[render.sweep.lod]] limits and "
