@@ -233,11 +233,11 @@ def test_baseline_refuses_what_is_not_a_report(tmp_path):
 def test_baseline_through_the_cli(tmp_path):
     """Against itself: exit 0 and a zero change; against a doctored better baseline: exit 1, the table
     on stderr, baseline.md/.csv and report.json's block; thresholds without --baseline: exit 2."""
-    r, out = bake_and_render(tmp_path, BALL, "--no-flip")
+    r, out = bake_and_render(tmp_path, BALL, "--no-flip", "--repeats", "4")     # --max-slowdown's least
     assert r.exit_code == 0, r.output
     old = out / "report.json"
     args = [str(tmp_path / "b.bundle"), "-o", str(tmp_path / "new"), "--no-flip", "--baseline", str(old),
-            "--max-error-increase", "0.05", "--max-slowdown", "1000"]
+            "--max-error-increase", "0.05", "--max-slowdown", "1000", "--repeats", "4"]
     r = CliRunner().invoke(render_main, args)
     assert r.exit_code == 0, r.output
     block = json.loads((tmp_path / "new" / "report.json").read_text())["baseline"]

@@ -32,6 +32,10 @@ MAX_BYTES = 64 << 20     # a report of 1000 variants x 100 cameras is about 30 M
 COUNT = Integer(0, 2**63 - 1)
 NAME = Text("1-200 printable characters", r"[^\x00-\x1f\x7f]{1,200}")
 TIME, VALUE = Number(0.0, 1e300), Number(-1e300, 1e300)   # finite, and their differences too
+# Timed renders per camera below which --max-slowdown is refused: its noise is each row's spread_ms, an
+# interquartile range over a camera's renders, which one render makes 0 and two or three make from the
+# extremes (repeats = 1 flagged 33 of 69 unchanged rows as slower, issue 32).
+MIN_REPEATS = 4
 
 
 class Counts(Type):
@@ -75,7 +79,22 @@ def load(path: Path) -> dict:
     old = {key: top.value(key, type_, default) for key, (type_, default) in TOP.items()}
     old["rows"] = [{key: row.value(key, type_, default) for key, (type_, default) in ROW.items()}
                    for row in (Reader(r, f"rows[{i}]", top.origin) for i, r in enumerate(rows))]
-    return {**old, "resolution": old["resolution"] and list(old["resolution"])}
+    budget = top.data.get("budget")                      # absent in a report of another tool: not judged
+    old["repeats"] = Reader(budget, "budget", top.origin).value("repeats", COUNT, None) \
+        if isinstance(budget, dict) else None
+    return {**old, "resolution": old["resolution"] and list(old["resolution"]), "path": shown}
+
+
+def check_spread(old: dict, repeats: int) -> None:
+    """Refuse --max-slowdown where this run (`repeats` timed renders per camera) or the baseline `old` (its
+    budget's) times fewer than MIN_REPEATS renders per camera: no spread to tell a slowdown from noise by."""
+    for who, n, fix in (("this run", repeats, f"--repeats {MIN_REPEATS} (or render.repeats in the scene)"),
+                        (f"the baseline {old['path']}", old.get("repeats"), f"a baseline rendered with --repeats "
+                                                                            f"{MIN_REPEATS} or more")):
+        if n is not None and n < MIN_REPEATS:
+            raise InputError(f"--max-slowdown needs at least {MIN_REPEATS} timed renders per frame in both runs to "
+                             f"measure the spread a slowdown is judged against, and {who} times {n}; give {fix}, "
+                             "or leave --max-slowdown out.")
 
 
 def _diff(new, old):

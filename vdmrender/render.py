@@ -138,6 +138,8 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     plan = budget(opts, scene)
     only = _technique_filter(opts, scene)
     old = baseline.load(opts.baseline) if opts.baseline else None
+    if old is not None and opts.max_slowdown is not None:
+        baseline.check_spread(old, plan.repeats)       # before any rendering: no spread, no slowdown to judge
     opts = filtering(opts, scene)
     ssaa = int(opts.antialias[4:]) if opts.antialias.startswith("ssaa") else 1
     check_memory(width, height, geometry=geometry_bytes(bundle))
