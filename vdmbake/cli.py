@@ -10,7 +10,7 @@ import click
 from . import __version__
 from .library import batch
 from .bake import bake
-from .errors import guarded
+from .errors import escaped, guarded
 from .scene import REGISTRY
 
 
@@ -140,13 +140,13 @@ def main(scenes: tuple[Path, ...], out: Path | None, force: bool, jobs: int | No
 
 def _one(scene: Path, out: Path, force: bool, cache, as_json: bool, debug: bool) -> None:
     """One scene into the bundle `out` (the tool's original form)."""
-    log = (lambda m: None) if as_json else (lambda m: click.echo(m, err=True))
+    log = (lambda m: None) if as_json else (lambda m: click.echo(escaped(m), err=True))   # names are raw input
     stats = guarded(lambda: bake(scene, out, force=force, log=log, cache=cache), debug)
     if as_json:
         click.echo(json.dumps(stats, indent=1))
     elif not stats["up_to_date"]:
         took = f" ({stats['parts_from_cache']} from cache)" if "parts_from_cache" in stats else ""
-        click.echo(f"baked {stats['bundle']}: {stats['objects']} objects, {stats['parts']} parts{took}, "
+        click.echo(f"baked {escaped(stats['bundle'])}: {stats['objects']} objects, {stats['parts']} parts{took}, "
                    f"{stats['bytes'] / 1e6:.2f} MB in {stats['bake_s']:.2f} s")
 
 
@@ -173,8 +173,8 @@ def _many(scenes: list[Path], out: Path, many: bool, force: bool, jobs: int | No
     jobs = min(jobs or batch.default_jobs(), len(tasks))
     where = f"Dask {scheduler}" if scheduler else f"{jobs} local worker process{'es' * (jobs > 1)}"
     if not as_json:
-        click.echo(f"baking {len(tasks)} scenes into {out if many else out.parent} on {where}"
-                   + (f", part cache {cache.root}" if cache else ""), err=True)
+        click.echo(escaped(f"baking {len(tasks)} scenes into {out if many else out.parent} on {where}"
+                           + (f", part cache {cache.root}" if cache else "")), err=True)
     progress = batch.Progress(len(tasks), quiet=as_json)
     signals.install()
     t0 = time.perf_counter()
@@ -201,7 +201,8 @@ def _many(scenes: list[Path], out: Path, many: bool, force: bool, jobs: int | No
     else:
         click.echo(batch.table(rows, wall))
     if failed:
-        click.echo(f"{len(failed)} of {len(rows)} scenes failed: " + ", ".join(r["scene"] for r in failed), err=True)
+        click.echo(f"{len(failed)} of {len(rows)} scenes failed: " + ", ".join(escaped(r["scene"]) for r in failed),
+                   err=True)
     return 1 if failed else 0
 
 

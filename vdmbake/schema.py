@@ -13,14 +13,11 @@ import math
 import re
 from typing import Any, Callable
 
-from .errors import InputError
+from .errors import InputError, escaped
+
+printable = escaped   # the name vdmbake.scene imports: one escaping for every message
 
 REQUIRED = dataclasses.MISSING
-
-
-def printable(text: str) -> str:
-    """A key or name as a one-line message shows it: escapes for newlines and other unprintables."""
-    return text if text.isprintable() else repr(text)[1:-1]
 
 
 def show(value) -> str:
@@ -278,7 +275,7 @@ class Reader:
         self.data, self.where, self.origin = data, where, origin
 
     def key(self, key: str) -> str:
-        key = printable(str(key))
+        key = escaped(str(key))
         return f"{self.where}.{key}" if self.where else key
 
     def fail(self, key: str, value, allowed: str):

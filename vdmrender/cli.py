@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from vdmbake import __version__
-from vdmbake.errors import InputError, fail, guarded
+from vdmbake.errors import InputError, escaped, fail, guarded
 from vdmbake.scene import ANTIALIAS, MAX_SIDE, MAX_SPP, REGISTRY
 
 from . import gl
@@ -153,7 +153,7 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
     if (max_error_increase is not None or max_slowdown is not None) and baseline is None:
         fail(InputError("--max-error-increase and --max-slowdown compare with an earlier run; give its "
                         "report.json with --baseline OLD/report.json."), debug)
-    log = (lambda m: None) if as_json else (lambda m: click.echo(m, err=True))
+    log = (lambda m: None) if as_json else (lambda m: click.echo(escaped(m), err=True))   # paths are raw input
     opts = Options(techniques=techniques or None, resolution=resolution, repeats=repeats, warmup=warmup,
                    warmup_s=warmup_s, sample_s=sample_s,
                    device=device, heat_max=heat_max, flip=flip, baseline=baseline,
@@ -171,10 +171,10 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
     if as_json:
         click.echo(json.dumps(result, indent=1, allow_nan=False))
     elif many:
-        click.echo(f"combined report: {out / 'report.json'}  runs: {out / 'runs.md'}  ({result['device']})")
+        click.echo(escaped(f"combined report: {out / 'report.json'}  runs: {out / 'runs.md'}  ({result['device']})"))
     else:
-        click.echo(f"report: {out / 'report.json'}  plot: {out / 'error_vs_time.png'}  "
-                   f"overview: {out / 'overview'}/  ({result['device']})")
+        click.echo(escaped(f"report: {out / 'report.json'}  plot: {out / 'error_vs_time.png'}  "
+                           f"overview: {out / 'overview'}/  ({result['device']})"))
     rows = result["rows"]
     worst = [r for r in rows if max_error is not None and r["mean_dluv"] is not None and r["mean_dluv"] > max_error]
     for r in worst:
@@ -196,7 +196,7 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
                    f"{advice} if that is the point.", err=True)
     failed = [r["scene"] for r in result.get("runs", []) if r["status"] == "failed"]
     if failed:
-        click.echo(f"{len(failed)} of {len(result['runs'])} bundles failed: {', '.join(failed)}", err=True)
+        click.echo(escaped(f"{len(failed)} of {len(result['runs'])} bundles failed: {', '.join(failed)}"), err=True)
     sys.exit(2 if empty else 1 if worst or failed or (block and block["failed"]) else 0)
 
 

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from vdmbake import __version__
-from vdmbake.errors import InputError, paragraph
+from vdmbake.errors import InputError, escaped, paragraph
 
 from . import baseline, report
 from .render import run
@@ -82,5 +82,6 @@ def runs_resolution(runs) -> list:
 
 def table(runs) -> str:
     lines = ["| scene | status | rows | seconds | reason |", "|---|---|---:|---:|---|"]
-    lines += [f"| {r['scene']} | {r['status']} | {r['rows']} | {r['seconds']:.1f} | {r['reason']} |" for r in runs]
+    lines += [escaped(f"| {r['scene']} | {r['status']} | {r['rows']} | {r['seconds']:.1f} | {r['reason']} |")
+              for r in runs]
     return "\n".join(lines) + "\n"

@@ -10,8 +10,7 @@ import functools
 
 import numpy as np
 
-from ..errors import InputError
-from ..schema import printable
+from ..errors import InputError, escaped
 from .references import gltf_buffer, gltf_tree
 
 ALBEDO = "vdm_albedo"   # the vertex attribute that carries a primitive's colour through trimesh's to_mesh
@@ -38,12 +37,12 @@ def check_accessors(files: dict, origin: str) -> None:
                           for name, index in used}
                 attributes = {name: n for name, n in counts.items() if name != "indices"}
                 if len(set(attributes.values())) > 1:
-                    raise InputError(f"{where}: its attributes have different counts ({printable(repr(attributes))})"
+                    raise InputError(f"{where}: its attributes have different counts ({escaped(repr(attributes))})"
                                      "; glTF 2.0 gives every attribute of a primitive one entry per vertex; fix the "
                                      "file.")
     except (KeyError, IndexError, TypeError, AttributeError) as e:
         raise InputError(f"{origin}: cannot read its meshes' accessors ({type(e).__name__}: "
-                         f"{printable(str(e))}); fix the file.") from None
+                         f"{escaped(str(e))}); fix the file.") from None
 
 
 def _accessor(tree: dict, index, buffer, shown: str) -> int:
@@ -53,22 +52,22 @@ def _accessor(tree: dict, index, buffer, shown: str) -> int:
     a = tree["accessors"][index]
     size, width, count = _COMPONENT_BYTES.get(a.get("componentType")), _WIDTHS.get(a.get("type")), a.get("count")
     if size is None or width is None or type(count) is not int or count < 1:
-        raise InputError(f"{shown}: componentType {printable(repr(a.get('componentType')))}, type "
-                         f"{printable(repr(a.get('type')))}, count {printable(repr(count))}; glTF 2.0 allows a "
+        raise InputError(f"{shown}: componentType {escaped(repr(a.get('componentType')))}, type "
+                         f"{escaped(repr(a.get('type')))}, count {escaped(repr(count))}; glTF 2.0 allows a "
                          f"componentType of {sorted(_COMPONENT_BYTES)}, a type of {list(_WIDTHS)} for a primitive "
                          "and a count of at least 1; fix the file.")
     if "bufferView" not in a:
         return count                                  # zeros (or sparse): no bytes to lay out
     views = tree["bufferViews"]
     if type(a["bufferView"]) is not int or not 0 <= a["bufferView"] < len(views):
-        raise InputError(f"{shown}: bufferView {printable(repr(a['bufferView']))} does not exist; fix the file.")
+        raise InputError(f"{shown}: bufferView {escaped(repr(a['bufferView']))} does not exist; fix the file.")
     view, item = views[a["bufferView"]], size * width
     offset, view_offset, length = a.get("byteOffset", 0), view.get("byteOffset", 0), view.get("byteLength")
     stride = view.get("byteStride", item)
     if not all(type(x) is int and x >= 0 for x in (offset, view_offset, length, stride)):
-        raise InputError(f"{shown}: byteOffset {printable(repr(offset))}, bufferView byteOffset "
-                         f"{printable(repr(view_offset))}, byteLength {printable(repr(length))}, byteStride "
-                         f"{printable(repr(stride))}; glTF 2.0 gives non-negative integers; fix the file.")
+        raise InputError(f"{shown}: byteOffset {escaped(repr(offset))}, bufferView byteOffset "
+                         f"{escaped(repr(view_offset))}, byteLength {escaped(repr(length))}, byteStride "
+                         f"{escaped(repr(stride))}; glTF 2.0 gives non-negative integers; fix the file.")
     if stride < item:
         raise InputError(f"{shown}: bufferView {a['bufferView']}'s byteStride {stride} is smaller than one element "
                          f"({width} x {size} bytes = {item}), so its elements would overlap; fix the file.")
@@ -109,7 +108,7 @@ def gltf_albedo(scene, files: dict, textures: bool, origin: str) -> None:
                 check_texture_read(tree, p, g.visual, origin)
     except (KeyError, IndexError, TypeError, AttributeError, ValueError) as e:
         raise InputError(f"{origin}: cannot read its colours or material ({type(e).__name__}: "
-                         f"{printable(str(e))}); fix the file.") from None
+                         f"{escaped(str(e))}); fix the file.") from None
     if any(c is not None for c in colours):
         for (g, p), c in zip(pairs, colours):
             g.vertex_attributes[ALBEDO] = np.ones((len(g.vertices), 3)) if c is None else c
@@ -122,7 +121,7 @@ def primitive_albedo(tree: dict, prim: dict, buffer, textures: bool, origin: str
     factor = pbr.get("baseColorFactor")
     if factor is not None and not (isinstance(factor, list) and len(factor) == 4 and all(
             type(x) in (int, float) and 0 <= x <= 1 for x in factor)):
-        raise InputError(f"{origin}: material {prim['material']}'s baseColorFactor is {printable(repr(factor))}; "
+        raise InputError(f"{origin}: material {prim['material']}'s baseColorFactor is {escaped(repr(factor))}; "
                          "glTF 2.0 gives four numbers from 0 to 1; fix the file.")
     colour = colour_0(tree, prim["attributes"]["COLOR_0"], buffer, origin) if "COLOR_0" in prim["attributes"] else None
     if factor is None and colour is None:
@@ -139,8 +138,8 @@ def colour_0(tree: dict, index: int, buffer, origin: str) -> np.ndarray:
     dtype, width = _COLOUR_TYPES.get(a.get("componentType")), {"VEC3": 3, "VEC4": 4}.get(a.get("type"))
     shown = f"{origin}: COLOR_0 accessor {index}"
     if dtype is None or width is None or a.get("normalized", False) != (dtype.kind == "u"):
-        raise InputError(f"{shown} is {printable(repr(a.get('type')))} of componentType "
-                         f"{printable(repr(a.get('componentType')))}{' normalized' if a.get('normalized') else ''}; "
+        raise InputError(f"{shown} is {escaped(repr(a.get('type')))} of componentType "
+                         f"{escaped(repr(a.get('componentType')))}{' normalized' if a.get('normalized') else ''}; "
                          "glTF 2.0 allows VEC3 or VEC4 of float (5126), or of normalized unsigned byte (5121) or "
                          "short (5123); fix the file.")
     if "bufferView" not in a or "sparse" in a:
@@ -175,7 +174,7 @@ def check_texture_read(tree: dict, prim: dict, visual, origin: str) -> None:
                          'export it with one UV set, or set textures = "ignore" on the object.')
     if transform is not None and (transform.get("offset", [0, 0]) != [0, 0] or transform.get("rotation", 0) != 0
                                   or transform.get("scale", [1, 1]) != [1, 1]):
-        raise InputError(f"{shown} has a KHR_texture_transform ({printable(repr(transform))}), which is not "
+        raise InputError(f"{shown} has a KHR_texture_transform ({escaped(repr(transform))}), which is not "
                          'applied here; bake it into the UVs, or set textures = "ignore" on the object.')
     sampler = tree["textures"][info["index"]].get("sampler")
     sampler = tree["samplers"][sampler] if sampler is not None else {}
@@ -185,6 +184,6 @@ def check_texture_read(tree: dict, prim: dict, visual, origin: str) -> None:
     for axis, key in enumerate(("wrapS", "wrapT")):
         mode, size = sampler.get(key, _REPEAT), image.size[axis]
         if mode != _REPEAT and not ((0.5 / size <= uv[:, axis]) & (uv[:, axis] <= 1 - 0.5 / size)).all():
-            raise InputError(f"{shown} has {key} = {printable(repr(mode))} and UVs that reach its edge, where "
+            raise InputError(f"{shown} has {key} = {escaped(repr(mode))} and UVs that reach its edge, where "
                              f"only REPEAT ({_REPEAT}) is read as the file means; set {key} to {_REPEAT} (or "
                              'leave it out), or set textures = "ignore" on the object.')

@@ -13,8 +13,7 @@ import numpy as np
 
 from ..common import texture
 from ..common.colour import srgb8_to_linear
-from ..errors import InputError
-from ..schema import printable
+from ..errors import InputError, escaped
 from .gltf import ALBEDO, check_accessors, gltf_albedo
 from .references import check_picture, described, names_texture, reached_files
 
@@ -204,13 +203,13 @@ def resolve_path(spec: str, base: Path) -> Path:
         # import heavy dependencies that the data does not need).
         found = importlib.util.find_spec(package) if package.isidentifier() else None
         if found is None or not found.submodule_search_locations:
-            raise InputError(f"'{printable(spec)}': Python package '{printable(package)}' is not installed "
+            raise InputError(f"'{escaped(spec)}': Python package '{escaped(package)}' is not installed "
                              f"(pkg:PACKAGE/PATH names a file inside an installed package).")
         path = Path(next(iter(found.submodule_search_locations))) / inner
     else:
         path = (base / spec) if not Path(spec).is_absolute() else Path(spec)
     if not path.is_file():
-        raise InputError(f"'{printable(spec)}': file not found (looked at {printable(str(path))}).")
+        raise InputError(f"'{escaped(spec)}': file not found (looked at {escaped(str(path))}).")
     return path
 
 
@@ -231,11 +230,11 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
     import trimesh  # imported here: only scenes with mesh files pay for it
     from PIL import Image
 
-    shown = printable(str(path))
+    shown = escaped(str(path))
     files = reached_files(path, str(path), textures)
     for chain, f in files.items():
         if f.what == "texture":
-            check_picture(f.data, f"{printable(str(f.path))} (the {described(chain, f.what)})")
+            check_picture(f.data, f"{escaped(str(f.path))} (the {described(chain, f.what)})")
     resolver = {chain[-1]: f.data for chain, f in files.items() if len(chain) > 1}
     gltf = path.suffix[1:].lower() in ("gltf", "glb")
     if gltf:
@@ -255,9 +254,9 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
         raise
     except ImportError as e:  # trimesh reads some formats through optional packages
         raise InputError(f"{shown}: format not supported here: install the Python package "
-                         f"{e.name or 'that trimesh needs for it'} ({printable(str(e))}).") from None
+                         f"{e.name or 'that trimesh needs for it'} ({escaped(str(e))}).") from None
     except Exception as e:  # trimesh raises many types for unreadable files
-        raise InputError(f"{shown}: cannot read the mesh ({type(e).__name__}: {printable(str(e))}).") from None
+        raise InputError(f"{shown}: cannot read the mesh ({type(e).__name__}: {escaped(str(e))}).") from None
     finally:
         Image.MAX_IMAGE_PIXELS = limit
     vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)

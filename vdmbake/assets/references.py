@@ -15,9 +15,8 @@ from pathlib import Path
 from urllib.parse import unquote
 
 from ..common import texture
-from ..errors import InputError
+from ..errors import InputError, escaped
 from ..formats.safeio import read_regular
-from ..schema import printable
 
 MAX_FILE_BYTES = 2 << 30   # the largest mesh file or file it names (an OBJ of 16 M faces is about 1 GB)
 
@@ -113,12 +112,12 @@ def _gltf_references(tree: dict, textures: bool, origin: str) -> list[tuple[str,
             texture = listed[index] if isinstance(index, int) and 0 <= index < len(listed) else {}
             source = texture.get("source", 0)   # none: an extension names the image
             if not texture or not (isinstance(source, int) and 0 <= source < len(images)):
-                raise InputError(f"{origin}: material {i}'s base colour is texture {printable(repr(index))}, which "
+                raise InputError(f"{origin}: material {i}'s base colour is texture {escaped(repr(index))}, which "
                                  f"names no image of the file ({len(listed)} textures, {len(images)} images); fix "
                                  'the file, or set textures = "ignore" on the object.')
     for uri, what in named:
         if not isinstance(uri, str):
-            raise InputError(f"{origin}: a {what} uri is {printable(repr(uri))}; glTF 2.0 gives a uri as a string.")
+            raise InputError(f"{origin}: a {what} uri is {escaped(repr(uri))}; glTF 2.0 gives a uri as a string.")
     return [(uri, what) for uri, what in named if not uri.startswith("data:")]
 
 
@@ -132,7 +131,7 @@ class Reached:
 
 def described(chain: tuple[str, ...], what: str) -> str:
     """`the texture named by quad.obj > m.mtl`: a reached file's part in an error message."""
-    return f"{what} named by {printable(' > '.join(chain[:-1]))}" if len(chain) > 1 else what
+    return f"{what} named by {escaped(' > '.join(chain[:-1]))}" if len(chain) > 1 else what
 
 
 def reached_files(path: Path, spec: str, textures: bool = True) -> dict[tuple[str, ...], Reached]:
@@ -149,11 +148,11 @@ def reached_files(path: Path, spec: str, textures: bool = True) -> dict[tuple[st
         try:
             data = read_regular(file, described(chain, what), limit=MAX_FILE_BYTES)
         except FileNotFoundError:
-            raise InputError(f"{printable(str(file))}: the {described(chain, what)} is not found (a name in a mesh "
+            raise InputError(f"{escaped(str(file))}: the {described(chain, what)} is not found (a name in a mesh "
                              "file is relative to the mesh file's folder).") from None
         found[chain] = Reached(what, file, data)
         kind = path.suffix[1:].lower() if len(chain) == 1 else "mtl" if what == "material library" else ""
-        for name, named in references(kind, data, textures, printable(" > ".join(chain))):
+        for name, named in references(kind, data, textures, escaped(" > ".join(chain))):
             todo.append((chain + (name,), path.parent / (unquote(name) if kind in ("gltf", "glb") else name), named))
     return found
 
@@ -175,7 +174,7 @@ def check_picture(data: bytes, shown: str) -> None:
         raise
     except Exception as e:  # PIL raises OSError, SyntaxError, ValueError, ... for what it cannot read
         reason = ("no picture format Pillow reads" if isinstance(e, Image.UnidentifiedImageError)
-                  else f"{type(e).__name__}: {printable(str(e))}")
+                  else f"{type(e).__name__}: {escaped(str(e))}")
         raise InputError(f"{shown}: cannot read the picture ({reason}); allowed: a picture Pillow reads (PNG, JPEG, "
                          '...), or set textures = "ignore" on the object.') from None
     finally:

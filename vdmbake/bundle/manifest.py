@@ -8,10 +8,10 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from ..errors import InputError
+from ..errors import InputError, escaped
 from .parts import KINDS
 from .parts.kind import check_extent
-from ..schema import REQUIRED, printable, Choice, Custom, Integer, Number, Reader, Text, Vector, read, setting
+from ..schema import REQUIRED, Choice, Custom, Integer, Number, Reader, Text, Vector, read, setting
 
 _PATH = Text("a part path listed in 'parts'")
 _DIGEST = Text("64 lowercase hexadecimal digits", r"[0-9a-f]{64}")
@@ -70,7 +70,7 @@ def _table(t: Reader, key: str) -> dict:
 
 def check_meta(kind, meta: dict, rel: str, origin: str) -> None:
     """A part kind's manifest metadata checked by the kind's schema."""
-    _typed(kind.meta, meta, f"parts.{printable(rel)}", origin)
+    _typed(kind.meta, meta, f"parts.{escaped(rel)}", origin)
 
 
 def validate(manifest, origin: str):
@@ -82,7 +82,7 @@ def validate(manifest, origin: str):
     _typed(Top, manifest, "", origin)
     parts = _table(top, "parts")
     for rel, meta in parts.items():
-        entry = _typed(PartEntry, meta, f"parts.{printable(rel)}", origin)
+        entry = _typed(PartEntry, meta, f"parts.{escaped(rel)}", origin)
         check_meta(KINDS[entry.kind], meta, rel, origin)
     objects = _table(top, "objects")
     scene = parse_scene_dict(manifest["scene"], f"{origin} (scene)")

@@ -15,10 +15,9 @@ import numpy as np
 from ..bundle.directory import Bundle
 from ..bundle.staging import StagedDir
 from ..common.colour import to_srgb8
-from ..errors import InputError
+from ..errors import InputError, escaped
 from ..formats.safeio import read_regular
 from ..scene import MAX_SIDE
-from ..schema import printable
 from ..techniques import REGISTRY
 from .gltf import Writer
 
@@ -48,13 +47,13 @@ def _finite(value, depth: int = 0) -> bool:
 def check_identity(lod: dict, bundle: Bundle, lod_path: Path) -> None:
     """Refuse a lod.json rendered from another bundle than `bundle`: it records the sha256 of the manifest of the
     bundle it measured (bundle.manifest_sha256), which a re-bake of the same inputs keeps."""
-    shown = printable(str(lod_path))
+    shown = escaped(str(lod_path))
     recorded = lod.get("bundle", {}).get("manifest_sha256") if isinstance(lod.get("bundle"), dict) else None
     if recorded is None:
         raise InputError(f"{shown} records no bundle identity (bundle.manifest_sha256): it was written by an older "
                          f"vdmrender; render {bundle.path} again with this one and export with its lod.json.")
     if recorded != bundle.identity:
-        raise InputError(f"{shown} was rendered from another bundle (manifest sha256 {printable(str(recorded))[:64]}"
+        raise InputError(f"{shown} was rendered from another bundle (manifest sha256 {escaped(str(recorded))[:64]}"
                          f"), not {bundle.path} ({bundle.identity}); export with the bundle the chain was rendered "
                          "from, or render this bundle again.")
 
@@ -62,7 +61,7 @@ def check_identity(lod: dict, bundle: Bundle, lod_path: Path) -> None:
 def read_lod(path: Path) -> dict:
     """lod.json as vdmrender wrote it, every key this export reads checked for its type before anything is
     written: a damaged or hand-edited file ends the run with one message naming the key."""
-    shown = printable(str(path))
+    shown = escaped(str(path))
     try:
         lod = json.loads(read_regular(path, "lod.json", limit=64 << 20))
     except FileNotFoundError:
@@ -70,7 +69,7 @@ def read_lod(path: Path) -> dict:
                          "[[render.sweep.lod]].") from None
     except (OSError, ValueError, RecursionError) as e:
         raise InputError(f"{shown}: not a lod.json written by vdmrender ({type(e).__name__}: "
-                         f"{printable(str(e))[:200]}).") from None
+                         f"{escaped(str(e))[:200]}).") from None
 
     def need(ok: bool, where: str, want: str) -> None:
         if not ok:
@@ -93,11 +92,11 @@ def read_lod(path: Path) -> dict:
              f"{where}.name", "1-64 characters from A-Z a-z 0-9 _ -")
         need(isinstance(c.get("objects"), dict), f"{where}.objects", "an object")
         for o, ch in c["objects"].items():
-            need(isinstance(ch, dict), f"{where}.objects.{printable(o)}", "an object")
+            need(isinstance(ch, dict), f"{where}.objects.{escaped(o)}", "an object")
             for part in ("entries", "meshes_only") if "meshes_only" in ch else ("entries",):
                 entries = ch.get(part) if part == "entries" else ch[part].get("entries") if isinstance(ch[part], dict) \
                     else None
-                at = f"{where}.objects.{printable(o)}.{part}"
+                at = f"{where}.objects.{escaped(o)}.{part}"
                 need(isinstance(entries, list) and len(entries) > 0, at, "a non-empty list of entries")
                 for k, e in enumerate(entries):
                     need(isinstance(e, dict) and isinstance(e.get("variant"), str) and isinstance(e.get("technique"), str)
@@ -116,7 +115,7 @@ def variant_value(obj, label: str):
         for v in REGISTRY[tech].values(options):
             if REGISTRY[tech].label(v) == label:
                 return tech, v
-    raise InputError(f"lod.json names variant {printable(label)!r} of object {obj.name!r}, which the bundle's scene "
+    raise InputError(f"lod.json names variant {escaped(label)!r} of object {obj.name!r}, which the bundle's scene "
                      "does not have; export with the bundle the chain was rendered from.")
 
 
@@ -125,10 +124,10 @@ def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None =
     check_identity(lod, bundle, lod_path)
     chains = [c for c in lod["chains"] if only in (None, c["name"])]
     if not lod["chains"]:
-        raise InputError(f"{printable(str(lod_path))} holds no chain; give the scene [[render.sweep.lod]] limits and "
+        raise InputError(f"{escaped(str(lod_path))} holds no chain; give the scene [[render.sweep.lod]] limits and "
                          "render it again.")
     if not chains:
-        raise InputError(f"--chain {printable(only)!r}: {printable(str(lod_path))} has the chains "
+        raise InputError(f"--chain {escaped(only)!r}: {escaped(str(lod_path))} has the chains "
                          f"{', '.join(repr(c['name']) for c in lod['chains'])}.")
     objects = {o.name: o for o in bundle.scene.objects}
     out = StagedDir(out_path, "export.json", "vdmexport output folder")
@@ -137,7 +136,7 @@ def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None =
         for c in chains:
             for name, ch in c["objects"].items():
                 if name not in objects:
-                    raise InputError(f"{printable(str(lod_path))} names object {printable(name)!r}, which bundle "
+                    raise InputError(f"{escaped(str(lod_path))} names object {escaped(name)!r}, which bundle "
                                      f"{bundle.path} lacks; export with the bundle the chain was rendered from.")
                 obj, entry, stem = objects[name], bundle.manifest["objects"][name], f"{name}-{c['name']}"
                 if "meshes_only" in ch:

@@ -6,7 +6,7 @@ from pathlib import Path
 import click
 
 from .. import __version__
-from ..errors import guarded
+from ..errors import escaped, guarded
 from .chain import export
 
 
@@ -44,8 +44,8 @@ def main(bundle, lod_path, out, chain, debug):
       vdmrender out/lod-bunny.bundle -o out/lod-bunny
       vdmexport out/lod-bunny.bundle --lod out/lod-bunny/lod.json -o out/lod-bunny-gltf
     """
-    result = guarded(lambda: export(bundle, lod_path, out, chain, lambda m: click.echo(m, err=True)), debug)
-    click.echo(f"exported {len(result['files'])} files to {out}")
+    result = guarded(lambda: export(bundle, lod_path, out, chain, lambda m: click.echo(escaped(m), err=True)), debug)
+    click.echo(escaped(f"exported {len(result['files'])} files to {out}"))
 
 
 if __name__ == "__main__":

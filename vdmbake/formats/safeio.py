@@ -7,8 +7,7 @@ import os
 import stat
 from pathlib import Path
 
-from ..errors import InputError
-from ..schema import printable
+from ..errors import InputError, escaped
 
 
 def read_regular(path: Path, what: str, size: int | None = None, limit: int | None = None,
@@ -16,7 +15,7 @@ def read_regular(path: Path, what: str, size: int | None = None, limit: int | No
     """The bytes of the regular file at `path`; `size`: the exact size expected; `limit`: the most
     accepted; `follow=False`: a symbolic link at `path` is refused too. Raises InputError naming `path`
     and `what` it is; FileNotFoundError passes through."""
-    shown = printable(str(path))
+    shown = escaped(str(path))
     if "\x00" in str(path):   # no file system has such a name (os.open would raise ValueError)
         raise InputError(f"{shown}: a path with a NUL character names no file; refusing the {what}.")
     try:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import wait
 from pathlib import Path
 
-from ..errors import InputError, paragraph
+from ..errors import InputError, escaped, paragraph
 
 GLOB_CHARS = set("*?[")
 
@@ -246,9 +246,9 @@ class Progress:
         self.n += 1
         if self.quiet:
             return
-        line = f"[{self.n}/{self.total}] {Path(row['scene']).name}: {_status(row)}"
+        line = escaped(f"[{self.n}/{self.total}] {Path(row['scene']).name}: {_status(row)}")   # names are raw input
         for msg in row.get("log") or []:
-            line += f"\n    {msg}"
+            line += f"\n    {escaped(msg)}"
         if self.bar is not None:
             self.bar.write(line, file=sys.stderr)
             self.bar.update(1)
@@ -271,8 +271,8 @@ def _status(row: dict) -> str:
 def table(rows: list[dict], wall_s: float) -> str:
     """The closing table: scene, status, parts baked / from cache, seconds, the reason of a failure; then totals."""
     head = ("scene", "status", "baked", "cached", "seconds", "reason")
-    body = [(Path(r["scene"]).name, r["status"], str(r.get("baked", 0)), str(r.get("from_cache", 0)),
-             f"{r['seconds']:.2f}", r.get("reason") or "") for r in rows]
+    body = [(escaped(Path(r["scene"]).name), r["status"], str(r.get("baked", 0)), str(r.get("from_cache", 0)),
+             f"{r['seconds']:.2f}", escaped(r.get("reason") or "")) for r in rows]
     widths = [max(len(x[i]) for x in [head, *body]) for i in range(5)]
     fmt = lambda r: "  ".join(c.ljust(w) if i in (0, 1) else c.rjust(w)  # noqa: E731
                               for i, (c, w) in enumerate(zip(r[:5], widths))) + (f"  {r[5]}" if r[5] else "")
