@@ -17,7 +17,7 @@ from scenes import RENDER, bake_and_render
 from vdmbake.bundle.directory import Bundle
 from vdmbake.export.gltf import up_to_y
 from vdmbake.scene import Thresholds
-from vdmrender import lod
+from vdmrender import lod, metrics, scoring
 from vdmrender.sweep import distance_for
 
 ROOT = Path(__file__).parent.parent
@@ -64,7 +64,7 @@ def test_sweep_renders_each_size_and_picks_chains(tmp_path):
         ys, xs = np.nonzero(np.abs(ref - ref[0, 0]).sum(-1) > 0)
         assert xs.max() - xs.min() + 1 == size and ys.max() - ys.min() + 1 == size
         assert (out / f"sizes/{size}px/frames/ball/coarse@0.05/001.png").is_file()
-    for name in ("sweep.csv", "error_vs_size.png", "cost_vs_size.png", "lod.json", "lod.md"):
+    for name in ("sweep.csv", "error_vs_size.png", "cost_vs_size.png", "lod.json", "lod.md", "lod.png"):
         assert (out / name).is_file(), name
     chains = {c["name"]: c["objects"]["ball"] for c in json.loads((out / "lod.json").read_text())["chains"]}
     for e in chains["strict"]["entries"]:   # within the limit wherever it says so, else the least error there
@@ -267,3 +267,57 @@ def test_export_refuses_a_lod_of_another_bundle(tmp_path):
         r = CliRunner().invoke(export_main, [str(tmp_path / "b"), "--lod", str(lod_path), "-o", str(tmp_path / "x")])
         assert r.exit_code == 2 and message in r.output, r.output
         assert not (tmp_path / "x").exists()
+
+
+def test_a_pop_limit_keeps_the_level_above_where_the_cheapest_would_pop():
+    """At 64 px the cheapest within the limits (boards) would pop 5 ΔLuv from the level above (coarse): under a
+    pop limit of 2 the chain keeps the variant whose switch pops least within it; without the limit it switches,
+    and every switch records its pop and its hysteresis band."""
+    rows = [row("mesh", 256, 10.0, 0.1), row("coarse@0.1", 256, 4.0, 0.5), row("boards", 256, 20.0, 0.5),
+            row("mesh", 64, 9.0, 0.1), row("coarse@0.1", 64, 3.0, 0.8), row("boards", 64, 2.0, 0.4)]
+    pops = {("boards", "coarse@0.1"): 5.0, ("coarse@0.1", "mesh"): 0.5, ("boards", "mesh"): 4.0}
+    pop = lambda size, a, b: 0.0 if a == b else pops[tuple(sorted((a, b)))]   # noqa: E731
+    free = lod.chain(rows, {"mean_dluv": 1.0}, 512, pop, None, 0.1)
+    assert [e["variant"] for e in free["entries"]] == ["coarse@0.1", "boards"]
+    assert free["entries"][1]["measured"][0]["pop_dluv"] == 5.0 and free["pops_dluv"] == [5.0]
+    assert free["entries"][0]["switch_px"] == [57.6, 70.4]
+    held = lod.chain(rows, {"mean_dluv": 1.0}, 512, pop, 2.0, 0.1)
+    assert [e["variant"] for e in held["entries"]] == ["coarse@0.1"] and held["pops_meet"] is True
+
+
+def test_pops_compare_two_variants_frames():
+    """scoring.pops: the ΔLuv between two variants' frames at a size, pooled over views, 0 between equal frames."""
+    grey = np.zeros((4, 4, 4), np.uint8)
+    grey[1:3, 1:3] = (128, 128, 128, 255)
+    lighter = grey.copy()
+    lighter[1:3, 1:3, :3] = 140
+    pop = scoring.pops({16: {"a": [grey, grey], "b": [grey, lighter]}})
+    assert pop(16, "a", "a") == 0.0 and pop(16, "a", "b") == pop(16, "b", "a") > 0
+    assert pop(16, "a", "b") == pytest.approx(0.5 * metrics.compare(grey, lighter)["values"].mean(), rel=1e-3)
+
+
+def field(label, ms, dluv, technique=None, value=None):
+    return {**row(label, None, ms, dluv, technique=technique), "value": value, "spread_ms": 10.0}
+
+
+def test_a_chain_is_priced_on_the_field_it_serves():
+    """configs/forest.toml's finding: the chain one copy's sweep picked drew the field in 1687 ms at 1.74 ΔLuv,
+    billboards alone in 781 ms at 0.97. Priced on the field, the single variant within the limits is shipped
+    (the sweep's chain kept beside it); a chain that is the cheapest there stays."""
+    chain = lod.chain([row("mesh", 64, 9.0, 0.1), row("boards", 16, 1.0, 0.2)], {"mean_dluv": 2.0}, 512)
+    doc = {"resolution": [960, 540], "chains": [{"name": "dluv2", "limits": {"mean_dluv": 2.0},
+                                                 "objects": {"o": json.loads(json.dumps(chain))}}]}
+    rows = [field("mesh", 2400.0, 0.3), field("boards", 781.0, 0.97), field("coarse@0.01", 300.0, 6.0),
+            field("lod@dluv2", 1687.0, 1.74, "lod", "dluv2"), field("lod@other", 100.0, 0.1, "lod", "other")]
+    lod.priced_on_field(doc, rows)
+    ch = doc["chains"][0]["objects"]["o"]
+    assert ch["field"]["chosen"] == "boards" and [e["variant"] for e in ch["entries"]] == ["boards"]
+    assert ch["entries"][0]["max_px"] == chain["above_px"] and ch["entries"][0]["min_px"] == 0
+    assert ch["sweep_entries"] == chain["entries"]
+    assert {c["variant"] for c in ch["field"]["candidates"]} == {"mesh", "boards", "coarse@0.01", "lod@dluv2"}
+    doc["chains"][0]["objects"]["o"] = json.loads(json.dumps(chain))
+    lod.priced_on_field(doc, [*rows[:3], field("lod@dluv2", 500.0, 1.2, "lod", "dluv2")])
+    kept = doc["chains"][0]["objects"]["o"]
+    assert kept["field"]["chosen"] == "lod@dluv2" and kept["entries"] == chain["entries"]
+    assert "sweep_entries" not in kept and "Priced on the field" in lod.table({**doc, "device": "d", "sizes_px": [64, 16],
+                                                                              "rule": "r"})

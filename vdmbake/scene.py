@@ -54,6 +54,12 @@ class Thresholds:
     p95_dluv: float | None = setting(None, Number(0.0, 1e3), "largest 95th percentile of the per-pixel ΔLuv")
     flip: float | None = setting(None, Number(0.0, 1.0), "largest mean FLIP")
     iou: float | None = setting(None, Number(0.0, 1.0), "smallest coverage IoU")
+    pop_dluv: float | None = setting(None, Number(0.0, 1e3), "largest pop: the mean ΔLuv between the two levels' "
+                                     "frames at a switch size (what a viewer sees change); where the cheapest "
+                                     "variant would pop more, the cheapest that does not is taken")
+    hysteresis: float = setting(0.1, Number(0.0, 0.5), "around each switch size s, an engine switches to the coarser "
+                                "level below s (1 - h) and back above s (1 + h), so a size hovering at s does not "
+                                "flicker between levels (lod.json's switch_px)")
 
     def limits(self) -> dict:
         """The limits given, by report field (`iou` a lower bound, the others upper bounds)."""

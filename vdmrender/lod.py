@@ -41,13 +41,21 @@ def cheapest(rows: list[dict]) -> dict:
     return min(tied, key=lambda r: (r["mean_dluv"] if r["mean_dluv"] is not None else float("inf"), r["label"]))
 
 
-def chain(rows: list[dict], limits: dict, height: int) -> dict:
-    """One object's chain: entries from the largest screen size down, each {variant, band, measured}."""
+def chain(rows: list[dict], limits: dict, height: int, pop=None, pop_dluv: float | None = None,
+          hysteresis: float = 0.0) -> dict:
+    """One object's chain: entries from the largest screen size down, each {variant, band, measured}. pop(size, a,
+    b): the mean ΔLuv between variants a's and b's frames at that size (None: not measured); with pop_dluv, a
+    switch that would pop more is avoided where another variant within the limits pops less (the previous one
+    itself pops 0). Each switch records its pop and its hysteresis band (switch_px)."""
     sizes = sorted({r["size_px"] for r in rows}, reverse=True)
     picks = []
     for s in sizes:
         here = [r for r in rows if r["size_px"] == s]
         ok = [r for r in here if meets(r, limits)]
+        prev = picks[-1][1]["label"] if picks else None
+        if ok and prev is not None and pop is not None and pop_dluv is not None:
+            smooth = [r for r in ok if r["label"] == prev or pop(s, prev, r["label"]) <= pop_dluv]
+            ok = smooth or ok
         pick = cheapest(ok) if ok else min(here, key=lambda r: (r["mean_dluv"] is None, r["mean_dluv"] or 0, r["label"]))
         picks.append((s, pick, bool(ok)))
     entries = []
@@ -58,40 +66,77 @@ def chain(rows: list[dict], limits: dict, height: int) -> dict:
             entries[-1]["min_px"] = low
             entries[-1]["measured"].append(point)
         else:
+            if entries and entries[-1]["variant"] != r["label"]:   # the switch from the finer level above, here
+                a = entries[-1]["variant"]
+                entries[-1]["switch_px"] = [round(s * (1 - hysteresis), 3), round(s * (1 + hysteresis), 3)]
+                point["pop_dluv"] = pop(s, a, r["label"]) if pop is not None else None
             entries.append({"variant": r["label"], "technique": r["technique"], "value": r["value"],
                             "max_px": s, "min_px": low, "meets": ok, "measured": [point]})
     for e in entries:   # MSFT_screencoverage's unit: the share of the frame's height (vdmbake.export)
         e["screen_coverage"] = [round(e["max_px"] / height, 6), round(e["min_px"] / height, 6)]
-    return {"entries": entries, "unmet_px": [s for s, _, ok in picks if not ok],
-            "above_px": sizes[0]}
+    pops = [e["measured"][0]["pop_dluv"] for e in entries if "pop_dluv" in e["measured"][0]]
+    return {"entries": entries, "unmet_px": [s for s, _, ok in picks if not ok], "above_px": sizes[0],
+            "pops_dluv": pops, "pops_meet": None if pop_dluv is None or None in pops else max(pops, default=0) <= pop_dluv}
 
 
-def _object_chains(rows: list[dict], limits: dict, height: int) -> dict:
+def _object_chains(rows: list[dict], t, height: int, pop=None) -> dict:
     """The chain over every variant, and where the object has triangle-mesh variants, the chain over those
-    alone (`meshes_only`: what a glTF with MSFT_lod carries)."""
+    alone (`meshes_only`: what a glTF with MSFT_lod carries). t: the chain's scene.Thresholds."""
     meshes = [r for r in rows if r["technique"] in TRIANGLE_MESHES]
-    return {**chain(rows, limits, height), **({"meshes_only": chain(meshes, limits, height)} if meshes else {})}
+    one = lambda rs: chain(rs, t.limits(), height, pop, t.pop_dluv, t.hysteresis)   # noqa: E731
+    return {**one(rows), **({"meshes_only": one(meshes)} if meshes else {})}
 
 
-def chains(sweep_rows: list[dict], lod_sets, device: str, resolution, filtering: dict | None = None) -> dict:
+def chains(sweep_rows: list[dict], lod_sets, device: str, resolution, filtering: dict | None = None,
+           pops=None) -> dict:
     """lod.json's content: per set of limits, per object, its chain; `filtering`: what the errors judged are
-    against (report.json's: the reference's samples per pixel, the frames' anti-aliasing)."""
+    against (report.json's: the reference's samples per pixel, the frames' anti-aliasing); pops(object) -> pop(size,
+    a, b) (vdmrender.render: the sweep's frames compared)."""
     objects = list(dict.fromkeys(r["object"] for r in sweep_rows))
     filtering = filtering or {"reference_spp": 1, "antialias": "none"}
     return {"device": device, "resolution": list(resolution), "sizes_px": sorted({r["size_px"] for r in sweep_rows},
                                                                                   reverse=True),
             "error": {"reference_spp": filtering["reference_spp"], "antialias": filtering["antialias"]},
             "band": "an entry is chosen where the object's bounding sphere spans more than min_px and at most "
-                    "max_px pixels on screen; screen_coverage: the same as shares of the frame's height",
+                    "max_px pixels on screen; screen_coverage: the same as shares of the frame's height; switch_px: "
+                    "with hysteresis, switch to the next entry below the first size and back above the second; "
+                    "pop_dluv: at the size an entry takes over, the mean ΔLuv between its frames and the previous "
+                    "entry's (what a viewer sees change at the switch)",
             "rule": __doc__.split("\n\n", 1)[1].replace("\n", " "),
-            "chains": [{"name": t.name, "limits": t.limits(),
-                        "objects": {o: _object_chains([r for r in sweep_rows if r["object"] == o], t.limits(),
-                                                      resolution[1]) for o in objects}}
+            "chains": [{"name": t.name, "limits": t.limits(), "pop_dluv": t.pop_dluv, "hysteresis": t.hysteresis,
+                        "objects": {o: _object_chains([r for r in sweep_rows if r["object"] == o], t, resolution[1],
+                                                      pops(o) if pops else None) for o in objects}}
                        for t in lod_sets]}
 
 
+def priced_on_field(lod: dict, rows: list[dict]) -> None:
+    """Chains priced where they are used: for an object drawn as many copies, its lod@CHAIN row (every copy by the
+    variant its size selects, vdmrender.render.mixed) against every single variant drawing the same field. The
+    cheapest of those within the chain's limits on the field (cheapest's rule) is what the field ships: where
+    that is a single variant, the chain becomes that variant at every size (the sweep's chain kept as
+    sweep_entries), so a chain is never slower than one representation meeting the same limits there."""
+    for c in lod["chains"]:
+        for obj, ch in c["objects"].items():
+            field = [r for r in rows if r["object"] == obj and (r["technique"] != "lod" or r["value"] == c["name"])]
+            if not any(r["technique"] == "lod" for r in field):
+                continue
+            ok = [r for r in field if meets(r, c["limits"])]
+            best = cheapest(ok) if ok else next(r for r in field if r["technique"] == "lod")
+            ch["field"] = {"how": priced_on_field.__doc__.replace("\n", " "), "chosen": best["label"],
+                           "candidates": [{"variant": r["label"], "median_ms": r["median_ms"],
+                                           "spread_ms": r["spread_ms"], "mean_dluv": r["mean_dluv"],
+                                           "meets": meets(r, c["limits"])} for r in field]}
+            if best["technique"] != "lod":
+                point = {"size_px": None, **{k: best.get(k) for k in MEASURED}, "per_pixel": best.get("per_pixel")}
+                ch["sweep_entries"] = ch["entries"]
+                ch["entries"] = [{"variant": best["label"], "technique": best["technique"], "value": best["value"],
+                                  "max_px": ch["above_px"], "min_px": 0, "meets": True, "measured": [point],
+                                  "screen_coverage": [round(ch["above_px"] / lod["resolution"][1], 6), 0.0]}]
+
+
 def table(lod: dict) -> str:
-    """lod.md: every chain as bands of screen sizes, its variant and what it measured at the band's top."""
+    """lod.md: every chain as bands of screen sizes, its variant, what it measured at the band's top, the pop where
+    it takes over and the hysteresis of the switch; for a field of copies, how the chain was priced there."""
     def num(x, digits):
         return "-" if x is None else f"{x:.{digits}f}"
 
@@ -101,26 +146,95 @@ def table(lod: dict) -> str:
              f"samples per pixel, frames anti-aliased {seen['antialias']}. {lod['rule']}", ""]
     for c in lod["chains"]:
         limits = ", ".join(f"{k} {'>=' if k == 'iou' else '<='} {v:g}" for k, v in c["limits"].items())
+        limits += f", pop <= {c['pop_dluv']:g}" if c.get("pop_dluv") is not None else ""
         for obj, ch in c["objects"].items():
             lines += [f"## {c['name']} ({limits}): {obj}", "",
-                      "| band [px]: over, up to | variant | within limits | mean ΔLuv | p95 ΔLuv | FLIP | IoU | median GPU ms |",
-                      "|---|---|---|---:|---:|---:|---:|---:|"]
+                      "| band [px]: over, up to | variant | within limits | mean ΔLuv | p95 ΔLuv | FLIP | IoU | median GPU ms "
+                      "| pop ΔLuv taking over | switch down, up [px] |",
+                      "|---|---|---|---:|---:|---:|---:|---:|---:|---|"]
             for e in ch["entries"]:
                 top = e["measured"][0]
+                switch = e.get("switch_px")
                 lines.append(f"| ({e['min_px']}, {e['max_px']}] | {e['variant']} | {'yes' if e['meets'] else '**no**'} | "
                              f"{num(top['mean_dluv'], 3)} | {num(top['p95_dluv'], 2)} | {num(top['flip_mean'], 4)} | "
-                             f"{num(top['iou'], 4)} | {num(top['median_ms'], 3)} |")
+                             f"{num(top['iou'], 4)} | {num(top['median_ms'], 3)} | {num(top.get('pop_dluv'), 2)} | "
+                             f"{f'{switch[0]:g}, {switch[1]:g}' if switch else '-'} |")
             lines.append("")
             if ch["unmet_px"]:
                 lines += [f"No variant is within the limits at {', '.join(map(str, ch['unmet_px']))} px: the chain "
                           "uses the variant of least mean ΔLuv there.", ""]
+            if ch.get("pops_meet") is False:
+                lines += [f"A switch pops more than {c['pop_dluv']:g} ΔLuv where no variant within the limits pops "
+                          "less.", ""]
+            if "field" in ch:
+                f = ch["field"]
+                lines += [f"Priced on the field of copies: {f['how']}", "",
+                          "| on the field | median GPU ms | spread ms | mean ΔLuv | within limits |", "|---|---:|---:|---:|---|"]
+                lines += [f"| {'**' + r['variant'] + '**' if r['variant'] == f['chosen'] else r['variant']} | "
+                          f"{num(r['median_ms'], 2)} | {num(r['spread_ms'], 2)} | {num(r['mean_dluv'], 3)} | "
+                          f"{'yes' if r['meets'] else 'no'} |" for r in f["candidates"]]
+                lines.append("")
             lines += [f"Above {ch['above_px']} px nothing was measured.", ""]
     return "\n".join(lines)
 
 
-def write(folder: Path, lod: dict) -> None:
+def write(folder: Path, lod: dict, sweep_rows: list[dict]) -> None:
     (folder / "lod.json").write_text(json.dumps(lod, indent=1, allow_nan=False) + "\n")
     (folder / "lod.md").write_text(table(lod))
+    plot(folder / "lod.png", lod, sweep_rows)
+
+
+def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
+    """lod.png, one panel per chain and object: every variant's mean ΔLuv against screen size (thin), the chain's
+    bands shaded and named (hatched: over the limits), its error through them (thick), the limit (dashed) and the
+    pop at each switch (a red bar as tall as the pop, at the switch size)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = [(c, obj, ch) for c in lod["chains"] for obj, ch in c["objects"].items()]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.6 * len(panels)), squeeze=False)
+    shades = plt.get_cmap("tab10")
+    for ax, (c, obj, ch) in zip(axes[:, 0], panels):
+        mine = [r for r in sweep_rows if r["object"] == obj and r["mean_dluv"] is not None]
+        labels = list(dict.fromkeys(r["label"] for r in mine))
+        for label in labels:
+            pts = sorted((r["size_px"], r["mean_dluv"]) for r in mine if r["label"] == label)
+            ax.plot(*zip(*pts), "-", color=shades(labels.index(label) % 10), linewidth=0.8, alpha=0.6, label=label)
+        path_pts = []
+        for e in ch["entries"]:
+            colour = shades(labels.index(e["variant"]) % 10) if e["variant"] in labels else "grey"
+            lo = max(e["min_px"], min(lod["sizes_px"]) / 2)
+            ax.axvspan(lo, e["max_px"], color=colour, alpha=0.12, hatch=None if e["meets"] else "//")
+            ax.text((lo * e["max_px"]) ** 0.5, 0.97, e["variant"] + ("" if e["meets"] else " (over)"),
+                    transform=ax.get_xaxis_transform(), ha="center",
+                    va="top", fontsize=7, rotation=90 if len(ch["entries"]) > 3 else 0)
+            path_pts += [(m["size_px"], m["mean_dluv"]) for m in e["measured"] if m["size_px"] is not None]
+            top = e["measured"][0]
+            if top.get("pop_dluv") is not None:
+                ax.bar(top["size_px"], top["pop_dluv"], width=0.08 * top["size_px"], color="red", alpha=0.8,
+                       label="pop at the switch" if e is ch["entries"][1] else None)
+        if path_pts:
+            ax.plot(*zip(*sorted(path_pts)), "o-", color="black", linewidth=2, markersize=4, label="the chain")
+        if "mean_dluv" in c["limits"]:
+            ax.axhline(c["limits"]["mean_dluv"], color="black", linestyle="--", linewidth=0.8, label="limit")
+        ax.set_xscale("log", base=2)
+        ax.set_xticks(lod["sizes_px"], [str(s) for s in lod["sizes_px"]])
+        ax.minorticks_off()
+        ax.set_xlim(min(lod["sizes_px"]) / 2, max(lod["sizes_px"]) * 1.3)
+        ax.set_xlabel("bounding sphere on screen [px] (log)")
+        ax.set_ylabel("mean ΔL*u*v*")
+        priced = f", priced on the field: {ch['field']['chosen']}" if "field" in ch else ""
+        ax.set_title(f"{obj}: chain {c['name']}{priced}", fontsize=9)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    seen = lod.get("error") or {"reference_spp": 1, "antialias": "none"}
+    fig.suptitle(f"LOD chains on {lod['device']}\nreference {seen['reference_spp']} spp, frames AA {seen['antialias']}",
+                 fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def screen_px(camera, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:

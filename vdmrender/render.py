@@ -158,18 +158,19 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         sized = {}
         sizes = opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ())
         if sizes:
-            rows_by_size = _sweep(harness, out, bundle, scene, only, opts, device, log, sorted(sizes, reverse=True))
+            rows_by_size, sweep_frames = _sweep(harness, out, bundle, scene, only, opts, device, log,
+                                                sorted(sizes, reverse=True))
             sized["sweep"] = {"sizes_px": sorted(sizes, reverse=True), "how": SWEEP, "rows": rows_by_size}
             if scene.render.sweep and scene.render.sweep.lod:
                 sized["lod"] = lod.chains(rows_by_size, scene.render.sweep.lod, device, (width, height),
-                                          filtering_note(opts))
+                                          filtering_note(opts), lambda o: scoring.pops(sweep_frames[o]))
                 sized["lod"]["bundle"] = {"manifest_sha256": bundle.identity}   # vdmexport refuses another's
-                for c in sized["lod"]["chains"]:
-                    for obj, ch in c["objects"].items():
-                        log(f"LOD chain {c['name']} of {obj}: " + ", ".join(
-                            f"{e['variant']} {e['min_px']}-{e['max_px']} px{'' if e['meets'] else ' (over the limits)'}"
-                            for e in ch["entries"]))
+                _log_chains(sized["lod"], log, "from the sweep")
+            del sweep_frames
         rows = _render_all(harness, out, bundle, scene, only, opts, device, log, sized.get("lod"))
+        if "lod" in sized and any(r["technique"] == "lod" for r in rows):
+            lod.priced_on_field(sized["lod"], rows)
+            _log_chains(sized["lod"], log, "priced on the field")
         report.add_baseline_ratios(rows)
         composite_rows = composite.render_sets(harness, out, bundle, scene, only, opts, device, log)
         result = {"tool_version": __version__, "bundle": str(bundle.path), "device": device,
@@ -197,7 +198,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         if "sweep" in result:
             sweep.write(out.tmp, result)
         if "lod" in result:
-            lod.write(out.tmp, result["lod"])
+            lod.write(out.tmp, result["lod"], result["sweep"]["rows"])
         out.commit()
     except BaseException:
         out.abort()
@@ -206,6 +207,14 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         harness.release()
         ctx.release()
     return result
+
+
+def _log_chains(chains: dict, log, how: str) -> None:
+    for c in chains["chains"]:
+        for obj, ch in c["objects"].items():
+            log(f"LOD chain {c['name']} of {obj} ({how}): " + ", ".join(
+                f"{e['variant']} {e['min_px']}-{e['max_px']} px{'' if e['meets'] else ' (over the limits)'}"
+                for e in ch["entries"]))
 
 
 def filtering_note(opts: Options) -> dict:
@@ -234,9 +243,11 @@ def _measure(harness, v, cams, refs, out, obj, opts, background, prefix="", what
     return row, enc, heats
 
 
-def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log, prefix="", what=None) -> list[dict]:
+def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log, prefix="", what=None,
+                  keep: dict | None = None) -> list[dict]:
     """One object's variants from cameras `cams`, against its reference: their report rows; frames, heat maps,
-    reference and overview sheet written under `prefix` (a screen-size sweep's sizes/NNNpx/)."""
+    reference and overview sheet written under `prefix` (a screen-size sweep's sizes/NNNpx/); keep: also each
+    variant's frames (sRGB, by label) put here."""
     entry, what = bundle.manifest["objects"][obj.name], what or obj.name
     refs = scoring.References.traced(
         lambda spp, folder: refcache.object_frames(out, obj, entry, bundle, scene, cams, log, folder, what, spp),
@@ -246,6 +257,8 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, 
         row, enc, heats = _measure(harness, v, cams, refs, out, obj, opts, scene.render.background, prefix, what)
         rows.append({**row, "device": device, "reference_cached": refs.cached})
         sheet += [(v.label, enc), (f"{v.label} error", heats)]
+        if keep is not None:
+            keep[v.label] = enc
         log(f"{what}: {v.label:>14}  {scoring.row_line(row)}"
             + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")
             + (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
@@ -261,11 +274,11 @@ def sphere(obj, entry, scene) -> tuple[np.ndarray, float]:
                                entry["radius"])
 
 
-def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> list[dict]:
+def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> tuple[list[dict], dict]:
     """Every object's variants at each screen size (vdmrender.sweep), an instanced object's as one copy: rows as
-    _render_all's, with size_px."""
+    _render_all's, with size_px; and the frames, {object: {size: {label: sRGB frames}}} (the LOD chains' pops)."""
     width, height = harness.target.size
-    rows = []
+    rows, frames = [], {}
     for obj in scene.objects:
         entry = bundle.manifest["objects"][obj.name]
         obj = dataclasses.replace(obj, instances=None)   # one copy: the chain is the object's
@@ -279,8 +292,9 @@ def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> list[
             distance = round(sweep.distance_for(size, 1.0, views[0].fov_deg, height), 4)
             rows += [{**r, "size_px": size, "distance_radii": distance}
                      for r in render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log,
-                                            f"sizes/{size}px/", f"{obj.name} @{size}px")]
-    return rows
+                                            f"sizes/{size}px/", f"{obj.name} @{size}px",
+                                            frames.setdefault(obj.name, {}).setdefault(size, {}))]
+    return rows, frames
 
 
 def _render_all(harness, out, bundle, scene, only, opts, device, log, chains=None) -> list[dict]:

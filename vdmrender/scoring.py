@@ -84,3 +84,19 @@ def row_line(row: dict) -> str:
     """A row's time, work and error as the log shows them."""
     return (f"{time_line(row)}  mean dLuv {show(row['mean_dluv'], 7, 3)}  p95 {show(row['p95_dluv'], 7, 3)}"
             f"  IoU {show(row['iou'], 6, 4)}  FLIP {show(row['flip_mean'], 6, 4)}")
+
+
+def pops(frames: dict):
+    """pop(size, a, b) over a sweep's frames ({size: {label: sRGB frames}}): the mean ΔLuv between variant a's and
+    variant b's frames of the same views at that size, over both coverage masks, pooled over the views (what a
+    viewer sees change when an LOD chain switches from a to b there); 0 where neither covers a pixel."""
+    cache = {}
+
+    def pop(size, a: str, b: str) -> float:
+        key = (size, *sorted((a, b)))
+        if key not in cache:
+            d = np.concatenate([compare(fa, fb)["values"] for fa, fb in zip(frames[size][a], frames[size][b])])
+            cache[key] = round(float(d.mean()), 4) if d.size else 0.0
+        return cache[key]
+
+    return pop
