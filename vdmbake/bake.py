@@ -23,6 +23,7 @@ from .library import cache as part_cache
 from .kernels import curvature, quadric_mesh, quadrics, vdm
 from .assets import heightfields, meso_albedo, primitives
 from .bundle import parts, staging
+from .common import instances
 from .bundle.parts.mesostructure import check_reference
 from .bundle.directory import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter, RefusedBundle
 from .errors import InputError
@@ -175,7 +176,10 @@ def _write(scene: Scene, scene_path: Path, out: Path, digest: str, code: str, in
         objects, timing, steps, t_all = {}, {}, {}, time.perf_counter()
         for obj in scene.objects:
             t0 = time.perf_counter()
-            objects[obj.name] = _bake_object(writer, obj, base, log, steps.setdefault(obj.name, {}))
+            objects[obj.name] = entry = _bake_object(writer, obj, base, log, steps.setdefault(obj.name, {}))
+            if obj.instances is not None:    # copies the reference cannot hold are refused as the object would be
+                instances.check(instances.matrices(obj.instances, scene.camera.up, entry["centre"]), entry["centre"],
+                                entry["radius"], f"object {obj.name!r}")
             timing[obj.name] = round(time.perf_counter() - t0, 4)
         stats = {"objects": len(objects), "parts": len(writer.parts),
                  "bytes": sum(p["bytes"] for p in writer.parts.values())}

@@ -104,6 +104,10 @@ def validate(manifest, origin: str):
         if e.kind != obj.kind:
             Reader({}, where, origin).fail("kind", e.kind, repr(obj.kind) + " (the scene's object)")
         check_extent(f"{origin}: key '{where}'", e.centre, e.radius)
+        if obj.instances is not None:    # every copy as the object itself (what the reference holds)
+            from ..common import instances
+            instances.check(instances.matrices(obj.instances, scene.camera.up, e.centre), e.centre, e.radius,
+                            f"{origin}: key '{where}'")
         for key, kind in _PATH_KINDS.items():      # every part the entry names, whether the object reads it or not
             if getattr(e, key) is not None:
                 part(f"{where}.{key}", getattr(e, key), KINDS[kind])
