@@ -1,6 +1,8 @@
 """Fuzzing the inputs a user hands the tools (hypothesis): scene files and bundle manifests; since issue 21
 also the files a mesh file names (MTL, textures, glTF buffers and images, with `textures = "use"/"ignore"`),
-a --baseline report.json, composite sets, and the contents and metadata of octahedral and pyramid parts.
+a --baseline report.json, composite sets, and the contents and metadata of octahedral and pyramid parts;
+since issue 32 part cache entries (as hostile files: a bake through them must always succeed, with the bundle
+a bake without the cache makes), the cache's stats.log and glTF accessors.
 
 Each example mutates a valid input (values replaced by arbitrary data: huge integers, NaN, Inf,
 1e-200, strings with newlines, deep nesting; keys deleted or added; TOML text edited character-wise;
@@ -692,7 +694,7 @@ RAW_LITERALS = st.sampled_from(["NaN", "Infinity", "-Infinity", "9" * 5000, "-" 
 
 def _baseline_paths(path) -> bool:
     """The paths of a report that baseline.load reads (the rest of a report it ignores)."""
-    if not path or path[0] not in ("time", "device", "resolution", "rows"):
+    if not path or path[0] not in ("time", "device", "resolution", "rows", "budget"):   # budget.repeats: issue 32
         return False
     return path[0] != "rows" or len(path) <= 2 or (len(path) >= 3 and path[2] in BASELINE_ROW_KEYS)
 
@@ -1197,3 +1199,272 @@ def _same(a, b) -> None:
             _same(getattr(a, f), getattr(b, f))
     else:
         assert a == b, (a, b)
+
+
+# =========================================================================================================
+# The targets of issue 32: the part cache as input (entries as hostile files, stats.log lines) and glTF
+# accessors. Same contract; a hostile cache entry is stricter still: it is never the bake's failure.
+# =========================================================================================================
+
+CACHE_SCENE = """
+[render]
+resolution = [32, 32]
+
+[[objects]]
+name = "ball"
+primitive = "sphere"
+params = { segments = 12, rings = 6 }
+techniques = { mesh = {}, coarse = { ratios = [0.5] } }
+"""
+HOSTILE_NAMES = ["../../../outside/evil.ply", "OUTSIDE/evil.ply", "mesh.ply", "coarse-0.5.ply/../../x.ply", "",
+                 ".hidden.ply", "a\nb.ply", "coarse-x.exr", "sub/coarse-1.ply", "coarse-\x00.ply", "..", "coarse"]
+
+
+def cache_entry_bytes(key: str, header, blobs: list[bytes]) -> bytes:
+    """An entry as PartCache.put writes it, with valid checksums, from a header (any JSON, or its bytes) and the
+    parts' bytes."""
+    import hashlib
+
+    from vdmbake.library.cache import MAGIC
+
+    head = header if isinstance(header, bytes) else json.dumps(header, separators=(",", ":")).encode()
+    body = b"".join([len(head).to_bytes(8, "little"), head, *blobs])
+    return MAGIC + b" " + hashlib.sha256(body).hexdigest().encode() + b"\n" + body
+
+
+@st.composite
+def cache_entry_case(draw, fixture: Quiet):
+    """(key, op, what): one entry of the fixture's cache made hostile. op 'bytes' (flipped, cut, grown or other
+    bytes: a miss by its checksum), 'name' (a part renamed, with valid checksums: outside the bundle, another
+    step's, not plain), 'header' (the header's JSON mutated, valid checksums), 'file' (a FIFO, a link to a
+    device or to another entry, a folder, a deeply nested header), 'swap' (another key's entry)."""
+    from vdmbake.library.cache import PartCache
+
+    _, _, entries = fixture
+    key = draw(st.sampled_from(sorted(entries)))
+    data = entries[key]
+    op = draw(st.sampled_from(["bytes", "name", "name", "header", "header", "file", "swap"]))
+    if op == "bytes":
+        at = draw(st.integers(0, len(data) - 1))
+        how = draw(st.sampled_from(["flip", "cut", "grow", "random"]))
+        what = (data[:at] + bytes([data[at] ^ 0x40]) + data[at + 1:] if how == "flip" else data[:at] if how == "cut"
+                else data + draw(st.binary(min_size=1, max_size=64)) if how == "grow"
+                else draw(st.binary(max_size=256)))
+    elif op in ("name", "header"):
+        e = PartCache._parse(key, data)
+        header = {"key": key, "entry": e.entry, "log": e.log,
+                  "parts": [{"name": n, "kind": k, "meta": m, "bytes": len(d),
+                             "sha256": __import__("hashlib").sha256(d).hexdigest()} for n, k, m, d in e.parts]}
+        if op == "name":
+            k = draw(st.integers(0, len(header["parts"]) - 1))
+            old, new = header["parts"][k]["name"], draw(st.sampled_from(HOSTILE_NAMES) | st.text(max_size=12))
+            header["parts"][k]["name"] = new
+            if draw(st.booleans()):       # the block names it too, as a crafted entry would
+                header["entry"] = json.loads(json.dumps(header["entry"]).replace(
+                    json.dumps("@part:" + old), json.dumps("@part:" + new)))
+        else:
+            header = draw(mutated(header))
+        what = cache_entry_bytes(key, header, [d for *_, d in e.parts])
+    elif op == "file":
+        what = draw(st.sampled_from(["fifo", "device", "link", "folder", "deep"]))
+    else:
+        what = entries[draw(st.sampled_from(sorted(entries)))]
+    return key, op, what
+
+
+def check_cache_bake(folder: Path, fixture: Quiet, case) -> None:
+    """The fixture's scene baked through its cache with one entry made hostile (cache_entry_case): exit 0 within a
+    time limit, whatever the entry (a cache is never the reason a bake fails), nothing written outside the bundle
+    and the cache, and the bundle the one a bake without the cache makes (byte for byte, but timing.json); where
+    the header's JSON was mutated with valid checksums (an entry that may be another valid bake: what a shared
+    cache still trusts, docs/library.md), the bundle opens and every part reads."""
+    from click.testing import CliRunner
+
+    from vdmbake.cli import main as bake_main
+    from vdmbake.library.cache import PartCache
+
+    scene, plain, entries = fixture
+    key, op, what = case
+    cache = PartCache(folder / "cache")
+    for k, data in entries.items():
+        cache.path(k).parent.mkdir(parents=True, exist_ok=True)
+        cache.path(k).write_bytes(data)
+    p = cache.path(key)
+    p.unlink()
+    if op == "file":
+        if what == "fifo":
+            os.mkfifo(p)
+        elif what == "device":
+            p.symlink_to("/dev/zero")
+        elif what == "link":
+            p.symlink_to(cache.path(next(k for k in sorted(entries) if k != key)))
+        elif what == "folder":
+            p.mkdir()
+        else:
+            p.write_bytes(cache_entry_bytes(key, b"[" * 100000 + b"]" * 100000, []))
+    else:
+        p.write_bytes(what)
+    (folder / "outside").mkdir()
+    (folder / "s.toml").write_text(scene)
+    before = {q for q in folder.rglob("*") if "cache" not in q.relative_to(folder).parts}
+    with time_limit(60, "a bake through a hostile cache"):
+        r = CliRunner().invoke(bake_main, [str(folder / "s.toml"), "-o", str(folder / "b.bundle"), "--cache",
+                                           str(folder / "cache")], env={"VDM_CACHE": None})
+    assert r.exit_code == 0, (op, r.output[-3000:], repr(r.exception))
+    after = {q for q in folder.rglob("*") if "cache" not in q.relative_to(folder).parts
+             and "b.bundle" not in q.relative_to(folder).parts}
+    assert after == before, sorted(map(str, after - before))
+    if op == "header":
+        check_bundle_reads(folder / "b.bundle")
+        _event("header mutated: " + ("same bundle" if bundle_files(folder / "b.bundle") == plain else "other bundle"))
+    else:
+        assert bundle_files(folder / "b.bundle") == plain, op
+        _event(f"{op}: same bundle")
+
+
+def bundle_files(bundle: Path) -> dict:
+    """Every file of a bundle but timing.json, as bytes."""
+    return {q.relative_to(bundle).as_posix(): q.read_bytes() for q in sorted(bundle.rglob("*"))
+            if q.is_file() and q.name != "timing.json"}
+
+
+COUNTERS = ("hits", "misses", "corrupt", "stored", "evicted", "parts_from_cache", "bytes_from_cache")
+
+
+@st.composite
+def stats_lines(draw) -> list[bytes]:
+    """stats.log lines: counts as vdmbake writes them, and lines no bake writes (other JSON, counts of the wrong
+    type or sign, a torn write's bytes, nested text)."""
+    good = st.fixed_dictionaries({k: st.integers(0, 10**6) for k in COUNTERS}).map(
+        lambda d: json.dumps({"time": 1.0, "host": "h", "pid": 1, **d}).encode())
+    bad = st.one_of(
+        st.builds(lambda k, v: json.dumps({k: v}).encode(), st.sampled_from(COUNTERS),
+                  st.sampled_from([-1, 1.5, "3", True, None, 2**63, 10**400, [1], {"a": 1}])),
+        VALUES.map(lambda v: json.dumps(v).encode()), st.binary(max_size=40),
+        st.sampled_from([b"\xff\xfe{\"hits", b'{"hits": 1', b"NaN", b"\xc3", b"   ", b"{}"]))
+    return draw(st.lists(good | bad, max_size=12))
+
+
+def _stats_oracle(lines: list[bytes]) -> tuple[int, int, dict]:
+    """(bakes, skipped, sums) as the documented rule reads stats.log: a line of UTF-8 JSON, an object whose
+    counters are integers from 0 to 2^63 (absent: 0), is a bake's counts; any other non-blank line is skipped."""
+    bakes = skipped = 0
+    sums = dict.fromkeys(COUNTERS, 0)
+    for line in b"\n".join(lines).split(b"\n"):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError, RecursionError):
+            rec = None
+        if not isinstance(rec, dict) or not all(type(rec.get(k, 0)) is int and 0 <= rec.get(k, 0) < 2**63
+                                                for k in COUNTERS):
+            skipped += 1
+            continue
+        bakes += 1
+        for k in COUNTERS:
+            sums[k] += rec.get(k, 0)
+    return bakes, skipped, sums
+
+
+def check_stats(folder: Path, lines: list[bytes]) -> None:
+    """--cache-stats over these stats.log lines: exit 0 within a time limit, the counts of the lines that are
+    counts, and every other line counted as skipped."""
+    from click.testing import CliRunner
+
+    from vdmbake.cli import main as bake_main
+
+    (folder / "stats.log").write_bytes(b"\n".join(lines) + b"\n")
+    with time_limit(20, "--cache-stats"):
+        r = CliRunner().invoke(bake_main, ["--cache", str(folder), "--cache-stats", "--json"],
+                               env={"VDM_CACHE": None})
+    assert r.exit_code == 0, (r.output[-2000:], repr(r.exception))
+    st_ = json.loads(r.stdout)
+    bakes, skipped, sums = _stats_oracle(lines)
+    assert (st_["bakes"], st_["skipped_lines"]) == (bakes, skipped), (st_, bakes, skipped)
+    assert {k: st_[k] for k in COUNTERS} == sums
+    _event(f"{'some' if skipped else 'no'} lines skipped")
+
+
+# glTF accessors: the fuzz assets' quad with a COLOR_0 accessor (VEC3 float) of its own view; edits of the
+# accessors' and views' layout keys to values at and past the spec's bounds.
+def _with_colour() -> tuple[dict, bytes]:
+    tree, data = copy.deepcopy(A.GLTF), A.BIN + b"\0" * (-len(A.BIN) % 4)
+    colour = np.full((4, 3), 0.5, "<f4").tobytes()
+    tree["bufferViews"].append({"buffer": 0, "byteOffset": len(data), "byteLength": len(colour)})
+    tree["accessors"].append({"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC3"})
+    tree["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = 3
+    data += colour
+    tree["buffers"][0]["byteLength"] = len(data)
+    return tree, data
+
+
+LAYOUT = st.sampled_from([0, 1, 2, 3, 4, 5, 6, 8, 11, 12, 16, 24, 48, 252, 256, 2**31, 2**63, -1, -12, 1.5, "4",
+                          None, True, 10**400])
+
+
+@st.composite
+def accessor_case(draw) -> tuple[dict, bytes]:
+    """(glTF JSON, its .bin): one to three edits of an accessor's count, byteOffset, componentType, type, normalized
+    or bufferView, a view's byteStride, byteOffset, byteLength or buffer, the buffer's bytes."""
+    tree, data = _with_colour()
+    for _ in range(draw(st.integers(1, 3))):
+        what = draw(st.sampled_from(["accessor", "accessor", "view", "view", "bin", "attribute"]))
+        if what == "accessor":
+            a = tree["accessors"][draw(st.integers(0, 3))]
+            key = draw(st.sampled_from(["count", "byteOffset", "componentType", "type", "normalized", "bufferView"]))
+            a[key] = draw(LAYOUT | st.sampled_from([5120, 5121, 5122, 5123, 5125, 5126, 5130, "VEC2", "VEC3",
+                                                    "VEC4", "SCALAR", "MAT4"]))
+        elif what == "view":
+            v = tree["bufferViews"][draw(st.integers(0, 3))]
+            v[draw(st.sampled_from(["byteStride", "byteOffset", "byteLength", "buffer"]))] = draw(LAYOUT)
+        elif what == "bin":
+            data = data[:draw(st.integers(0, len(data)))]
+        else:
+            attrs = tree["meshes"][0]["primitives"][0]["attributes"]
+            attrs[draw(st.sampled_from(["COLOR_0", "TEXCOORD_0", "NORMAL", "POSITION"]))] = draw(LAYOUT)
+    return tree, data
+
+
+def _laid_out(tree: dict, data: bytes) -> bool:
+    """Whether every accessor the primitive reads lies inside its view and buffer, its elements apart (glTF 2.0
+    §3.6.2.4), its attributes of one count: the oracle for what load_mesh_file may accept."""
+    sizes = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+    widths = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+    prim = tree["meshes"][0]["primitives"][0]
+    counts = []
+    for name, i in [*prim["attributes"].items(), ("indices", prim.get("indices"))]:
+        if i is None and name == "indices":
+            continue
+        a = tree["accessors"][i]
+        size, width = sizes[a["componentType"]], widths[a["type"]]
+        v = tree["bufferViews"][a["bufferView"]]
+        stride = v.get("byteStride", size * width)
+        end = a.get("byteOffset", 0) + stride * (a["count"] - 1) + size * width
+        if stride < size * width or end > v["byteLength"] or v.get("byteOffset", 0) + v["byteLength"] > len(data):
+            return False
+        if name != "indices":
+            counts.append(a["count"])
+    return len(set(counts)) == 1
+
+
+def check_accessors(folder: Path, case) -> None:
+    """load_mesh_file on the edited glTF: an InputError of one line within a time limit, or a mesh whose
+    accessors the oracle finds laid out as the spec says, with finite vertices and one colour per vertex."""
+    from vdmbake.assets.meshes import load_mesh_file
+
+    tree, data = case
+    (folder / "quad.bin").write_bytes(data)
+    (folder / "tex.png").write_bytes(A.PNG)
+    (folder / "quad.gltf").write_text(json.dumps(tree))
+    with time_limit(20, "load_mesh_file"):
+        try:
+            mesh = load_mesh_file(folder / "quad.gltf")
+        except InputError as e:
+            one_line(e)
+            _event("refused")
+            return
+    _event("accepted")
+    assert _laid_out(tree, data), "accepted an accessor out of its layout"
+    assert np.isfinite(mesh.vertices).all()
+    assert mesh.colors is None or (len(mesh.colors) == len(mesh.vertices) and np.isfinite(mesh.colors).all())

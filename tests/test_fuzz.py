@@ -1,5 +1,6 @@
 """The fuzzer (tests/fuzz_inputs.py) over scene files and manifests and, since issue 21, over textured meshes
-(OBJ + MTL + PNG, glTF + .bin + PNG), baseline reports, composite sets and octahedral and pyramid parts: a few
+(OBJ + MTL + PNG, glTF + .bin + PNG), baseline reports, composite sets and octahedral and pyramid parts, and since
+issue 32 over part cache entries as hostile files, stats.log lines and glTF accessors' layouts: a few
 hundred examples of each inside `make test` (derandomised, so the suite is reproducible; each target well
 under 60 s on 2 cores); `make fuzz` runs 1000+ of each, randomised (VDM_FUZZ_EXAMPLES)."""
 from __future__ import annotations
@@ -13,9 +14,11 @@ from click.testing import CliRunner
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fuzz_inputs import (SETTINGS, TEXTURES_SETTING, DamagedPart, Quiet, baseline_text, check_baseline,
+from fuzz_inputs import (CACHE_SCENE, SETTINGS, TEXTURES_SETTING, DamagedPart, Quiet, accessor_case, baseline_text,
+                         bundle_files, cache_entry_case, check_accessors, check_baseline, check_cache_bake,
                          check_composite_bake, check_manifest, check_part, check_scene_data, check_scene_text,
-                         check_textured_bake, composite_sets, examples, gltf_case, mutated, obj_case, part_case)
+                         check_stats, check_textured_bake, composite_sets, examples, gltf_case, mutated, obj_case,
+                         part_case, stats_lines)
 from test_bad_input import bake, write_scene
 from scenes import TINY_HEAD
 
@@ -274,3 +277,49 @@ def test_fuzz_lod(fuzz_lod, tmp_path_factory, data):
     d = tmp_path_factory.mktemp("export")
     (d / "lod.json").write_text(json.dumps(data.draw(mutated(lod))))
     check_export(bundle, d / "lod.json", d / "x")
+
+
+# ------------------------------------------------------------------------- issue 32: the part cache as input
+
+@pytest.fixture(scope="module")
+def fuzz_cache(tmp_path_factory):
+    """A small scene, the bundle a bake without a cache makes of it (every file but timing.json), and the entries
+    a bake through a cache stores: (scene text, {file: bytes}, {key: entry bytes})."""
+    d = tmp_path_factory.mktemp("cache")
+    scene = write_scene(d, CACHE_SCENE)
+    assert bake(scene, "-o", d / "plain.bundle").exit_code == 0
+    r = bake(scene, "-o", d / "cached.bundle", "--cache", d / "cache")
+    assert r.exit_code == 0, r.output
+    entries = {p.name: p.read_bytes() for p in (d / "cache" / "entries").rglob("*") if p.is_file()}
+    assert len(entries) == 2                          # the object's own step and coarse's
+    return Quiet("fuzz_cache", (CACHE_SCENE, bundle_files(d / "plain.bundle"), entries))
+
+
+@given(data=st.data())
+@examples(60)
+def test_fuzz_cache_entries(fuzz_cache, tmp_path_factory, data):
+    check_cache_bake(tmp_path_factory.mktemp("hostile"), fuzz_cache, data.draw(cache_entry_case(fuzz_cache)))
+
+
+def test_fuzz_cache_is_accepted_unmutated(fuzz_cache, tmp_path):
+    scene, plain, entries = fuzz_cache
+    key = sorted(entries)[0]
+    check_cache_bake(tmp_path, fuzz_cache, (key, "swap", entries[key]))
+
+
+@given(lines=stats_lines())
+@examples(300)
+def test_fuzz_stats_log(tmp_path_factory, lines):
+    check_stats(tmp_path_factory.mktemp("stats"), lines)
+
+
+@given(case=accessor_case())
+@examples(300)
+def test_fuzz_gltf_accessors(tmp_path_factory, case):
+    check_accessors(tmp_path_factory.mktemp("accessors"), case)
+
+
+def test_fuzz_gltf_accessors_are_accepted_unmutated(tmp_path):
+    from fuzz_inputs import _with_colour
+
+    check_accessors(tmp_path, _with_colour())
