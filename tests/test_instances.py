@@ -217,8 +217,10 @@ scatter = { count = 40, area = [16, 16], scale = [0.6, 1.2], seed = 2 }
     rows = {r["label"]: r for r in report["rows"]}
     mix = rows["lod@fine"]
     assert mix["technique"] == "lod" and sum(mix["lod_copies"].values()) == 40 * 2
-    chain = report["lod"]["chains"][0]["objects"]["field"]["entries"]
+    priced = report["lod"]["chains"][0]["objects"]["field"]
+    chain = priced.get("sweep_entries", priced["entries"])   # the row draws the sweep's chain, whatever the field chose
     assert set(mix["lod_copies"]) == {e["variant"] for e in chain}
+    assert priced["field"]["chosen"] in {r["label"] for r in report["rows"]}
     assert mix["counters"]["instances"] == 2 * 40 * 2   # every copy once per pass (light, frame), per camera
     # the mix is drawn by the chain's variants only: its error within theirs, the coverage the reference's
     assert mix["mean_dluv"] <= max(rows[v]["mean_dluv"] for v in mix["lod_copies"]) + 0.05

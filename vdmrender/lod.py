@@ -4,10 +4,13 @@ screen sizes; written as lod.json and lod.md.
 
 A variant measured at size s is chosen for the band of sizes from s down to the next smaller measured size
 (exclusive): the band is judged at its largest size, where a fixed-resolution impostor's error is largest and a
-mesh's cost is about the same, so the choice is conservative within its band. Cheapest is the smallest median
-GPU time; variants whose medians differ by less than their interquartile spreads together, or by less than
-NOISE of the cheaper, cost the same within the noise, and of those the one with the smaller mean ΔLuv is taken,
-so that two runs pick the same chain."""
+mesh's cost is about the same, so the choice is conservative within its band. Cheapest is decided on the variants'
+interleaved frames where the sweep timed them so (vdmrender.pricing: every variant within the limits and within
+4x of the fastest's median, frame beside frame under the same load; a variant costs the same as the fastest
+unless the 95% confidence interval of their paired log-ratios lies wholly above 10%), else on separately timed
+medians (the same within their interquartile spreads together or 10% of the cheaper); of the variants that cost
+the same, the one with the smaller mean ΔLuv is taken, so that two runs pick the same chain. With pop_dluv, a
+switch that would pop more is avoided where a variant within the limits pops less."""
 from __future__ import annotations
 
 import json
@@ -18,11 +21,10 @@ import numpy as np
 
 from vdmbake.common import instances
 
+from . import pricing
 from .composite import Composite
 
-NOISE = 0.1   # a difference in median GPU time below this share is not taken as one in cost (two runs of
-              # configs/lod-bunny.toml on the shared 2-core llvmpipe machine moved by 14% in the median, 42% at p90:
-              # there, bands below 32 px can flip between runs; README, "What to ship at each screen size")
+NOISE = 0.1   # separately timed medians (no interleaved times): a difference below this share is not one in cost
 TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
 MEASURED = ("mean_dluv", "p95_dluv", "flip_mean", "iou", "aliased_mean_dluv", "median_ms", "spread_ms", "empty_frames")
 
@@ -34,11 +36,32 @@ def meets(row: dict, limits: dict) -> bool:
 
 
 def cheapest(rows: list[dict]) -> dict:
-    """The cheapest row, ties within the noise broken by the smaller error, then by label."""
+    """The cheapest row, ties broken by the smaller error, then by label. Where every row within pricing.NEAR of
+    the fastest median carries its interleaved frame times (`interleaved_ms`, aligned), a tie is pricing's
+    "same" (or a difference it could not show); otherwise medians within the noise tie."""
     best = min(rows, key=lambda r: r["median_ms"])
-    tied = [r for r in rows if r["median_ms"] - best["median_ms"]
-            <= max((r["spread_ms"] or 0) + (best["spread_ms"] or 0), NOISE * best["median_ms"])]
+    near = [r for r in rows if r["median_ms"] <= pricing.NEAR * best["median_ms"]]
+    paired = len(near) > 1 and all(r.get("interleaved_ms") for r in near) and len({len(r["interleaved_ms"]) for r in near}) == 1
+    if paired:
+        verdict = pricing.verdicts({r["label"]: np.array(r["interleaved_ms"]) for r in near})
+        tied = [r for r in near if verdict[r["label"]] != "slower"]
+    else:
+        tied = [r for r in rows if r["median_ms"] - best["median_ms"]
+                <= max((r["spread_ms"] or 0) + (best["spread_ms"] or 0), NOISE * best["median_ms"])]
     return min(tied, key=lambda r: (r["mean_dluv"] if r["mean_dluv"] is not None else float("inf"), r["label"]))
+
+
+def contenders(rows: list[dict], lod_sets) -> set[str]:
+    """The variants (labels) at one screen size that may be some chain's cheapest: for every set of limits
+    (scene.Thresholds), those within them and within pricing.NEAR of the fastest of them by their own medians
+    (the sweep times these again, interleaved)."""
+    out = set()
+    for t in lod_sets:
+        ok = [r for r in rows if meets(r, t.limits())]
+        if ok:
+            fastest = min(r["median_ms"] for r in ok)
+            out |= {r["label"] for r in ok if r["median_ms"] <= pricing.NEAR * fastest}
+    return out
 
 
 def chain(rows: list[dict], limits: dict, height: int, pop=None, pop_dluv: float | None = None,

@@ -59,7 +59,7 @@ class Harness:
         self.plain = timing.FrameTimer(self.ctx, self.target)
         self.clears = []
 
-    def _shipped(self, renderer):
+    def as_shipped(self, renderer):
         """The renderer as the run ships it: drawing into the anti-aliased target, then its resolve."""
         return renderer if self.aa == "none" else antialias.Resolved(renderer)
 
@@ -74,7 +74,7 @@ class Harness:
         renderer = built(build)
         try:
             before = device.nvml_clocks()
-            stats, frames = timing.time_variant(self.timer, self._shipped(renderer), cams, self.budget, desc)
+            stats, frames = timing.time_variant(self.timer, self.as_shipped(renderer), cams, self.budget, desc)
             self.clears.append(self.timer.clear_ms())
             after = device.nvml_clocks()
             stats["faces"] = getattr(renderer, "faces", None)
@@ -95,7 +95,7 @@ class Harness:
         with counters.counting(self.ctx):
             renderer = built(build)
         try:
-            c = counters.count_frames(self.ctx, self._shipped(renderer), cams, self.shipped)
+            c = counters.count_frames(self.ctx, self.as_shipped(renderer), cams, self.shipped)
             total, passes, covered = c["total"], c["passes"], c["covered"]
             total.update(covered=covered, bytes=counters.resident_bytes(renderer))
         finally:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from dataclasses import asdict, dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, composite, gl, images, lod, measure, refcache, report, scoring, sweep, timing
+from . import baseline, composite, gl, images, lod, measure, pricing, refcache, report, scoring, sweep, timing
 from . import device as gpu
 from .camera import cameras_for
 from .metrics import summarise
@@ -290,10 +291,20 @@ def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> tuple
         for size in sizes:
             cams = sweep.sized(views, centre, radius, size)
             distance = round(sweep.distance_for(size, 1.0, views[0].fov_deg, height), 4)
-            rows += [{**r, "size_px": size, "distance_radii": distance}
-                     for r in render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log,
-                                            f"sizes/{size}px/", f"{obj.name} @{size}px",
-                                            frames.setdefault(obj.name, {}).setdefault(size, {}))]
+            here = [{**r, "size_px": size, "distance_radii": distance}
+                    for r in render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log,
+                                           f"sizes/{size}px/", f"{obj.name} @{size}px",
+                                           frames.setdefault(obj.name, {}).setdefault(size, {}))]
+            contest = lod.contenders(here, scene.render.sweep.lod if scene.render.sweep else ())
+            if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.pricing)
+                times = pricing.interleaved(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
+                                                      if v.label in contest}, cams)
+                for r in here:
+                    if r["label"] in times:
+                        r["interleaved_ms"] = times[r["label"]]
+                log(f"{obj.name} @{size}px: {', '.join(sorted(contest))} timed interleaved, "
+                    f"{len(next(iter(times.values()))) // len(cams)} rounds")
+            rows += here
     return rows, frames
 
 
