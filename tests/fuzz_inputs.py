@@ -1468,3 +1468,36 @@ def check_accessors(folder: Path, case) -> None:
     assert _laid_out(tree, data), "accepted an accessor out of its layout"
     assert np.isfinite(mesh.vertices).all()
     assert mesh.colors is None or (len(mesh.colors) == len(mesh.vertices) and np.isfinite(mesh.colors).all())
+
+
+# Scheduler addresses (`vdmbake --scheduler`): what check_address and the reachability check make of them,
+# without starting Dask. Hosts are this machine's or malformed: no example waits on a name server.
+ADDRESS = st.builds(
+    lambda scheme, host, port, tail: f"{scheme}{host}{port}{tail}",
+    st.sampled_from(["tcp://", "tls://", "local:", "local", "inproc://", "ucx://", "", "TCP://", "tcp:/"]),
+    st.sampled_from(["127.0.0.1", "[::1]", "", "999.1.1.1", "127.0.0.1\n", "a b", "[::1", "0.0.0.0"]),
+    st.sampled_from([":0", ":1", ":65535", ":65536", ":-1", ":" + "9" * 30, ":x", "", ":8786:1", "1024", "1025",
+                     "100000", "0", "-2", "2"]),
+    st.sampled_from(["", "/", "/x", "\x00", " "]))
+
+
+def check_address_text(address: str) -> None:
+    """check_address, then (for what it accepts over TCP) the reachability check: each refuses with an InputError
+    of one line or accepts, within CONNECT_S and a second; local:N is accepted only for 1 to MAX_LOCAL."""
+    import re
+
+    from vdmbake.library import cluster
+
+    with time_limit(cluster.CONNECT_S + 1, "the scheduler address checks"):
+        try:
+            cluster.check_address(address)
+            m = cluster.LOCAL.fullmatch(address)
+            assert not m or 1 <= int(m[1]) <= cluster.MAX_LOCAL, address
+            if not m:
+                cluster._reachable(address)
+        except InputError as e:
+            one_line(e)
+            _event("refused")
+            return
+    _event("accepted")
+    assert re.fullmatch(r"local:\d+", address) or not address.startswith("local"), address

@@ -18,7 +18,7 @@ from fuzz_inputs import (CACHE_SCENE, SETTINGS, TEXTURES_SETTING, DamagedPart, Q
                          bundle_files, cache_entry_case, check_accessors, check_baseline, check_cache_bake,
                          check_composite_bake, check_manifest, check_part, check_scene_data, check_scene_text,
                          check_stats, check_textured_bake, composite_sets, examples, gltf_case, mutated, obj_case,
-                         part_case, stats_lines)
+                         part_case, stats_lines, ADDRESS, check_address_text)
 from test_bad_input import bake, write_scene
 from scenes import TINY_HEAD
 
@@ -323,3 +323,10 @@ def test_fuzz_gltf_accessors_are_accepted_unmutated(tmp_path):
     from fuzz_inputs import _with_colour
 
     check_accessors(tmp_path, _with_colour())
+
+
+@given(address=ADDRESS)
+@examples(200)
+def test_fuzz_scheduler_address(address):
+    pytest.importorskip("distributed")
+    check_address_text(address)

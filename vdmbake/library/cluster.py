@@ -11,18 +11,30 @@ scheduler, which runs the task again on another worker (up to `distributed.sched
 swapped in whole, and cache entries are written to a temporary file and renamed, so a killed task
 leaves no torn part, only a hidden staging folder that the retry's bake removes (same machine) and a
 temporary file that cache eviction removes after an hour.
+
+A scheduler is input too: `local:N` is bounded as --jobs is; an address where nothing listens is refused
+within CONNECT_S (a plain TCP connect first: Dask's own would retry for its 30 s timeout); one where something
+else answers is refused as no Dask scheduler; a scheduler lost mid-run ends the run with the scenes not
+finished named in the closing table (failed, exit 1), not a traceback. A finished scene's future is released
+at once, so a worker lost later does not make the scheduler bake it again.
 """
 from __future__ import annotations
 
 import logging
 import re
+import socket
 import uuid
+from concurrent.futures import CancelledError
 from pathlib import Path
 
 from .batch import Task, bake_one
-from ..errors import InputError
+from ..errors import InputError, escaped
 
 LOCAL = re.compile(r"local:(\d+)")
+TCP = re.compile(r"(?:tcp|tls)://\[?([^\]/]+?)\]?:(\d+)/?")
+MAX_LOCAL = 1024          # worker processes of local:N, as --jobs allows
+CONNECT_S = 5.0           # seconds to wait for a scheduler's address to answer at all
+LOST = "scheduler-connection-lost"     # distributed's reason for the futures it cancels when the scheduler is gone
 
 
 def _dask():
@@ -36,12 +48,39 @@ def _dask():
 
 def check_address(address: str) -> str:
     m = LOCAL.fullmatch(address)
-    if m and int(m[1]) < 1:
-        raise InputError(f"--scheduler {address}: local:N needs N >= 1 worker processes.")
+    if m and not 1 <= int(m[1]) <= MAX_LOCAL:
+        raise InputError(f"--scheduler {address}: local:N needs 1 to {MAX_LOCAL} worker processes (as --jobs).")
     if not m and address.startswith("local"):
         raise InputError(f"--scheduler {address!r}: write local:N (N worker processes on this machine), or a "
                          "scheduler's address such as tcp://HOST:8786.")
     return address
+
+
+def _reachable(address: str) -> None:
+    """Refuse within CONNECT_S a tcp:// or tls:// address where nothing accepts a connection."""
+    m = TCP.fullmatch(address)
+    if not m:
+        return                                   # another transport: Dask's own connect says
+    try:
+        socket.create_connection((m[1], int(m[2])), timeout=CONNECT_S).close()
+    except (OSError, ValueError, OverflowError) as e:       # refused, no such host, a port past 65535
+        raise InputError(f"--scheduler {escaped(address)}: cannot reach the Dask scheduler "
+                         f"({getattr(e, 'strerror', None) or e}); start one with `dask scheduler` and its workers "
+                         "with `dask worker ADDRESS` (docs/library.md).") from None
+
+
+def _quiet_distributed() -> None:
+    """Dask's own log (a lost connection, once per future and reconnection try, with tracebacks) kept off the
+    tool's output for the rest of the process: what went wrong is in the closing table, and Dask's threads go on
+    logging after run_dask returns."""
+    for name in ["distributed", "tornado", *logging.root.manager.loggerDict]:
+        if name.split(".")[0] in ("distributed", "tornado"):
+            logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
+def _failed(task: Task, reason: str) -> dict:
+    return {"scene": task.scene, "bundle": task.out, "status": "failed", "parts": 0, "baked": 0, "from_cache": 0,
+            "seconds": 0.0, "reason": reason}
 
 
 def run_dask(tasks: list[Task], address: str, done) -> tuple[list[dict], str]:
@@ -49,6 +88,7 @@ def run_dask(tasks: list[Task], address: str, done) -> tuple[list[dict], str]:
     task order and a line describing the cluster."""
     Client, LocalCluster, as_completed = _dask()
     check_address(address)
+    _quiet_distributed()
     cluster = None
     m = LOCAL.fullmatch(address)
     try:
@@ -57,12 +97,13 @@ def run_dask(tasks: list[Task], address: str, done) -> tuple[list[dict], str]:
                                    silence_logs=logging.ERROR)
             client = Client(cluster)
         else:
+            _reachable(address)
             try:
                 client = Client(address, timeout="30s")
-            except (OSError, TimeoutError, ValueError) as e:
-                raise InputError(f"--scheduler {address}: cannot reach the Dask scheduler ({e}); start one with "
-                                 "`dask scheduler` and its workers with `dask worker ADDRESS` (docs/library.md).") \
-                    from None
+            except Exception as e:              # another service there: Dask reads its answer as frames
+                raise InputError(f"--scheduler {escaped(address)}: no Dask scheduler answers there "
+                                 f"({type(e).__name__}: {escaped(str(e)[:200])}); start one with `dask scheduler` and "
+                                 "its workers with `dask worker ADDRESS` (docs/library.md).") from None
     except BaseException:
         if cluster is not None:
             cluster.close()
@@ -74,18 +115,26 @@ def run_dask(tasks: list[Task], address: str, done) -> tuple[list[dict], str]:
         futures = {client.submit(bake_one, t, key=f"vdmbake-{run}-{i}-{Path(t.scene).stem}", pure=False): i
                    for i, t in enumerate(tasks)}
         rows: list[dict | None] = [None] * len(tasks)
-        for fut in as_completed(futures):
-            i = futures[fut]
+        for fut in as_completed(list(futures)):
+            i = futures.pop(fut)
             try:
                 row = fut.result()
+            except CancelledError as e:
+                if getattr(e, "reason", None) == LOST:
+                    break
+                row = _failed(tasks[i], f"on the cluster: cancelled ({getattr(e, 'reason', e)})")
             except Exception as e:          # KilledWorker after the allowed retries, a worker without vdmbake
-                t = tasks[i]
-                row = {"scene": t.scene, "bundle": t.out, "status": "failed", "parts": 0, "baked": 0,
-                       "from_cache": 0, "seconds": 0.0, "reason": f"on the cluster: {type(e).__name__}: {e}"}
+                row = _failed(tasks[i], f"on the cluster: {type(e).__name__}: {e}")
+            finally:
+                fut.release()               # finished: a worker lost later does not make the scheduler bake it again
             rows[i] = row
             done(row)
+        for i, row in enumerate(rows):
+            if row is None:                 # the scheduler was lost: what had not finished is named as such
+                rows[i] = _failed(tasks[i], f"not finished: the connection to the Dask scheduler {address} was lost")
+                done(rows[i])
         return rows, about
     finally:
-        client.close()
+        client.close(timeout=CONNECT_S)
         if cluster is not None:
             cluster.close()
