@@ -126,8 +126,10 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
     OUTPUT/sizes/NNNpx/...                   with --sizes or render.sweep: frames, heat maps,
                                              reference and overviews at each screen size
     OUTPUT/sweep.csv, error_vs_size.png, cost_vs_size.png   the same, against screen size
-    OUTPUT/lod.json, lod.md                  with [[render.sweep.lod]]: per object the cheapest
+    OUTPUT/lod.json, lod.md, lod.png         with [[render.sweep.lod]]: per object the cheapest
                                              variant within the limits per band of screen sizes
+                                             (decided on interleaved frames), its pops and
+                                             hysteresis; for copies, priced on their field
 
     Several bundles, or a folder of them: each into OUTPUT/<bundle name without .bundle>/ as
     alone, one after another on the GPU; OUTPUT/report.json, report.csv and error_vs_time.png
