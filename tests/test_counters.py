@@ -250,3 +250,23 @@ def test_instrumented_frames_are_the_same(ctx, bricks, sphere_bakes):
         assert (t["searches"] > 0) == (label in searching) and (t["steps"] > 0) <= (label in searching), label
         print(f"{label:20} covered {c['covered']:4}  per covered px: "
               + "  ".join(f"{k} {t[k] / c['covered']:.2f}" for k in counters.COUNTERS))
+
+
+def test_counts_carry_past_32_bits(ctx):
+    """Each counter is two 32-bit words, the add that wraps the low word carrying into the high one: started just
+    below 2^32, a 64 x 64 frame's 4096 fragments count on exactly (one 32-bit atomic would wrap to 4095 - 100)."""
+    frag = gl.expand('#version 430\n#define COUNT\n#include "cost_count.glsl"\nout vec4 frag;\n'
+                     "void main() {\n    COUNT_FRAGMENT();\n    frag = FETCH(vec4(1.0));\n}\n")
+    prog = ctx.program(vertex_shader=gl.source("fullscreen.vert"), fragment_shader=frag)
+    start = 2**32 - 100
+    ssbo = ctx.buffer(np.array([start, start, 0, 0, 0, 0, 0, 0], np.uint32).tobytes())
+    target = gl.Target(ctx, 64, 64)
+    try:
+        target.clear()
+        ssbo.bind_to_storage_buffer(counters.BINDING)
+        ctx.vertex_array(prog, []).render(vertices=3)
+        ctx.memory_barrier()
+        assert counters.read_counts(ssbo.read()) == [start + 4096, start + 4096, 0, 0]
+    finally:
+        target.release()
+        ssbo.release()

@@ -53,7 +53,7 @@ def count_frame(ctx, renderer, camera, target) -> dict:
     if ctx.extra is None:
         ctx.extra = {}
     if "cost counters" not in ctx.extra:   # made once per context: moderngl cannot release a query
-        ctx.extra["cost counters"] = (ctx.buffer(reserve=4 * len(COUNTERS)), ctx.query(primitives=True))
+        ctx.extra["cost counters"] = (ctx.buffer(reserve=8 * len(COUNTERS)), ctx.query(primitives=True))
     ssbo, query = ctx.extra["cost counters"]
     draws = [0, 0]
     render = moderngl.VertexArray.render
@@ -73,13 +73,20 @@ def count_frame(ctx, renderer, camera, target) -> dict:
             with query:
                 run()
             ctx.memory_barrier()     # the shaders' atomics visible to the read
-            got = dict(zip(COUNTERS, map(int, np.frombuffer(ssbo.read(), np.uint32))),
+            got = dict(zip(COUNTERS, read_counts(ssbo.read())),
                        primitives=int(query.primitives), draws=draws[0], instances=draws[1])
             passes[name] = {k: passes.get(name, {}).get(k, 0) + v for k, v in got.items()}
     finally:
         moderngl.VertexArray.render = render
     total = {k: sum(p[k] for p in passes.values()) for k in (*COUNTERS, "primitives", "draws", "instances")}
     return {"passes": passes, "total": total, "covered": int((target.read()[..., 3] > 0).sum())}
+
+
+def read_counts(data: bytes) -> list[int]:
+    """The counters from their storage buffer's bytes: each a low and a high 32-bit word (cost_count.glsl)."""
+    words = np.frombuffer(data, np.uint32).astype(np.int64)
+    n = len(COUNTERS)
+    return [int(lo) + (int(hi) << 32) for lo, hi in zip(words[:n], words[n:2 * n])]
 
 
 def count_frames(ctx, renderer, cams, target) -> dict:
