@@ -171,3 +171,19 @@ def test_filtered_error_falls_with_screen_size(tmp_path):
     assert filtered < 0.7 and filtered < aliased - 0.1, (rows[16], rows[512])
     assert (tmp_path / "o" / "reference" / "scan" / "point" / "000.exr").is_file()
     assert "resolve" in report["rows"][0]["passes_ms"]
+
+
+def test_a_baseline_measured_otherwise_is_not_compared_for_error(tmp_path):
+    """Errors against a 1-spp reference and against a 16-spp one are different measures: --max-error-increase
+    across them is refused (exit 2), and without it the change table leaves the error changes out, saying why."""
+    from vdmrender import baseline
+
+    old = {"filtering": {"reference_spp": 1, "antialias": "none"}}
+    assert baseline.errors_comparable(old, {"reference_spp": 1, "antialias": "none"}) is None
+    assert baseline.errors_comparable({}, {"reference_spp": 1, "antialias": "none"}) is None   # an older report
+    assert "16 spp" in baseline.errors_comparable(old, {"reference_spp": 16, "antialias": "msaa4"})
+    row = {"object": "o", "label": "mesh", "median_ms": 1.0, "spread_ms": 0.1, "mean_dluv": 1.0}
+    block = baseline.compare({**old, "rows": [row]}, {"filtering": {"reference_spp": 16, "antialias": "none"},
+                                                      "rows": [{**row, "mean_dluv": 9.0}]}, 0.5, None)
+    assert block["rows"][0]["d_mean_dluv"] is None and not block["failed"]
+    assert any("errors not compared" in n for n in block["notes"])

@@ -48,8 +48,22 @@ class Counts(Type):
         return {k: COUNT.parse(v) for k, v in raw.items()}
 
 
+class Filtering(Type):
+    """What a report's errors are against (report.json's `filtering`)."""
+    text = "a table with reference_spp (an integer in [1, 65536]) and antialias (a mode name)"
+
+    def parse(self, raw):
+        if not isinstance(raw, dict):
+            raise Invalid
+        return {"reference_spp": Integer(1, 2**16).parse(raw.get("reference_spp")),
+                "antialias": NAME.parse(raw.get("antialias"))}
+
+
+POINT = {"reference_spp": 1, "antialias": "none"}   # a report without `filtering` (an older vdmrender)
+
 # The keys of a baseline report that compare() reads: (type, default where absent or null).
-TOP = {"time": (NAME, None), "device": (NAME, None), "resolution": (Vector(2, 1, 2**31 - 1, integer=True), None)}
+TOP = {"time": (NAME, None), "device": (NAME, None), "resolution": (Vector(2, 1, 2**31 - 1, integer=True), None),
+       "filtering": (Filtering(), POINT)}
 ROW = {"object": (NAME, REQUIRED), "label": (NAME, REQUIRED), "median_ms": (TIME, REQUIRED), "spread_ms": (TIME, None),
        "mean_dluv": (VALUE, None), "p95_dluv": (VALUE, None), "flip_mean": (VALUE, None), "counters": (Counts(), None)}
 
@@ -112,6 +126,17 @@ def times_comparable(old: dict, new: dict, across_devices: bool = False) -> str 
     return None
 
 
+def errors_comparable(old: dict, filtering: dict) -> str | None:
+    """None if the baseline's errors were measured as this run's are (the reference's samples per pixel, the
+    frames' anti-aliasing), else why not: against a filtered reference every error moves."""
+    was, now = old.get("filtering") or POINT, {k: filtering[k] for k in POINT}
+    if was == now:
+        return None
+    return (f"errors not compared: the baseline's are against a {was['reference_spp']}-spp reference with frames "
+            f"anti-aliased {was['antialias']}, this run's against {now['reference_spp']} spp with {now['antialias']} "
+            "(give the baseline's --reference-spp and --antialias to compare)")
+
+
 def _counters_changed(o: dict | None, n: dict | None) -> dict:
     """{counter: [old, new]} for every counter present in either row that differs."""
     a, b = (o or {}).get("counters") or {}, (n or {}).get("counters") or {}
@@ -126,6 +151,7 @@ def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown
     and which thresholds each exceeds. status: `compared`; `new` (no old row); `missing` (an old
     row the new run lacks: not a failure, the run may have been filtered with -t)."""
     why_not = times_comparable(old, new, across_devices)
+    errors_not = errors_comparable(old, new.get("filtering") or POINT)
     old_rows = {(r["object"], r["label"]): r for r in old["rows"]}
     new_rows = {(r["object"], r["label"]): r for r in new["rows"]}
     changes = []
@@ -144,6 +170,8 @@ def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown
              "d_flip": _diff(get(n, "flip_mean"), get(o, "flip_mean")),
              "old_ms": get(o, "median_ms"), "new_ms": get(n, "median_ms"), "time_ratio": ratio, "noise_ms": noise,
              "counters_changed": _counters_changed(o, n)}
+        if errors_not:   # measured against another reference or other frames: no change to speak of
+            c.update(d_mean_dluv=None, d_p95_dluv=None, d_flip=None)
         exceeds = []
         if max_error_increase is not None and c["d_mean_dluv"] is not None and c["d_mean_dluv"] > max_error_increase:
             exceeds.append("error")
@@ -152,7 +180,7 @@ def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown
             exceeds.append("time")
         changes.append({**c, "exceeds": exceeds})
     notes = [f"baseline {k} {old.get(k)!r} differs from this run's {new.get(k)!r}"
-             for k in ("device", "resolution") if old.get(k) != new.get(k)] + ([why_not] if why_not else [])
+             for k in ("device", "resolution") if old.get(k) != new.get(k)] + [x for x in (why_not, errors_not) if x]
     notes += [f"{c['object']}: {c['label']}: counters changed: "
               + ", ".join(f"{k} {a} -> {b}" for k, (a, b) in c["counters_changed"].items())
               for c in changes if c["counters_changed"]]

@@ -151,6 +151,10 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     if why_not and opts.max_slowdown is not None:
         ctx.release()
         raise InputError(f"--max-slowdown with --baseline {opts.baseline}: {why_not}.")
+    errors_not = old and baseline.errors_comparable(old, filtering_note(opts))
+    if errors_not and opts.max_error_increase is not None:
+        ctx.release()
+        raise InputError(f"--max-error-increase with --baseline {opts.baseline}: {errors_not}.")
     device_info, nvml = gpu.describe(ctx), gpu.nvml_clocks()
     out = StagedDir(out_path, "report.json", "vdmrender output folder")
     harness = measure.Harness(ctx, gl.Target(ctx, width, height), plan, opts.counters, opts.antialias)
