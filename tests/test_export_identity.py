@@ -64,7 +64,8 @@ def test_lod_of_another_bundle_or_without_identity_is_refused(tmp_path, bundles,
 @pytest.mark.parametrize("entry, message", [
     ({"min_px": 10**400, "max_px": 10**401}, "min_px <= max_px (pixels, 0 to 32768)"),   # OverflowError before
     ({"screen_coverage": [1e400, 0]}, "finite numbers"),
-    ({"measured": [{"mean_dluv": float("nan")}]}, "finite numbers")])
+    ({"measured": [{"mean_dluv": float("nan")}]}, "finite numbers"),
+    ({"measured": [{"size_px": 10**400}]}, "finite numbers")])           # found by test_fuzz_lod: OverflowError
 def test_numbers_out_of_range_are_refused(tmp_path, bundles, entry, message):
     r = _export(tmp_path, bundles[0], _lod(bundles[0].identity, **entry))
     assert r.exit_code == 2 and message in r.output and "Traceback" not in r.output, r.output

@@ -79,3 +79,11 @@ def test_the_tool_exits_2_naming_file_and_accessor(tmp_path):
 
 def test_a_valid_file_still_loads(tmp_path):
     assert len(load_mesh_file(_file(tmp_path, lambda g, p: None)).vertices) == 4
+
+
+def test_damaged_json_is_refused_in_one_line(tmp_path):
+    """Found by test_fuzz_textured_gltf: the accessor check read the JSON before trimesh and let its
+    JSONDecodeError through (exit 1)."""
+    (tmp_path / "quad.gltf").write_text('{"asset": 1} trailing')
+    with pytest.raises(InputError, match=r"quad.gltf: not readable glTF JSON \(JSONDecodeError: Extra data"):
+        load_mesh_file(tmp_path / "quad.gltf")

@@ -26,7 +26,11 @@ def check_accessors(files: dict, origin: str) -> None:
     byte: a component type and type of a vertex attribute, a count shared by every attribute, a byteStride no
     smaller than the element (else elements overlap), offsets aligned to the component, and every element within
     the view and the view within the buffer. InputError names the file, the accessor and what is wrong."""
-    tree = gltf_tree(files)
+    try:
+        tree = gltf_tree(files)
+    except (ValueError, RecursionError) as e:        # JSONDecodeError and UnicodeDecodeError are ValueErrors
+        raise InputError(f"{origin}: not readable glTF JSON ({type(e).__name__}: {escaped(str(e))[:200]}); fix the "
+                         "file.") from None
     buffer = functools.cache(lambda i: gltf_buffer(files, tree, i, origin))
     try:
         for m, mesh in enumerate(tree.get("meshes", [])):
@@ -40,7 +44,7 @@ def check_accessors(files: dict, origin: str) -> None:
                     raise InputError(f"{where}: its attributes have different counts ({escaped(repr(attributes))})"
                                      "; glTF 2.0 gives every attribute of a primitive one entry per vertex; fix the "
                                      "file.")
-    except (KeyError, IndexError, TypeError, AttributeError) as e:
+    except (KeyError, IndexError, TypeError, AttributeError, ValueError) as e:
         raise InputError(f"{origin}: cannot read its meshes' accessors ({type(e).__name__}: "
                          f"{escaped(str(e))}); fix the file.") from None
 

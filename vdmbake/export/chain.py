@@ -39,7 +39,9 @@ def _finite(value, depth: int = 0) -> bool:
         return all(_finite(v, depth + 1) for v in value.values())
     if isinstance(value, list):
         return all(_finite(v, depth + 1) for v in value)
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
+    if isinstance(value, int) and not isinstance(value, bool):
+        return abs(value) <= MAX_NUMBER          # compared exactly: math.isfinite(10**400) would overflow
+    if isinstance(value, float):
         return math.isfinite(value) and abs(value) <= MAX_NUMBER
     return value is None or isinstance(value, (str, bool))
 
