@@ -13,7 +13,7 @@ from pathlib import Path
 from vdmbake import __version__
 from vdmbake.errors import InputError, escaped, paragraph
 
-from . import baseline, report
+from . import baseline, html, report
 from .render import run
 
 
@@ -72,6 +72,7 @@ def run_many(paths: list[Path], out: Path, opts, log=lambda m: None) -> dict:
     combined = report.finite(combined)
     report.write(out, combined)
     (out / "runs.md").write_text(table(runs))
+    html.write(out, combined)
     return combined
 
 

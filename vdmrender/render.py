@@ -17,7 +17,7 @@ from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, composite, gl, images, lod, measure, pricing, refcache, report, scoring, sweep, timing
+from . import baseline, composite, gl, html, images, lod, measure, pricing, refcache, report, scoring, sweep, timing
 from . import device as gpu
 from .camera import cameras_for
 from .metrics import summarise
@@ -204,6 +204,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
             sweep.write(out.tmp, result)
         if "lod" in result:
             lod.write(out.tmp, result["lod"], result["sweep"]["rows"])
+        html.write(out.tmp, result)   # last: it links the files written above
         out.commit()
     except BaseException:
         out.abort()

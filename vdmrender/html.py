@@ -1,0 +1,643 @@
+"""report.html (issue 35): one self-contained page per render folder, and in the combined folder of many bundles,
+that puts what the folder holds side by side: the header (device, GL, clocks, timing rule, filtering, tool
+version, links to the raw files), per object the error-against-time plot (hover a point: variant, time, error,
+counters; the Pareto front drawn), the sweep plots and LOD chains where present, a sortable and searchable table of
+the rows, and per variant and frame its frame, reference and heat map side by side with a swipe to compare.
+
+Offline and self-contained: the style and script are inline and hand-written, the plots inline SVG built here, so
+the page opens from the file system with no network. Images are referenced by relative path (they are in the
+folder already), never inlined, so the page stays small."""
+from __future__ import annotations
+
+import html
+import json
+import math
+import os
+import re
+from pathlib import Path
+from urllib.parse import quote
+
+# Files a render folder may hold, linked from the header where present (README lists what each is).
+RAW = ("report.json", "report.csv", "error_vs_time.png", "sweep.csv", "error_vs_size.png", "cost_vs_size.png",
+       "lod.json", "lod.md", "lod.png", "baseline.md", "baseline.csv", "composite.md", "runs.md", "overview")
+
+# The table's columns: (key of the row as report.csv spells it, header with its unit, decimals; None: text).
+COLUMNS = [("object", "object", None), ("label", "variant", None), ("median_ms", "median GPU [ms/frame]", 3),
+           ("q1_ms", "q1 [ms]", 3), ("q3_ms", "q3 [ms]", 3), ("spread_ms", "spread [ms]", 3),
+           ("wall_ms", "wall [ms]", 3), ("ratio_to_baseline", "time / baseline [×]", 2),
+           ("mean_dluv", "mean ΔLuv", 3), ("p95_dluv", "p95 ΔLuv", 2), ("max_dluv", "max ΔLuv", 2),
+           ("aliased_mean_dluv", "aliased mean ΔLuv", 3), ("aliased_p95_dluv", "aliased p95 ΔLuv", 2),
+           ("iou", "IoU", 4), ("aliased_iou", "aliased IoU", 4), ("flip_mean", "FLIP", 4),
+           ("fragments_px", "fragments [/px]", 2), ("fetches_px", "fetches [/px]", 1), ("steps_px", "steps [/px]", 1),
+           ("primitives", "primitives", 0), ("faces", "faces", 0), ("gpu_mib", "GPU memory [MiB]", 2),
+           ("coverage", "coverage [share of frame]", 3), ("empty_frames", "empty frames", 0),
+           ("sm_clock", "SM clock before→after [MHz]", None)]
+
+# Page colours: text on background, and the heat-map legend's text on its own background (contrast >= 4.5:1,
+# checked by tests/test_report_html.py in the browser).
+TEXT, BACKGROUND, MUTED = "#1a1a1a", "#ffffff", "#555555"
+LEGEND_TEXT, LEGEND_BACKGROUND = "#1a1a1a", "#f4f4f4"
+# matplotlib's tab10: the variants' colours in the plots, as in the PNG plots
+PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
+           "#17becf")
+# inferno at 0, 1/4, 1/2, 3/4, 1: the heat maps' scale (vdmrender.images.heatmap)
+INFERNO = ("#000004", "#57106e", "#bc3754", "#f98e09", "#fcffa4")
+ALL_AT_ONCE = 6   # up to this many objects the page shows them all at first; more, one at a time
+
+CSS = f"""
+body {{ font: 14px/1.4 system-ui, sans-serif; color: {TEXT}; background: {BACKGROUND}; margin: 0 1.5em 3em; }}
+h1 {{ font-size: 1.4em; margin: .6em 0 .2em; }} h2 {{ font-size: 1.2em; margin: 1.4em 0 .4em; }}
+h3 {{ font-size: 1.05em; margin: 1em 0 .3em; }}
+.muted {{ color: {MUTED}; }} dl {{ display: grid; grid-template-columns: max-content auto; gap: .1em 1em; }}
+dt {{ font-weight: 600; }} dd {{ margin: 0; }} details {{ margin: .3em 0; }}
+nav.controls {{ position: sticky; top: 0; background: {BACKGROUND}; padding: .5em 0; border-bottom: 1px solid #ccc;
+  z-index: 2; display: flex; gap: 1em; flex-wrap: wrap; align-items: center; }}
+.plots {{ display: flex; flex-wrap: wrap; gap: 1em; }} svg.plot {{ width: 560px; max-width: 100%; height: auto; }}
+svg text {{ font: 11px system-ui, sans-serif; fill: {TEXT}; }} svg .grid {{ stroke: #ddd; }}
+svg .axis {{ stroke: #333; }} svg .pt {{ cursor: pointer; }} svg .pt:hover, svg .pt:focus {{ stroke: #000;
+  stroke-width: 2; }} .legend span {{ margin-right: 1em; white-space: nowrap; }}
+.swatch {{ display: inline-block; width: .9em; height: .9em; vertical-align: middle; margin-right: .3em; }}
+#tip {{ position: fixed; pointer-events: none; background: #222; color: #fff; padding: .3em .5em; border-radius: 3px;
+  font-size: 12px; white-space: pre; display: none; z-index: 5; }}
+.tablewrap {{ max-height: 70vh; overflow: auto; border: 1px solid #ccc; }}
+table {{ border-collapse: collapse; font-size: 12px; }} th, td {{ padding: 2px 6px; border-bottom: 1px solid #eee; }}
+th {{ position: sticky; top: 0; background: #eef; cursor: pointer; text-align: left; }} td.n {{ text-align: right;
+  font-variant-numeric: tabular-nums; }} th[aria-sort=ascending]::after {{ content: " ▲"; }}
+th[aria-sort=descending]::after {{ content: " ▼"; }}
+.viewer .trio {{ display: flex; gap: .8em; flex-wrap: wrap; align-items: flex-start; overflow: auto; }}
+.viewer figure {{ margin: 0; }} .viewer img, .swipe img, .pair img {{ image-rendering: pixelated;
+  image-rendering: crisp-edges; display: block; }}
+.swipe {{ position: relative; display: inline-block; margin-top: .5em; }}
+.swipe img.top {{ position: absolute; left: 0; top: 0; }}
+.legendbar {{ color: {LEGEND_TEXT}; background: {LEGEND_BACKGROUND}; padding: .3em .5em; display: inline-block;
+  margin-top: .4em; }} .legendbar .bar {{ display: inline-block; width: 200px; height: .9em; vertical-align: middle;
+  margin: 0 .4em; background: linear-gradient(to right, {", ".join(INFERNO)}); }}
+.regression {{ background: #fde2e1; }} .worse {{ color: #8a3b00; }} .better {{ color: #1b6e20; }}
+.pair {{ display: flex; gap: .5em; flex-wrap: wrap; }} .pair figure {{ margin: 0; }}
+.obj {{ border-top: 2px solid #889; margin-top: 1.5em; }}
+"""
+
+# The page's script: the object chooser and search, the sortable table, the tooltips, the frame viewer. Errors
+# (script or a missing image) are written into <html data-errors>, and data-ready set when it ran through, so that a
+# test reading the DOM sees both.
+JS = """
+(function () {
+  const $ = (s, e) => (e || document).querySelector(s), $$ = (s, e) => [...(e || document).querySelectorAll(s)];
+  const frames = JSON.parse($('#frames').textContent);
+  const tip = $('#tip');
+  $$('.pt').forEach(p => {
+    const show = ev => { tip.textContent = p.dataset.tip; tip.style.display = 'block';
+      const r = p.getBoundingClientRect(); tip.style.left = (r.right + 8) + 'px'; tip.style.top = (r.top - 4) + 'px'; };
+    p.addEventListener('mouseenter', show); p.addEventListener('focus', show);
+    p.addEventListener('mouseleave', () => tip.style.display = 'none');
+    p.addEventListener('blur', () => tip.style.display = 'none');
+  });
+  // sortable table: numbers by data-v, text otherwise; empty cells last
+  $$('#rows th').forEach((th, i) => th.addEventListener('click', () => {
+    const up = th.getAttribute('aria-sort') !== 'ascending';
+    $$('#rows th').forEach(h => h.removeAttribute('aria-sort'));
+    th.setAttribute('aria-sort', up ? 'ascending' : 'descending');
+    const body = $('#rows tbody'), key = tr => tr.children[i].dataset.v;
+    const rows = $$('tr', body).sort((a, b) => {
+      const x = key(a), y = key(b);
+      if (x === '' || y === '') return (x === '') - (y === '');
+      const d = isNaN(x) || isNaN(y) ? x.localeCompare(y) : x - y;
+      return up ? d : -d;
+    });
+    rows.forEach(r => body.appendChild(r));
+  }));
+  // one object at a time (or all), and a search over the table's rows
+  const pick = $('#object'), search = $('#search');
+  function filter() {
+    const obj = pick.value, q = search.value.toLowerCase();
+    $$('section.obj').forEach(s => s.hidden = obj !== '*' && s.dataset.object !== obj);
+    let shown = 0;
+    $$('#rows tbody tr').forEach(tr => {
+      tr.hidden = (obj !== '*' && tr.dataset.object !== obj) || !tr.textContent.toLowerCase().includes(q);
+      shown += !tr.hidden;
+    });
+    $$('option', pick).forEach(o => o.hidden = o.value !== '*' && !o.value.toLowerCase().includes(q)
+      && !$$('#rows tbody tr').some(tr => tr.dataset.object === o.value && tr.textContent.toLowerCase().includes(q)));
+    $('#shown').textContent = shown + ' of ' + $$('#rows tbody tr').length + ' rows';
+  }
+  pick.addEventListener('change', filter); search.addEventListener('input', filter); filter();
+  // the frame viewer: variant, frame and zoom chosen; frame, reference and heat map side by side, and a swipe
+  $$('.viewer').forEach(v => {
+    const data = frames[v.dataset.object], vs = $('.v-variant', v), fs = $('.v-frame', v), zs = $('.v-zoom', v);
+    const imgs = { frame: $$('.i-frame', v), ref: $$('.i-ref', v), heat: $$('.i-heat', v) };
+    const cut = $('.v-cut', v), top = $('.swipe img.top', v);
+    function size() { const z = +zs.value;
+      $$('img', v).forEach(i => { if (i.naturalWidth) i.style.width = i.naturalWidth * z + 'px'; }); }
+    function show() {
+      const d = data.variants[vs.value], k = +fs.value;
+      imgs.frame.forEach(i => { i.src = d.frame[k]; i.alt = vs.value + ' frame ' + k; });
+      imgs.heat.forEach(i => { i.src = d.heat[k]; i.alt = vs.value + ' heat map, frame ' + k; });
+      imgs.ref.forEach(i => { i.src = data.ref[k]; i.alt = 'reference, frame ' + k; });
+    }
+    function options() {
+      const d = data.variants[vs.value]; fs.innerHTML = '';
+      d.frame.forEach((_, k) => fs.add(new Option(String(k).padStart(3, '0') + '  ΔLuv ' + d.error[k], k)));
+      show();
+    }
+    vs.addEventListener('change', options); fs.addEventListener('change', show); zs.addEventListener('change', size);
+    $$('img', v).forEach(i => i.addEventListener('load', size));
+    size();
+    cut.addEventListener('input', () => top.style.clipPath = 'inset(0 ' + (100 - cut.value) + '% 0 0)');
+    $('.v-toggle', v).addEventListener('click', () => { cut.value = cut.value > 50 ? 0 : 100;
+      cut.dispatchEvent(new Event('input')); });
+    v.addEventListener('keydown', ev => { if (ev.key === 't') $('.v-toggle', v).click(); });
+  });
+  document.documentElement.dataset.ready = '1';
+})();
+"""
+# Before any other script: errors of the page's script and images that fail to load, kept in the DOM.
+CATCH = """
+window.addEventListener('error', e => { const h = document.documentElement, t = e.target;
+  const what = t && t !== window && t.src ? 'failed to load ' + t.getAttribute('src') : String(e.message);
+  h.dataset.errors = (h.dataset.errors ? h.dataset.errors + ' | ' : '') + what; }, true);
+"""
+
+
+def write(folder: Path, report: dict) -> None:
+    """folder/report.html for the report (report.finite()'s), its images referenced relative to the folder."""
+    (folder / "report.html").write_text(page(folder, report))
+
+
+def esc(x) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def url(*parts: str) -> str:
+    """A relative URL to a file in the folder (each part percent-encoded: labels hold @ and +)."""
+    return "/".join(quote(p) for p in "/".join(parts).split("/") if p)
+
+
+def num(v, digits) -> str:
+    if v is None:
+        return "–"
+    return f"{v:,.0f}" if digits == 0 else f"{v:.{digits}f}"
+
+
+def combined(report: dict) -> bool:
+    """A many-bundle report (vdmrender.many): objects spelled SCENE/OBJECT, each run in its own sub-folder."""
+    return "runs" in report
+
+
+def where(report: dict, obj: str) -> tuple[str, str]:
+    """(the sub-folder of the run that rendered the object, the object's own name)."""
+    return (obj.split("/", 1)[0] + "/", obj.split("/", 1)[1]) if combined(report) else ("", obj)
+
+
+def target(folder: Path) -> Path:
+    """The folder the page will be read in: a render writes into a hidden staging sibling (.NAME.tmp-PID,
+    vdmbake.bundle.staging) that is then swapped into place."""
+    m = re.fullmatch(r"\.(.+)\.tmp-\d+", folder.name)
+    return folder.parent / m[1] if m else folder
+
+
+def page(folder: Path, report: dict) -> str:
+    rows = report["rows"]
+    objects = list(dict.fromkeys(r["object"] for r in rows))
+    title = f"vdmrender report: {Path(report.get('bundle') or target(folder)).name}"
+    body = [f"<h1>{esc(title)}</h1>", header(folder, report), controls(objects), baseline_section(folder, report),
+            table(rows)]
+    if combined(report):
+        body.append(runs_table(folder, report["runs"]))
+    data = {obj: viewer_data(folder, report, obj) for obj in objects}
+    body += [object_section(report, obj, data[obj]) for obj in objects]
+    script = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    return (f"<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+            f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{esc(title)}</title>"
+            f"<script>{CATCH}</script><style>{CSS}</style></head><body>\n" + "\n".join(b for b in body if b)
+            + f"\n<div id='tip' role='tooltip'></div><script type='application/json' id='frames'>{script}</script>"
+            f"<script>{JS}</script></body></html>\n")
+
+
+def header(folder: Path, report: dict) -> str:
+    """Device, GL strings, clocks, timing rule, filtering, tool version and the raw files."""
+    gl, nvml, f = report.get("gl") or {}, report.get("nvml"), report.get("filtering")
+    items = [("device", report.get("device") or "–"), ("tool version", report.get("tool_version"))]
+    if gl:
+        items.append(("GL", f"{gl.get('vendor')} · {gl.get('renderer')} · {gl.get('version')}"))
+    if nvml:
+        items += [(f"GPU {g['index']}", f"{g['name']}: SM {g['sm_clock_mhz']} of {g['sm_clock_max_mhz']} MHz, "
+                                        f"memory {g['mem_clock_mhz']} MHz, busy {g['util_pct']}%, clock reasons: "
+                                        f"{', '.join(g['clock_reasons']) or 'none'} (driver {nvml['driver']})")
+                  for g in nvml["gpus"]]
+    elif gl:
+        items.append(("clocks", "not read (no NVIDIA NVML on this device)"))
+    res = report.get("resolution")
+    if res:
+        items.append(("frame", f"{res[0]} × {res[1]} px"))
+    if report.get("budget"):
+        items.append(("budget", ", ".join(f"{k} {v}" for k, v in report["budget"].items())))
+    if f:
+        items.append(("filtering", f"reference {f['reference_spp']} spp ({f['reference_filter']}), frames "
+                                   f"anti-aliased {f['antialias']}; {f['aliased']}"))
+    if report.get("bundle"):
+        items.append(("bundle", report["bundle"]))
+    dl = "".join(f"<dt>{esc(k)}</dt><dd>{esc(v)}</dd>" for k, v in items)
+    notes = "".join(f"<details><summary>{esc(k)}</summary><p>{esc(report[k])}</p></details>"
+                    for k in ("timing", "error", "flip", "how") if isinstance(report.get(k), str))
+    return f"<dl>{dl}</dl>{notes}<p>raw files: {links(folder)}</p>"
+
+
+def links(folder: Path) -> str:
+    found = [name for name in RAW if (folder / name).exists()]
+    return " · ".join(f"<a href='{url(n)}'>{esc(n)}</a>" for n in found)
+
+
+def controls(objects: list[str]) -> str:
+    """The object chooser (all, or one at a time) and the search box."""
+    first = "*" if len(objects) <= ALL_AT_ONCE else objects[0]
+    opts = [f"<option value='*'{' selected' if first == '*' else ''}>all {len(objects)} objects</option>"]
+    opts += [f"<option value='{esc(o)}'{' selected' if o == first else ''}>{esc(o)}</option>" for o in objects]
+    return (f"<nav class='controls'><label>object <select id='object'>{''.join(opts)}</select></label>"
+            "<label>search <input id='search' type='search' placeholder='object, variant, technique…'></label>"
+            "<span id='shown' class='muted'></span></nav>")
+
+
+def cell_value(row: dict, key: str):
+    """A row's value for a table column, as report.csv has it (counters per pixel, GPU bytes in MiB)."""
+    px, c = row.get("per_pixel") or {}, row.get("counters") or {}
+    if key.endswith("_px") and key[:-3] in ("fragments", "fetches", "steps"):
+        return px.get(key[:-3])
+    if key == "primitives":
+        return c.get("primitives")
+    if key == "gpu_mib":
+        return None if c.get("bytes") is None else c["bytes"] / 2**20
+    if key == "sm_clock":
+        return "→".join(map(str, row["sm_clock_mhz"])) if row.get("sm_clock_mhz") else None
+    return row.get(key)
+
+
+def table(rows: list[dict]) -> str:
+    """Every row, sortable by any column (click its header); units in the headers."""
+    cols = [c for c in COLUMNS if any(cell_value(r, c[0]) is not None for r in rows) or c[0] in ("mean_dluv",)]
+    head = "".join(f"<th scope='col'>{esc(h)}</th>" for _, h, _ in cols)
+    body = []
+    for r in rows:
+        cells = []
+        for key, _, digits in cols:
+            v = cell_value(r, key)
+            if digits is None:
+                cells.append(f"<td data-v='{esc(v or '')}'>{esc(v or '–')}</td>")
+            else:
+                cells.append(f"<td class='n' data-v='{'' if v is None else v}'>{num(v, digits)}</td>")
+        body.append(f"<tr data-object='{esc(r['object'])}'>{''.join(cells)}</tr>")
+    return (f"<h2>Rows</h2><p class='muted'>One per object and variant; click a header to sort. Times are GPU timer "
+            f"queries (see timing above); ΔLuv against the reference.</p><div class='tablewrap'><table id='rows'>"
+            f"<thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table></div>")
+
+
+def runs_table(folder: Path, runs: list[dict]) -> str:
+    """A many-bundle run's bundles: status, rows, seconds, why one failed, and a link to each run's own page."""
+    lines = []
+    for r in runs:
+        page_ = folder / r["scene"] / "report.html"
+        link = f"<a href='{url(r['scene'], 'report.html')}'>{esc(r['scene'])}</a>" if page_.is_file() else esc(r["scene"])
+        cls = " class='regression'" if r["status"] == "failed" else ""
+        lines.append(f"<tr{cls}><td>{link}</td><td>{esc(r['status'])}</td><td class='n'>{r['rows']}</td>"
+                     f"<td class='n'>{r['seconds']:.1f}</td><td>{esc(r['reason'])}</td></tr>")
+    return ("<h2>Runs</h2><details open><summary>each bundle's render (its own report.html holds its sweep and LOD "
+            "chains)</summary><div class='tablewrap'><table><thead><tr><th>scene</th><th>status</th><th>rows</th>"
+            f"<th>seconds</th><th>reason</th></tr></thead><tbody>{''.join(lines)}</tbody></table></div></details>")
+
+
+# --- plots ---------------------------------------------------------------------------------------------------------
+
+W, H, LEFT, RIGHT, TOP, BOTTOM = 560, 330, 62, 14, 14, 42
+
+
+class Scale:
+    """A value to a pixel coordinate along one axis, linear or log, with tick values people read."""
+
+    def __init__(self, lo: float, hi: float, a: float, b: float, log: bool):
+        if log:
+            lo, hi = math.log10(lo), math.log10(hi)
+        if hi - lo < 1e-9:
+            lo, hi = lo - (0.5 if log else max(abs(lo) * 0.1, 0.5)), hi + (0.5 if log else max(abs(hi) * 0.1, 0.5))
+        pad = 0.06 * (hi - lo)
+        self.lo, self.hi, self.a, self.b, self.log = lo - pad, hi + pad, a, b, log
+        if not log:
+            self.lo = max(self.lo, 0.0) if lo >= 0 else self.lo
+
+    def __call__(self, v: float) -> float:
+        x = math.log10(v) if self.log else v
+        return self.a + (x - self.lo) / (self.hi - self.lo) * (self.b - self.a)
+
+    def ticks(self) -> list[float]:
+        if self.log:   # 1, 2, 5 per decade; only the decades where that is too many
+            lo, hi = math.floor(self.lo), math.ceil(self.hi)
+            for steps in ((1,), (1, 2, 5), range(1, 10)):   # the fewest that give at least three ticks
+                out = [t for t in (m * 10.0 ** e for e in range(lo, hi + 1) for m in steps)
+                       if self.lo <= math.log10(t) <= self.hi]
+                if len(out) >= 3:
+                    return out
+            span = self.hi - self.lo   # a narrow range: two more, near its ends, at two significant digits
+            ends = (float(f"{10 ** (self.lo + f * span):.2g}") for f in (0.15, 0.85))
+            return sorted(set(out) | {t for t in ends if self.lo <= math.log10(t) <= self.hi})
+        raw = (self.hi - self.lo) / 5
+        step = min((m * 10 ** math.floor(math.log10(raw)) for m in (1, 2, 5, 10)), key=lambda s: abs(s - raw))
+        return [k * step for k in range(math.ceil(self.lo / step), math.floor(self.hi / step) + 1)]
+
+
+def tick_text(v: float) -> str:
+    return f"{v:g}" if 1e-3 <= abs(v) < 1e5 or v == 0 else f"{v:.0e}"
+
+
+def frame(x: Scale, y: Scale, xlabel: str, ylabel: str, xticks=None) -> list[str]:
+    """Grid, axes, ticks and labels of a plot."""
+    out = []
+    for t in xticks or x.ticks():
+        px = x(t)
+        out.append(f"<line class='grid' x1='{px:.1f}' x2='{px:.1f}' y1='{TOP}' y2='{H - BOTTOM}'/>"
+                   f"<text x='{px:.1f}' y='{H - BOTTOM + 14}' text-anchor='middle'>{tick_text(t)}</text>")
+    for t in y.ticks():
+        py = y(t)
+        out.append(f"<line class='grid' x1='{LEFT}' x2='{W - RIGHT}' y1='{py:.1f}' y2='{py:.1f}'/>"
+                   f"<text x='{LEFT - 5}' y='{py + 4:.1f}' text-anchor='end'>{tick_text(t)}</text>")
+    out.append(f"<path class='axis' fill='none' d='M{LEFT},{TOP}V{H - BOTTOM}H{W - RIGHT}'/>"
+               f"<text x='{(LEFT + W - RIGHT) / 2}' y='{H - 6}' text-anchor='middle'>{esc(xlabel)}</text>"
+               f"<text transform='translate(13,{(TOP + H - BOTTOM) / 2}) rotate(-90)' text-anchor='middle'>"
+               f"{esc(ylabel)}</text>")
+    return out
+
+
+def svg(parts: list[str], label: str) -> str:
+    return (f"<svg class='plot' viewBox='0 0 {W} {H}' role='img' aria-label='{esc(label)}'>"
+            f"<title>{esc(label)}</title>{''.join(parts)}</svg>")
+
+
+def colours(keys) -> dict:
+    return {k: PALETTE[i % len(PALETTE)] for i, k in enumerate(dict.fromkeys(keys))}
+
+
+def legend(colour: dict) -> str:
+    return "<p class='legend'>" + "".join(f"<span><i class='swatch' style='background:{c}'></i>{esc(k)}</span>"
+                                          for k, c in colour.items()) + "</p>"
+
+
+def tip(r: dict) -> str:
+    """A point's tooltip: its variant, time, error (against what a viewer sees and point-sampled), counters."""
+    px = r.get("per_pixel") or {}
+    lines = [r["label"] + (f" @ {r['size_px']} px" if "size_px" in r else ""),
+             f"median {num(r['median_ms'], 3)} ms (q1 {num(r.get('q1_ms'), 3)}, q3 {num(r.get('q3_ms'), 3)})",
+             f"mean ΔLuv {num(r['mean_dluv'], 3)}, aliased {num(r.get('aliased_mean_dluv'), 3)}",
+             f"p95 ΔLuv {num(r.get('p95_dluv'), 2)}, IoU {num(r.get('iou'), 4)}"]
+    if px.get("fragments") is not None:
+        lines.append(f"per px: {px['fragments']:.2f} fragments, {px['fetches']:.1f} fetches, {px['steps']:.1f} steps")
+    return "\n".join(lines)
+
+
+def pareto(points: list[dict]) -> list[dict]:
+    """The points no other is both faster and more accurate than, fastest first."""
+    front, best = [], math.inf
+    for r in sorted(points, key=lambda r: (r["median_ms"], r["mean_dluv"])):
+        if r["mean_dluv"] < best:
+            front.append(r)
+            best = r["mean_dluv"]
+    return front
+
+
+def point(x: float, y: float, colour: str, r: dict, ring: bool = False) -> str:
+    edge = " stroke='#000' stroke-width='1.5'" if ring else ""
+    return (f"<circle class='pt' tabindex='0' cx='{x:.1f}' cy='{y:.1f}' r='{5 if ring else 4}' fill='{colour}'"
+            f"{edge} data-tip='{esc(tip(r))}'>"
+            f"<title>{esc(tip(r))}</title></circle>")
+
+
+def time_plot(obj: str, rows: list[dict]) -> str:
+    """Mean ΔLuv against median GPU time (log), a technique's knob values joined, the Pareto front dashed."""
+    pts = [r for r in rows if r["mean_dluv"] is not None and r["median_ms"]]
+    if not pts:
+        return "<p class='muted'>no row with both a time and an error to plot</p>"
+    x = Scale(min(r["median_ms"] for r in pts), max(r["median_ms"] for r in pts), LEFT, W - RIGHT, True)
+    y = Scale(0.0, max(r["mean_dluv"] for r in pts), H - BOTTOM, TOP, False)
+    colour = colours(r["technique"] for r in pts)
+    parts = frame(x, y, "median GPU time per frame [ms] (log)", "mean ΔL*u*v*")
+    front = pareto(pts)
+    steps = f"M{x(front[0]['median_ms']):.1f},{y(front[0]['mean_dluv']):.1f}" + "".join(
+        f"H{x(r['median_ms']):.1f}V{y(r['mean_dluv']):.1f}" for r in front[1:])   # across to the next, then down
+    parts.append(f"<path d='{steps}' fill='none' stroke='#000' stroke-dasharray='4 3' stroke-width='1'>"
+                 "<title>Pareto front: no variant is both faster and more accurate</title></path>")
+    for tech, c in colour.items():
+        mine = [r for r in pts if r["technique"] == tech]
+        if len(mine) > 1:
+            d = "M" + "L".join(f"{x(r['median_ms']):.1f},{y(r['mean_dluv']):.1f}" for r in mine)
+            parts.append(f"<path d='{d}' fill='none' stroke='{c}' stroke-width='1.5'/>")
+    labelled = len(pts) <= 12   # more labels than this overlap: the tooltips name the points
+    for r in pts:
+        px, py = x(r["median_ms"]), y(r["mean_dluv"])
+        parts.append(point(px, py, colour[r["technique"]], r, r in front))
+        if labelled:
+            right = px < (LEFT + W - RIGHT) / 2
+            parts.append(f"<text x='{px + (7 if right else -7):.1f}' y='{py - 6:.1f}' "
+                         f"text-anchor='{'start' if right else 'end'}'>{esc(r['label'])}</text>")
+    return svg(parts, f"{obj}: mean ΔLuv against median GPU time") + legend(colour) + \
+        "<p class='muted'>ringed points and the dashed line: the Pareto front. Hover or focus a point for its numbers.</p>"
+
+
+def size_plot(obj: str, rows: list[dict], field: str, ylabel: str, log_y: bool) -> str:
+    """`field` against the object's size on screen (log 2), one line per variant; the point-sampled twin dashed."""
+    pts = [r for r in rows if r.get(field) is not None and (r[field] > 0 or not log_y)]
+    if not pts:
+        return ""
+    sizes = sorted({r["size_px"] for r in rows})
+    x = Scale(min(sizes), max(sizes), LEFT, W - RIGHT, True)
+    vals = [r[field] for r in pts] + [r[f"aliased_{field}"] for r in pts if r.get(f"aliased_{field}") is not None]
+    y = Scale(min(vals) if log_y else 0.0, max(vals), H - BOTTOM, TOP, log_y)
+    colour = colours(r["label"] for r in pts)
+    parts = frame(x, y, "bounding sphere on screen [px] (log)", ylabel, sizes)
+    for label, c in colour.items():
+        mine = sorted((r for r in pts if r["label"] == label), key=lambda r: r["size_px"])
+        d = "M" + "L".join(f"{x(r['size_px']):.1f},{y(r[field]):.1f}" for r in mine)
+        parts.append(f"<path d='{d}' fill='none' stroke='{c}' stroke-width='1.5'/>")
+        twin = [r for r in mine if r.get(f"aliased_{field}") is not None]
+        if twin and any(r[f"aliased_{field}"] != r[field] for r in twin):
+            d = "M" + "L".join(f"{x(r['size_px']):.1f},{y(r[f'aliased_{field}']):.1f}" for r in twin)
+            parts.append(f"<path d='{d}' fill='none' stroke='{c}' stroke-dasharray='4 3' stroke-width='1'/>")
+        parts += [point(x(r["size_px"]), y(r[field]), c, r) for r in mine]
+    return svg(parts, f"{obj}: {ylabel} against screen size") + legend(colour)
+
+
+def lod_section(obj: str, lod: dict) -> str:
+    """Each chain of the object: its bands of screen sizes as coloured spans on a log size axis, each switch's
+    hysteresis band hatched and its pop (ΔLuv between the two variants there) written at it; the field's pricing."""
+    out = []
+    for c in lod["chains"]:
+        ch = c["objects"].get(obj)
+        if not ch:
+            continue
+        limits = ", ".join(f"{k} {'≥' if k == 'iou' else '≤'} {v}" for k, v in c["limits"].items())
+        out.append(f"<h4>chain {esc(c['name'])}: {esc(limits)}"
+                   + (f", pop ≤ {c['pop_dluv']} ΔLuv" if c.get("pop_dluv") is not None else "") + "</h4>")
+        out.append(bands(obj, c["name"], ch["entries"], lod["sizes_px"]))
+        if ch.get("unmet_px"):
+            out.append(f"<p class='worse'>no variant within the limits at {', '.join(map(str, ch['unmet_px']))} px "
+                       "(the least error taken, hatched)</p>")
+        if "field" in ch:
+            f = ch["field"]
+            chosen = {k["variant"]: " class='better'" if k["variant"] == f["chosen"] else "" for k in f["candidates"]}
+            rows = "".join(f"<tr{chosen[k['variant']]}><td>{esc(k['variant'])}"
+                           f"</td><td class='n'>{num(k['median_ms'], 3)}</td><td class='n'>{num(k['spread_ms'], 3)}</td>"
+                           f"<td class='n'>{num(k['mean_dluv'], 3)}</td><td>{'yes' if k['meets'] else 'no'}</td></tr>"
+                           for k in f["candidates"])
+            out.append(f"<details open><summary>priced on the field of copies: {esc(f['chosen'])} ships</summary>"
+                       f"<p class='muted'>{esc(f['how'])}</p><table><thead><tr><th>on the field</th><th>median GPU "
+                       f"[ms]</th><th>spread [ms]</th><th>mean ΔLuv</th><th>within limits</th></tr></thead>"
+                       f"<tbody>{rows}</tbody></table></details>")
+    return "".join(out)
+
+
+def bands(obj: str, name: str, entries: list[dict], sizes: list[int]) -> str:
+    h, bar = 74, 30
+    lo, hi = max(min(sizes) / 2, 0.5), max(sizes)
+    x = Scale(lo, hi, LEFT, W - RIGHT, True)
+    at = lambda s: x(max(s, lo)) if s else LEFT   # noqa: E731  (a band down to 0 px runs to the left edge)
+    colour = colours(e["variant"] for e in entries)
+    parts = []
+    for e in entries:
+        x0, x1 = at(e["min_px"]), at(e["max_px"])
+        m = e["measured"][0]
+        what = (f"{e['variant']}: {e['min_px']}–{e['max_px']} px, mean ΔLuv {num(m.get('mean_dluv'), 3)}, "
+                f"{num(m.get('median_ms'), 3)} ms" + ("" if e["meets"] else " (over the limits)"))
+        hatch = "" if e["meets"] else " stroke='#000' stroke-dasharray='3 2'"
+        parts.append(f"<rect x='{x0:.1f}' y='8' width='{max(x1 - x0, 1):.1f}' height='{bar}' fill='{colour[e['variant']]}'"
+                     f" fill-opacity='0.75'{hatch}><title>{esc(what)}</title></rect><text x='{(x0 + x1) / 2:.1f}' "
+                     f"y='{8 + bar / 2 + 4}' text-anchor='middle'>{esc(e['variant'])}</text>")
+        if "switch_px" in e:   # the switch to the next coarser entry, at its hysteresis band
+            a, b = e["switch_px"]
+            parts.append(f"<rect x='{at(a):.1f}' y='4' width='{max(at(b) - at(a), 2):.1f}' height='{bar + 8}' "
+                         f"fill='#000' fill-opacity='0.25'><title>switch between {a} and {b} px (hysteresis)</title></rect>")
+        pop = m.get("pop_dluv")
+        if pop is not None:
+            parts.append(f"<text x='{x1:.1f}' y='{8 + bar + 14}' text-anchor='middle'>pop {pop:.2f} ΔLuv</text>")
+    for s in sizes:
+        parts.append(f"<text x='{x(s):.1f}' y='{h - 4}' text-anchor='middle' class='muted'>{s}</text>")
+    return (f"<svg class='plot' viewBox='0 0 {W} {h}' role='img' aria-label='{esc(obj)}: LOD chain {esc(name)}'>"
+            f"<title>{esc(obj)}: LOD chain {esc(name)}, screen size in px (log)</title>{''.join(parts)}</svg>")
+
+
+# --- frames --------------------------------------------------------------------------------------------------------
+
+def viewer_data(folder: Path, report: dict, obj: str) -> dict:
+    """The object's images as the viewer loads them: per variant its frames, heat maps and per-frame error, and the
+    reference, as URLs relative to the page (only the frames that exist: a failed variant has none)."""
+    sub, name = where(report, obj)
+    mine = [r for r in report["rows"] if r["object"] == obj]
+    frames = max((r["frames"] for r in mine), default=0)
+    ref = [url(sub, "reference", name, f"{k:03d}.png") for k in range(frames)]
+    variants = {}
+    for r in mine:
+        fr = [url(sub, "frames", name, r["label"], f"{k:03d}.png") for k in range(r["frames"])]
+        if fr and (folder / sub / "frames" / name / r["label"] / "000.png").is_file():
+            variants[r["label"]] = {"frame": fr, "heat": [url(sub, "heatmaps", name, r["label"], f"{k:03d}.png")
+                                                           for k in range(r["frames"])],
+                                    "error": [num(f.get("mean_dluv"), 3) for f in r.get("per_frame") or []]
+                                    or ["–"] * r["frames"]}
+    return {"ref": ref, "variants": variants}
+
+
+def viewer(report: dict, obj: str, data: dict) -> str:
+    """Frame, reference and heat map side by side at native pixel size (zoom 1-8x, no smoothing), and the frame
+    swiped over the reference (the slider, or t to toggle)."""
+    if not data["variants"]:
+        return "<p class='muted'>no frames written for this object</p>"
+    first = next(iter(data["variants"]))
+    d = data["variants"][first]
+    opts = "".join(f"<option>{esc(v)}</option>" for v in data["variants"])
+    frame_opts = "".join(f"<option value='{k}'>{k:03d}  ΔLuv {e}</option>" for k, e in enumerate(d["error"]))
+    heat = report.get("heatmap_max_dluv", 10.0)
+
+    def fig(cls, src, alt, caption):
+        return f"<figure><img class='{cls}' src='{src}' alt='{esc(alt)}'><figcaption>{caption}</figcaption></figure>"
+
+    return (f"<div class='viewer' data-object='{esc(obj)}'><p><label>variant <select class='v-variant'>{opts}"
+            f"</select></label> <label>frame <select class='v-frame'>{frame_opts}</select></label> <label>zoom "
+            "<select class='v-zoom'><option value='1'>1×</option><option value='2' selected>2×</option>"
+            "<option value='4'>4×</option><option value='8'>8×</option></select></label></p><div class='trio'>"
+            + fig("i-frame", d["frame"][0], f"{first} frame 0", "frame")
+            + fig("i-ref", data["ref"][0], "reference, frame 0", "reference")
+            + fig("i-heat", d["heat"][0], f"{first} heat map, frame 0", "heat map (ΔLuv)")
+            + f"</div><p class='legendbar'>0 ΔLuv<span class='bar' role='img' aria-label='inferno colour scale'></span>"
+            f"{heat:g} ΔLuv and above</p><h4>swipe: frame over reference</h4><div class='swipe'>"
+            f"<img class='i-ref' src='{data['ref'][0]}' alt='reference, frame 0'>"
+            f"<img class='i-frame top' src='{d['frame'][0]}' alt='{esc(first)} frame 0' style='clip-path: inset(0 50% 0 0)'>"
+            "</div><p><label>frame shown left of <input class='v-cut' type='range' min='0' max='100' value='50'>"
+            "</label> <button class='v-toggle' type='button'>toggle frame / reference (t)</button></p></div>")
+
+
+def object_section(report: dict, obj: str, frames: dict) -> str:
+    rows = [r for r in report["rows"] if r["object"] == obj]
+    parts = [f"<section class='obj' data-object='{esc(obj)}'><h2>{esc(obj)}</h2><h3>error against time</h3>",
+             time_plot(obj, rows)]
+    sweep = [r for r in (report.get("sweep") or {}).get("rows", []) if r["object"] == obj]
+    if sweep:
+        parts += ["<h3>against screen size</h3><div class='plots'><div>",
+                  size_plot(obj, sweep, "mean_dluv", "mean ΔL*u*v*", False), "</div><div>",
+                  size_plot(obj, sweep, "median_ms", "median GPU time [ms] (log)", True), "</div></div>",
+                  "<p class='muted'>dashed: the point-sampled (aliased) error, where it differs.</p>"]
+    if report.get("lod"):
+        parts += ["<h3>LOD chains</h3>", lod_section(obj, report["lod"])]
+    parts += ["<h3>frames</h3>", viewer(report, obj, frames), "</section>"]
+    return "".join(parts)
+
+
+# --- baseline ------------------------------------------------------------------------------------------------------
+
+def baseline_section(folder: Path, report: dict) -> str:
+    """The change against the baseline, regressions (over a threshold) first, then by error increase; coloured;
+    before and after frames where both folders still hold them."""
+    block = report.get("baseline")
+    if not block:
+        return ""
+    old = Path(block["report"]).parent
+    here = target(folder)
+    # the old frames, unless the new run replaces the very folder they are in
+    before = None if old.resolve() == here.resolve() else Path(os.path.relpath(old, here))
+    order = sorted(block["rows"], key=lambda c: (not c["exceeds"], -(c["d_mean_dluv"] or 0)))
+    t = block["thresholds"]
+    lines = []
+    for c in order:
+        cls = "regression" if c["exceeds"] else ""
+        tone = "worse" if (c["d_mean_dluv"] or 0) > 0 or (c["time_ratio"] or 1) > 1.05 else \
+            "better" if (c["d_mean_dluv"] or 0) < 0 else ""
+        counters = ", ".join(f"{k} {a}→{b}" for k, (a, b) in c["counters_changed"].items())
+        lines.append(f"<tr class='{cls} {tone}' data-object='{esc(c['object'])}'><td>{esc(c['object'])}</td>"
+                     f"<td>{esc(c['label'])}</td><td>{esc(', '.join(c['exceeds']) or c['status'])}</td>"
+                     f"<td class='n'>{num(c['old_mean_dluv'], 3)} → {num(c['new_mean_dluv'], 3)}</td>"
+                     f"<td class='n'>{num(c['d_mean_dluv'], 3)}</td><td class='n'>{num(c['old_ms'], 3)} → "
+                     f"{num(c['new_ms'], 3)}</td><td class='n'>{num(c['time_ratio'], 2)}</td>"
+                     f"<td>{esc(counters)}</td></tr>")
+    notes = "".join(f"<li>{esc(n)}</li>" for n in block["notes"])
+    pairs = "".join(before_after(folder, report, before, c) for c in order if c["status"] == "compared"
+                    and (c["exceeds"] or (c["d_mean_dluv"] or 0) > 0 or c["counters_changed"]))
+    return (f"<h2>Change against the baseline</h2><p>baseline <a href='{url(str(before or old), 'report.json')}'>"
+            f"{esc(block['report'])}</a>; thresholds: error increase {t['max_error_increase']}, slowdown "
+            f"{t['max_slowdown']}; <strong>{len(block['failed'])} over a threshold</strong></p><ul>{notes}</ul>"
+            "<div class='tablewrap'><table id='changes'><thead><tr><th>object</th><th>variant</th><th>status</th>"
+            "<th>mean ΔLuv old → new</th><th>Δ mean ΔLuv</th><th>GPU ms old → new</th><th>time ratio [×]</th>"
+            f"<th>counters changed</th></tr></thead><tbody>{''.join(lines)}</tbody></table></div>{pairs}")
+
+
+def before_after(folder: Path, report: dict, before: Path | None, c: dict) -> str:
+    """A changed variant's frames before and after (and its heat maps), where both exist."""
+    if before is None:
+        return ""
+    sub, name = where(report, c["object"])
+    old_dir = (target(folder) / before).resolve()
+    figs = []
+    for k in range(max((r["frames"] for r in report["rows"] if r["object"] == c["object"]), default=0)):
+        rel, heat = (f"{sub}{kind}/{name}/{c['label']}/{k:03d}.png" for kind in ("frames", "heatmaps"))
+        if not ((old_dir / rel).is_file() and (folder / rel).is_file()):
+            continue
+        figs.append(f"<figure><img src='{url(str(before), rel)}' alt='{esc(c['label'])} frame {k}, before' "
+                    f"width='128'><figcaption>{k:03d} before</figcaption></figure><figure><img src='{url(rel)}' "
+                    f"alt='{esc(c['label'])} frame {k}, after' width='128'><figcaption>{k:03d} after</figcaption>"
+                    f"</figure><figure><img src='{url(heat)}' "
+                    f"alt='{esc(c['label'])} heat map {k}, after' width='128'><figcaption>heat map after"
+                    "</figcaption></figure>")
+    if not figs:
+        return ""
+    return f"<h4>{esc(c['object'])}: {esc(c['label'])}</h4><div class='pair'>{''.join(figs)}</div>"
