@@ -201,3 +201,11 @@ def test_verify_on_a_read_only_cache_says_what_it_could_not_remove(tmp_path, mon
     monkeypatch.undo()
     assert r.exit_code == 2 and "1 damaged entries could not be removed" in r.output, r.output
     assert PartCache(c.root).verify() == {"entries": 0, "removed_damaged": 1, "not_removed": 0}
+
+
+def test_log_that_is_not_lines_is_a_miss(tmp_path):
+    """Found by test_fuzz_cache_entries: a header whose log is null (valid checksums) raised TypeError in the bake
+    that took it (exit 1); the log must be a list of strings."""
+    c, key = PartCache(tmp_path / "c"), "ab" * 32
+    c.put(key, {"m": "@part:p.ply"}, None, [("p.ply", "mesh", {}, b"x")])
+    assert c.get(key) is None and c.counters.corrupt == 1

@@ -246,9 +246,11 @@ class PartCache:
                 if len(blob) != p["bytes"] or hashlib.sha256(blob).hexdigest() != p["sha256"]:
                     return None
                 parts.append((p["name"], p["kind"], p["meta"], blob))
-            if at != len(body) or not _carries(header["entry"], [name for name, *_ in parts]):
+            log = header.get("log", [])
+            if (at != len(body) or not _carries(header["entry"], [name for name, *_ in parts])
+                    or not isinstance(log, list) or not all(isinstance(line, str) for line in log)):
                 return None
-            return Entry(header["entry"], header.get("log", []), parts)
+            return Entry(header["entry"], log, parts)
         except (ValueError, KeyError, TypeError, AttributeError, RecursionError):   # RecursionError: nested too deep
             return None
 
@@ -511,7 +513,7 @@ def run_step(cache: "PartCache | None", writer, key: str | None, prefix: str, na
             checked = [(prefix + n, KINDS[k], m, d) for n, k, m, d in hit.parts]
             for rel, kind, meta, data in checked:
                 writer.check_packed(rel, kind, data, meta)
-        except (InputError, KeyError) as e:      # bytes intact but not a part this code reads: bake it
+        except Exception as e:      # bytes intact but not a part this code reads (whatever its reader raises): bake it
             log(f"{name}: cache entry {key[:12]} unusable ({str(e)[:200]}); baking it again")
             cache.counters.hits -= 1
             cache.counters.corrupt += 1
