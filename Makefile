@@ -19,9 +19,14 @@ NAME   := $(basename $(notdir $(SCENE)))
 # The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
 GLTF_VALIDATOR := 2.0.0-dev.3.10
 
-# Headless OpenGL needs Mesa's EGL and the llvmpipe driver, the tests Node.js for the glTF validator;
-# install them only if missing.
+# Headless OpenGL needs Mesa's EGL and the llvmpipe driver, the tests Node.js for the glTF validator and Chromium
+# for report.html in a browser (tests/test_report_html.py); install them only if missing.
 sysdeps:
+	@if ! command -v chromium >/dev/null; then \
+	  echo "installing Chromium (apt-get)"; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq chromium >/dev/null; \
+	fi
 	@if ! command -v npm >/dev/null; then \
 	  echo "installing Node.js (apt-get)"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \

@@ -122,6 +122,7 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
                                              variant set (frames/SET/, heatmaps/SET/, reference/,
                                              overview.png) and OUTPUT/composite.md
     OUTPUT/report.json, report.csv, error_vs_time.png
+    OUTPUT/report.html                       all of it on one offline page (plots, table, frames)
     OUTPUT/baseline.md, baseline.csv         with --baseline: the change per variant
     OUTPUT/sizes/NNNpx/...                   with --sizes or render.sweep: frames, heat maps,
                                              reference and overviews at each screen size

@@ -64,6 +64,7 @@ table {{ border-collapse: collapse; font-size: 12px; }} th, td {{ padding: 2px 6
 th {{ position: sticky; top: 0; background: #eef; cursor: pointer; text-align: left; }} td.n {{ text-align: right;
   font-variant-numeric: tabular-nums; }} th[aria-sort=ascending]::after {{ content: " ▲"; }}
 th[aria-sort=descending]::after {{ content: " ▼"; }}
+#rows td:nth-child(-n+2) {{ white-space: nowrap; }}
 .viewer .trio {{ display: flex; gap: .8em; flex-wrap: wrap; align-items: flex-start; overflow: auto; }}
 .viewer figure {{ margin: 0; }} .viewer img, .swipe img, .pair img {{ image-rendering: pixelated;
   image-rendering: crisp-edges; display: block; }}
@@ -299,8 +300,9 @@ def runs_table(folder: Path, runs: list[dict]) -> str:
         cls = " class='regression'" if r["status"] == "failed" else ""
         lines.append(f"<tr{cls}><td>{link}</td><td>{esc(r['status'])}</td><td class='n'>{r['rows']}</td>"
                      f"<td class='n'>{r['seconds']:.1f}</td><td>{esc(r['reason'])}</td></tr>")
-    return ("<h2>Runs</h2><details open><summary>each bundle's render (its own report.html holds its sweep and LOD "
-            "chains)</summary><div class='tablewrap'><table><thead><tr><th>scene</th><th>status</th><th>rows</th>"
+    shut = len(runs) > 10 and all(r["status"] == "rendered" for r in runs)   # a long list of successes: folded
+    return (f"<h2>Runs</h2><details{'' if shut else ' open'}><summary>{len(runs)} bundles, each rendered into its own "
+            "folder (its report.html holds its sweep and LOD chains)</summary><div class='tablewrap'><table><thead><tr><th>scene</th><th>status</th><th>rows</th>"
             f"<th>seconds</th><th>reason</th></tr></thead><tbody>{''.join(lines)}</tbody></table></div></details>")
 
 
@@ -438,7 +440,7 @@ def time_plot(obj: str, rows: list[dict]) -> str:
         "<p class='muted'>ringed points and the dashed line: the Pareto front. Hover or focus a point for its numbers.</p>"
 
 
-def size_plot(obj: str, rows: list[dict], field: str, ylabel: str, log_y: bool) -> str:
+def size_plot(obj: str, rows: list[dict], field: str, ylabel: str, log_y: bool, colour: dict) -> str:
     """`field` against the object's size on screen (log 2), one line per variant; the point-sampled twin dashed."""
     pts = [r for r in rows if r.get(field) is not None and (r[field] > 0 or not log_y)]
     if not pts:
@@ -447,10 +449,11 @@ def size_plot(obj: str, rows: list[dict], field: str, ylabel: str, log_y: bool) 
     x = Scale(min(sizes), max(sizes), LEFT, W - RIGHT, True)
     vals = [r[field] for r in pts] + [r[f"aliased_{field}"] for r in pts if r.get(f"aliased_{field}") is not None]
     y = Scale(min(vals) if log_y else 0.0, max(vals), H - BOTTOM, TOP, log_y)
-    colour = colours(r["label"] for r in pts)
     parts = frame(x, y, "bounding sphere on screen [px] (log)", ylabel, sizes)
     for label, c in colour.items():
         mine = sorted((r for r in pts if r["label"] == label), key=lambda r: r["size_px"])
+        if not mine:
+            continue
         d = "M" + "L".join(f"{x(r['size_px']):.1f},{y(r[field]):.1f}" for r in mine)
         parts.append(f"<path d='{d}' fill='none' stroke='{c}' stroke-width='1.5'/>")
         twin = [r for r in mine if r.get(f"aliased_{field}") is not None]
@@ -458,10 +461,11 @@ def size_plot(obj: str, rows: list[dict], field: str, ylabel: str, log_y: bool) 
             d = "M" + "L".join(f"{x(r['size_px']):.1f},{y(r[f'aliased_{field}']):.1f}" for r in twin)
             parts.append(f"<path d='{d}' fill='none' stroke='{c}' stroke-dasharray='4 3' stroke-width='1'/>")
         parts += [point(x(r["size_px"]), y(r[field]), c, r) for r in mine]
-    return svg(parts, f"{obj}: {ylabel} against screen size") + legend(colour)
+    shown = {r["label"] for r in pts}
+    return svg(parts, f"{obj}: {ylabel} against screen size") + legend({k: c for k, c in colour.items() if k in shown})
 
 
-def lod_section(obj: str, lod: dict) -> str:
+def lod_section(obj: str, lod: dict, colour: dict) -> str:
     """Each chain of the object: its bands of screen sizes as coloured spans on a log size axis, each switch's
     hysteresis band hatched and its pop (ΔLuv between the two variants there) written at it; the field's pricing."""
     out = []
@@ -472,7 +476,7 @@ def lod_section(obj: str, lod: dict) -> str:
         limits = ", ".join(f"{k} {'≥' if k == 'iou' else '≤'} {v}" for k, v in c["limits"].items())
         out.append(f"<h4>chain {esc(c['name'])}: {esc(limits)}"
                    + (f", pop ≤ {c['pop_dluv']} ΔLuv" if c.get("pop_dluv") is not None else "") + "</h4>")
-        out.append(bands(obj, c["name"], ch["entries"], lod["sizes_px"]))
+        out.append(bands(obj, c["name"], ch["entries"], lod["sizes_px"], colour))
         if ch.get("unmet_px"):
             out.append(f"<p class='worse'>no variant within the limits at {', '.join(map(str, ch['unmet_px']))} px "
                        "(the least error taken, hatched)</p>")
@@ -490,20 +494,19 @@ def lod_section(obj: str, lod: dict) -> str:
     return "".join(out)
 
 
-def bands(obj: str, name: str, entries: list[dict], sizes: list[int]) -> str:
-    h, bar = 74, 30
+def bands(obj: str, name: str, entries: list[dict], sizes: list[int], colour: dict) -> str:
+    h, bar = 88, 30
     lo, hi = max(min(sizes) / 2, 0.5), max(sizes)
     x = Scale(lo, hi, LEFT, W - RIGHT, True)
     at = lambda s: x(max(s, lo)) if s else LEFT   # noqa: E731  (a band down to 0 px runs to the left edge)
-    colour = colours(e["variant"] for e in entries)
-    parts = []
+    parts = [f"<text x='{(LEFT + W - RIGHT) / 2}' y='{h - 4}' text-anchor='middle'>screen size [px] (log)</text>"]
     for e in entries:
         x0, x1 = at(e["min_px"]), at(e["max_px"])
         m = e["measured"][0]
         what = (f"{e['variant']}: {e['min_px']}–{e['max_px']} px, mean ΔLuv {num(m.get('mean_dluv'), 3)}, "
                 f"{num(m.get('median_ms'), 3)} ms" + ("" if e["meets"] else " (over the limits)"))
         hatch = "" if e["meets"] else " stroke='#000' stroke-dasharray='3 2'"
-        parts.append(f"<rect x='{x0:.1f}' y='8' width='{max(x1 - x0, 1):.1f}' height='{bar}' fill='{colour[e['variant']]}'"
+        parts.append(f"<rect x='{x0:.1f}' y='8' width='{max(x1 - x0, 1):.1f}' height='{bar}' fill='{colour.get(e['variant'], PALETTE[-1])}'"
                      f" fill-opacity='0.75'{hatch}><title>{esc(what)}</title></rect><text x='{(x0 + x1) / 2:.1f}' "
                      f"y='{8 + bar / 2 + 4}' text-anchor='middle'>{esc(e['variant'])}</text>")
         if "switch_px" in e:   # the switch to the next coarser entry, at its hysteresis band
@@ -514,7 +517,7 @@ def bands(obj: str, name: str, entries: list[dict], sizes: list[int]) -> str:
         if pop is not None:
             parts.append(f"<text x='{x1:.1f}' y='{8 + bar + 14}' text-anchor='middle'>pop {pop:.2f} ΔLuv</text>")
     for s in sizes:
-        parts.append(f"<text x='{x(s):.1f}' y='{h - 4}' text-anchor='middle' class='muted'>{s}</text>")
+        parts.append(f"<text x='{x(s):.1f}' y='{h - 20}' text-anchor='middle'>{s}</text>")
     return (f"<svg class='plot' viewBox='0 0 {W} {h}' role='img' aria-label='{esc(obj)}: LOD chain {esc(name)}'>"
             f"<title>{esc(obj)}: LOD chain {esc(name)}, screen size in px (log)</title>{''.join(parts)}</svg>")
 
@@ -573,13 +576,14 @@ def object_section(report: dict, obj: str, frames: dict) -> str:
     parts = [f"<section class='obj' data-object='{esc(obj)}'><h2>{esc(obj)}</h2><h3>error against time</h3>",
              time_plot(obj, rows)]
     sweep = [r for r in (report.get("sweep") or {}).get("rows", []) if r["object"] == obj]
+    colour = colours(r["label"] for r in rows + sweep)   # a variant's colour the same in the size plots and bands
     if sweep:
         parts += ["<h3>against screen size</h3><div class='plots'><div>",
-                  size_plot(obj, sweep, "mean_dluv", "mean ΔL*u*v*", False), "</div><div>",
-                  size_plot(obj, sweep, "median_ms", "median GPU time [ms] (log)", True), "</div></div>",
+                  size_plot(obj, sweep, "mean_dluv", "mean ΔL*u*v*", False, colour), "</div><div>",
+                  size_plot(obj, sweep, "median_ms", "median GPU time [ms] (log)", True, colour), "</div></div>",
                   "<p class='muted'>dashed: the point-sampled (aliased) error, where it differs.</p>"]
     if report.get("lod"):
-        parts += ["<h3>LOD chains</h3>", lod_section(obj, report["lod"])]
+        parts += ["<h3>LOD chains</h3>", lod_section(obj, report["lod"], colour)]
     parts += ["<h3>frames</h3>", viewer(report, obj, frames), "</section>"]
     return "".join(parts)
 
