@@ -35,11 +35,15 @@ def _run(cmd: list[str]) -> None:
 
 def render_modes(name: str, root: Path, modes, sizes, resolution: str | None) -> dict:
     """One bake, then one vdmrender run per mode into the same folder (the reference cached after the first):
-    {mode: report.json}."""
+    {mode: report.json}. A mode whose NAME-MODE.json is there from an earlier run is read, not run again (delete
+    it to measure again)."""
     bundle = root / f"{name}.bundle"
     _run([sys.executable, "-m", "vdmbake.cli", f"configs/{name}.toml", "-o", str(bundle)])
     out, reports = root / name, {}
     for mode in modes:
+        if (root / f"{name}-{mode}.json").is_file():
+            reports[mode] = json.loads((root / f"{name}-{mode}.json").read_text())
+            continue
         t0 = time.perf_counter()
         _run([sys.executable, "-m", "vdmrender.cli", str(bundle), "-o", str(out), "--no-flip",
               "--sizes", ",".join(map(str, sizes)), "--reference-spp", str(REFERENCE_SPP), "--antialias", mode]
@@ -101,10 +105,11 @@ def table(results: dict, spp_cost: list[dict], device: str) -> str:
 @click.command()
 @click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"))
 @click.option("--quick", is_flag=True, help="128x128 frames, sizes 128 and 16, modes none and ssaa2 (a smoke run).")
-def main(out: Path, quick: bool):
+@click.option("--modes", default=",".join(MODES), show_default=True, help="The anti-aliasing modes to run.")
+def main(out: Path, quick: bool, modes: str):
     root = out / "filtered"
     root.mkdir(parents=True, exist_ok=True)
-    modes, sizes = (("none", "ssaa2"), (128, 16)) if quick else (MODES, SIZES)
+    modes, sizes = (("none", "ssaa2"), (128, 16)) if quick else (tuple(modes.split(",")), SIZES)
     results = {name: render_modes(name, root, modes, sizes, "128x128" if quick else None) for name in CONFIGS}
     spp_cost = reference_cost(root, SPP_COST[:3] if quick else SPP_COST, 128 if quick else 256)
     device = next(iter(next(iter(results.values())).values()))["device"]
