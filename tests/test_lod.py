@@ -322,3 +322,15 @@ def test_a_chain_is_priced_on_the_field_it_serves():
     assert kept["field"]["chosen"] == "lod@dluv2" and kept["entries"] == chain["entries"]
     assert "sweep_entries" not in kept and "Priced on the field" in lod.table({**doc, "device": "d", "sizes_px": [64, 16],
                                                                               "rule": "r"})
+
+
+def test_export_merges_neighbouring_bands_of_one_variant():
+    """lod.json splits a variant's band within the limits from its band over them; the export writes it once."""
+    from vdmbake.export.chain import merged
+
+    es = [{"variant": "mesh", "min_px": 256, "max_px": 512, "screen_coverage": [1.0, 0.5]},
+          {"variant": "mesh", "min_px": 32, "max_px": 256, "screen_coverage": [0.5, 0.0625]},
+          {"variant": "coarse@0.3", "min_px": 0, "max_px": 32, "screen_coverage": [0.0625, 0.0]}]
+    m = merged(es)
+    assert [(e["variant"], e["min_px"], e["max_px"], e["screen_coverage"]) for e in m] == [
+        ("mesh", 32, 512, [1.0, 0.0625]), ("coarse@0.3", 0, 32, [0.0625, 0.0])]

@@ -142,10 +142,10 @@ def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None =
                                      f"{bundle.path} lacks; export with the bundle the chain was rendered from.")
                 obj, entry, stem = objects[name], bundle.manifest["objects"][name], f"{name}-{c['name']}"
                 if "meshes_only" in ch:
-                    summary["files"].append(_gltf(out, bundle, obj, entry, ch["meshes_only"]["entries"], stem,
-                                                  lod["resolution"][1]))
-                    log(f"{stem}.gltf: {len(ch['meshes_only']['entries'])} levels")
-                impostors = [e for e in ch["entries"] if e["technique"] not in TRIANGLE_MESHES]
+                    levels = merged(ch["meshes_only"]["entries"])
+                    summary["files"].append(_gltf(out, bundle, obj, entry, levels, stem, lod["resolution"][1]))
+                    log(f"{stem}.gltf: {len(levels)} levels")
+                impostors = [e for e in merged(ch["entries"]) if e["technique"] not in TRIANGLE_MESHES]
                 if impostors:
                     summary["files"].append(_sidecar(out, bundle, obj, entry, impostors, stem, lod))
                     log(f"{stem}.impostors.json: {', '.join(e['variant'] for e in impostors)}")
@@ -155,6 +155,19 @@ def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None =
         out.abort()
         raise
     return summary
+
+
+def merged(entries: list[dict]) -> list[dict]:
+    """A chain's entries with neighbours of one variant as one level (lod.json splits a band within the limits
+    from one over them: one mesh, not two copies of it)."""
+    out = []
+    for e in entries:
+        if out and out[-1]["variant"] == e["variant"]:
+            out[-1] = {**out[-1], "min_px": e["min_px"],
+                       "screen_coverage": [out[-1]["screen_coverage"][0], e["screen_coverage"][1]]}
+        else:
+            out.append(e)
+    return out
 
 
 def _gltf(out, bundle, obj, entry, levels: list[dict], stem: str, height: int) -> str:
