@@ -322,6 +322,11 @@ def test_a_chain_is_priced_on_the_field_it_serves():
     assert kept["field"]["chosen"] == "lod@dluv2" and kept["entries"] == chain["entries"]
     assert "sweep_entries" not in kept and "Priced on the field" in lod.table({**doc, "device": "d", "sizes_px": [64, 16],
                                                                               "rule": "r"})
+    doc["chains"][0]["objects"]["o"] = json.loads(json.dumps(chain))   # none within the limits: the least error
+    lod.priced_on_field(doc, [field("mesh", 2400.0, 2.3), field("coarse@0.1", 1585.0, 2.27),
+                              field("lod@dluv2", 2120.0, 2.49, "lod", "dluv2")])
+    least = doc["chains"][0]["objects"]["o"]
+    assert least["field"]["chosen"] == "coarse@0.1" and least["entries"][0]["meets"] is False
 
 
 def test_export_merges_neighbouring_bands_of_one_variant():

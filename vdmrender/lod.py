@@ -137,15 +137,17 @@ def priced_on_field(lod: dict, rows: list[dict]) -> None:
     variant its size selects, vdmrender.render.mixed) against every single variant drawing the same field. The
     cheapest of those within the chain's limits on the field (cheapest's rule) is what the field ships: where
     that is a single variant, the chain becomes that variant at every size (the sweep's chain kept as
-    sweep_entries), so a chain is never slower than one representation meeting the same limits there."""
+    sweep_entries), so a chain is never slower than one representation meeting the same limits there. Where none
+    is within the limits on the field, the one of least mean ΔLuv is shipped (chain's rule for a size)."""
     for c in lod["chains"]:
         for obj, ch in c["objects"].items():
             field = [r for r in rows if r["object"] == obj and (r["technique"] != "lod" or r["value"] == c["name"])]
             if not any(r["technique"] == "lod" for r in field):
                 continue
             ok = [r for r in field if meets(r, c["limits"])]
-            best = cheapest(ok) if ok else next(r for r in field if r["technique"] == "lod")
-            ch["field"] = {"how": priced_on_field.__doc__.replace("\n", " "), "chosen": best["label"],
+            best = cheapest(ok) if ok else min(field, key=lambda r: (r["mean_dluv"] is None, r["mean_dluv"] or 0,
+                                                                     r["median_ms"], r["label"]))
+            ch["field"] = {"how": " ".join(priced_on_field.__doc__.split()), "chosen": best["label"],
                            "candidates": [{"variant": r["label"], "median_ms": r["median_ms"],
                                            "spread_ms": r["spread_ms"], "mean_dluv": r["mean_dluv"],
                                            "meets": meets(r, c["limits"])} for r in field]}
@@ -153,7 +155,7 @@ def priced_on_field(lod: dict, rows: list[dict]) -> None:
                 point = {"size_px": None, **{k: best.get(k) for k in MEASURED}, "per_pixel": best.get("per_pixel")}
                 ch["sweep_entries"] = ch["entries"]
                 ch["entries"] = [{"variant": best["label"], "technique": best["technique"], "value": best["value"],
-                                  "max_px": ch["above_px"], "min_px": 0, "meets": True, "measured": [point],
+                                  "max_px": ch["above_px"], "min_px": 0, "meets": bool(ok), "measured": [point],
                                   "screen_coverage": [round(ch["above_px"] / lod["resolution"][1], 6), 0.0]}]
 
 
