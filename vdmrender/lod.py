@@ -234,7 +234,7 @@ def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
             ax.axvspan(lo, e["max_px"], color=colour, alpha=0.12, hatch=None if e["meets"] else "//")
             ax.text((lo * e["max_px"]) ** 0.5, 0.97, e["variant"] + ("" if e["meets"] else " (over)"),
                     transform=ax.get_xaxis_transform(), ha="center",
-                    va="top", fontsize=7, rotation=90 if len(ch["entries"]) > 3 else 0)
+                    va="top", fontsize=7, rotation=90 if len(ch["entries"]) > 2 else 0)
             path_pts += [(m["size_px"], m["mean_dluv"]) for m in e["measured"] if m["size_px"] is not None]
             top = e["measured"][0]
             if top.get("pop_dluv") is not None:
