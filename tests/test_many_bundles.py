@@ -69,3 +69,26 @@ def test_bundles_of_one_name_and_empty_folders_are_refused(tmp_path):
     (tmp_path / "empty").mkdir()
     r = CliRunner().invoke(render_main, [str(tmp_path / "empty"), "-o", str(tmp_path / "o")])
     assert r.exit_code == 2 and "not a bundle (no manifest.json), nor a folder holding bundles" in r.output, r.output
+
+
+@pytest.mark.gl
+def test_a_bundle_failing_with_any_error_is_named_and_the_others_render(library, tmp_path, monkeypatch):
+    """Not only the tool's own refusals: a GL, library or OS error in one bundle is that bundle's failure (issue 34),
+    and the combined report says what the runs' errors are against."""
+    from vdmrender import many
+
+    real = many.run
+
+    def flaky(path, out, opts, log):
+        if path.name == "ball.bundle":
+            raise RuntimeError("the GL driver lost the context")
+        return real(path, out, opts, log)
+
+    monkeypatch.setattr(many, "run", flaky)
+    out = tmp_path / "renders"
+    r = CliRunner().invoke(render_main, [str(library), "-o", str(out), "--no-flip", "--reference-spp", "4"])
+    assert r.exit_code == 1 and "1 of 2 bundles failed: ball" in r.output, r.output
+    combined = json.loads((out / "report.json").read_text())
+    runs = {x["scene"]: x for x in combined["runs"]}
+    assert runs["ball"]["status"] == "failed" and "RuntimeError: the GL driver lost" in runs["ball"]["reason"]
+    assert runs["cone"]["status"] == "rendered" and combined["filtering"]["reference_spp"] == 4

@@ -45,18 +45,20 @@ def run_many(paths: list[Path], out: Path, opts, log=lambda m: None) -> dict:
     old = baseline.load(opts.baseline) if opts.baseline else None
     out.mkdir(parents=True, exist_ok=True)
     each = dataclasses.replace(opts, baseline=None, max_error_increase=None, max_slowdown=None)
-    runs, rows, devices = [], [], []
+    runs, rows, devices, filterings = [], [], [], []
     for k, path in enumerate(paths, 1):
         scene = path.name.removesuffix(".bundle")
         log(f"[{k}/{len(paths)}] {path} -> {out / scene}")
         t0 = time.perf_counter()
         try:
             result = run(path, out / scene, each, log)
-        except InputError as e:
+        except Exception as e:   # a GL, library or OS error of one bundle too: the others still render
+            why = paragraph(str(e) if isinstance(e, InputError) else f"{type(e).__name__}: {e}")
             runs.append({"scene": scene, "bundle": str(path), "status": "failed", "rows": 0,
-                         "seconds": round(time.perf_counter() - t0, 2), "reason": paragraph(str(e))})
-            log(f"{scene}: failed: {e}")
+                         "seconds": round(time.perf_counter() - t0, 2), "reason": why})
+            log(f"{scene}: failed: {why}")
             continue
+        filterings.append(result["filtering"])
         mine = [{**r, "scene": scene, "object": f"{scene}/{r['object']}"} for r in result["rows"]]
         rows += mine
         devices.append(result["device"])
@@ -65,6 +67,8 @@ def run_many(paths: list[Path], out: Path, opts, log=lambda m: None) -> dict:
     combined = {"tool_version": __version__, "device": devices[0] if devices else None, "time": "gpu",
                 "resolution": runs_resolution(runs), "runs": runs, "rows": rows,
                 "how": __doc__.split("\n\n")[0].replace("\n", " ")}
+    if filterings and all(f == filterings[0] for f in filterings):   # what every run's errors are against
+        combined["filtering"] = filterings[0]
     if old is not None:
         combined["baseline"] = {"report": str(opts.baseline),
                                 **baseline.compare(old, combined, opts.max_error_increase, opts.max_slowdown,
