@@ -80,8 +80,12 @@ def test_sweep_renders_each_size_and_picks_chains(tmp_path):
         for m in e["measured"]:
             here = [r for r in rows if r["size_px"] == m["size_px"]]
             paired = {r["label"]: np.array(r["interleaved_ms"]) for r in here if "interleaved_ms" in r}
-            assert len(paired) >= 2   # the variants within the limits and 4x of the fastest: timed interleaved
-            assert pricing.verdicts(paired)[e["variant"]] != "slower"
+            if paired:   # the variants within the limits and 4x of the fastest: timed interleaved, decided there
+                assert pricing.verdicts(paired)[e["variant"]] != "slower"
+            else:        # one alone within 4x (a loaded machine): separately timed medians within the noise
+                assert m["median_ms"] <= (1 + lod.NOISE) * min(r["median_ms"] for r in here) + 2 * max(
+                    r["spread_ms"] for r in here) + 1e-9
+    assert any("interleaved_ms" in r for r in rows)
 
 
 def row(label, size, ms, dluv, spread=0.0, technique=None):
