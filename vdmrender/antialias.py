@@ -69,25 +69,15 @@ class Supersampled:
         self.out.release()
 
 
-class Target:
-    """The harness's target under an anti-aliasing mode (gl.Target's interface): drawn into at the mode's
-    samples, cleared there outside the timed passes, read after the resolve."""
+class Target(gl.Target):
+    """The harness's target under an anti-aliasing mode: a gl.Target (bound, cleared and begun as one) whose
+    framebuffer holds the mode's samples, cleared there outside the timed passes, read after the resolve."""
 
     def __init__(self, ctx, width: int, height: int, mode: str):
         self.ctx, self.mode = ctx, mode
         kind, n = mode[:4], int(mode[4:])
         self.buffers = (Multisampled if kind == "msaa" else Supersampled)(ctx, width, height, n)
         self.size, self.fbo = self.buffers.size, self.buffers.fbo
-
-    def bind(self) -> None:
-        self.fbo.use()
-        self.ctx.viewport = (0, 0, *self.size)
-
-    def clear(self) -> None:
-        self.bind()
-        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-
-    begin = clear
 
     def kept(self) -> "Kept":
         return Kept(self)

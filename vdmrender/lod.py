@@ -22,6 +22,7 @@ import numpy as np
 from vdmbake.common import instances
 
 from . import pricing
+from .baseline import POINT
 from .composite import Composite
 
 NOISE = 0.1   # separately timed medians (no interleaved times): a difference below this share is not one in cost
@@ -116,7 +117,7 @@ def chains(sweep_rows: list[dict], lod_sets, device: str, resolution, filtering:
     against (report.json's: the reference's samples per pixel, the frames' anti-aliasing); pops(object) -> pop(size,
     a, b) (vdmrender.render: the sweep's frames compared)."""
     objects = list(dict.fromkeys(r["object"] for r in sweep_rows))
-    filtering = filtering or {"reference_spp": 1, "antialias": "none"}
+    filtering = filtering or POINT
     return {"device": device, "resolution": list(resolution), "sizes_px": sorted({r["size_px"] for r in sweep_rows},
                                                                                   reverse=True),
             "error": {"reference_spp": filtering["reference_spp"], "antialias": filtering["antialias"]},
@@ -165,7 +166,7 @@ def table(lod: dict) -> str:
     def num(x, digits):
         return "-" if x is None else f"{x:.{digits}f}"
 
-    seen = lod.get("error") or {"reference_spp": 1, "antialias": "none"}
+    seen = lod.get("error") or POINT
     lines = [f"LOD chains on {lod['device']}, frame {lod['resolution'][0]}x{lod['resolution'][1]}, sizes measured "
              f"{', '.join(map(str, lod['sizes_px']))} px; errors against the reference at {seen['reference_spp']} "
              f"samples per pixel, frames anti-aliased {seen['antialias']}. {lod['rule']}", ""]
@@ -254,7 +255,7 @@ def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
         ax.set_title(f"{obj}: chain {c['name']}{priced}", fontsize=9)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
-    seen = lod.get("error") or {"reference_spp": 1, "antialias": "none"}
+    seen = lod.get("error") or POINT
     fig.suptitle(f"LOD chains on {lod['device']}\nreference {seen['reference_spp']} spp, frames AA {seen['antialias']}",
                  fontsize=8)
     fig.tight_layout()

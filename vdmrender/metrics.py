@@ -92,6 +92,16 @@ def _rounded(x, digits: int):
     return None if x is None else round(float(x), digits)
 
 
+def pooled(scores: list[dict]) -> dict:
+    """Frames' scores (compare's) as one: mean and p95 ΔLuv over every scored pixel of every frame, the IoU averaged
+    over the frames that are not empty; None where there is nothing to pool."""
+    d = np.concatenate([s["values"] for s in scores])
+    full = [s["iou"] for s in scores if not s["empty"]]
+    return {"mean_dluv": _rounded(d.mean(), 4) if d.size else None,
+            "p95_dluv": _rounded(np.percentile(d, 95), 4) if d.size else None,
+            "iou": _rounded(np.mean(full), 6) if full else None}
+
+
 def summarise(scores: list[dict]) -> dict:
     """A variant's report fields from its frames' scores (compare's, each with "flip" values,
     "coverage" of the reference and a "nonfinite" pixel count): the error pooled over every scored
@@ -103,11 +113,8 @@ def summarise(scores: list[dict]) -> dict:
     per_frame = [{"frame": k, "empty": s["empty"], "mean_dluv": _rounded(s["mean"], 4), "iou": _rounded(s["iou"], 6),
                   "flip": _rounded(s["flip"].mean(), 5) if s["flip"].size else None,
                   "coverage": round(s["coverage"], 6), "nonfinite": s["nonfinite"]} for k, s in enumerate(scores)]
-    row = {"empty_frames": len(scores) - len(full),
-           "mean_dluv": _rounded(d.mean(), 4) if d.size else None,
-           "p95_dluv": _rounded(np.percentile(d, 95), 4) if d.size else None,
+    row = {"empty_frames": len(scores) - len(full), **pooled(scores),
            "max_dluv": _rounded(d.max(), 4) if d.size else None,
-           "iou": _rounded(np.mean([s["iou"] for s in full]), 6) if full else None,
            "flip_mean": _rounded(fl.mean(), 5) if fl.size else None,
            "coverage": round(float(np.mean([s["coverage"] for s in scores])), 6),
            "nonfinite": sum(s["nonfinite"] for s in scores), "per_frame": per_frame}

@@ -3,6 +3,7 @@ the error of each frame, the time per frame, and the report."""
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from dataclasses import asdict, dataclass
 from functools import partial
@@ -225,7 +226,7 @@ def _log_chains(chains: dict, log, how: str) -> None:
 
 def filtering_note(opts: Options) -> dict:
     """How the frames and the reference were filtered (report.json's `filtering`)."""
-    n = int(opts.reference_spp ** 0.5)
+    n = math.isqrt(opts.reference_spp)
     return {"reference_spp": opts.reference_spp, "reference_filter": "box" if n > 1 else "none (pixel centre)",
             "reference_samples": f"{n} x {n} stratified, jittered within each stratum (seeded)" if n > 1 else "1",
             "antialias": opts.antialias,

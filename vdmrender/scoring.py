@@ -2,12 +2,12 @@
 frames and heat maps, and the one line per measured row that vdmrender logs."""
 from __future__ import annotations
 
-import numpy as np
-
 from dataclasses import dataclass
 
+import numpy as np
+
 from . import images, progress
-from .metrics import compare, flip_values
+from .metrics import compare, flip_values, pooled
 
 
 @dataclass
@@ -40,11 +40,7 @@ class References:
             cs = scores
         else:
             cs = [compare(images.encode(f, background), r8, cls) for f, r8, cls in zip(frames, self.point, self.classes)]
-        d = np.concatenate([c["values"] for c in cs])
-        ious = [c["iou"] for c in cs if not c["empty"]]
-        return {"aliased_mean_dluv": round(float(d.mean()), 4) if d.size else None,
-                "aliased_p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else None,
-                "aliased_iou": round(float(np.mean(ious)), 6) if ious else None}
+        return {f"aliased_{k}": v for k, v in pooled(cs).items()}
 
 
 def score_frames(frames, ref8, classes, out, frame_dir: str, heat_dir: str, heat_max, background, flip, desc: str):
@@ -95,8 +91,8 @@ def pops(frames: dict):
     def pop(size, a: str, b: str) -> float:
         key = (size, *sorted((a, b)))
         if key not in cache:
-            d = np.concatenate([compare(fa, fb)["values"] for fa, fb in zip(frames[size][a], frames[size][b])])
-            cache[key] = round(float(d.mean()), 4) if d.size else 0.0
+            cs = [compare(fa, fb) for fa, fb in zip(frames[size][a], frames[size][b])]
+            cache[key] = pooled(cs)["mean_dluv"] or 0.0
         return cache[key]
 
     return pop

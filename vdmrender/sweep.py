@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .baseline import POINT
 from .camera import Camera, clip_planes
 from .report import flat as report_flat
 
@@ -53,7 +54,7 @@ def write(folder: Path, report: dict) -> None:
 
 def seen(report: dict) -> str:
     """What the error plot's solid lines compare: the reference's filter and the frames' anti-aliasing."""
-    f = report.get("filtering") or {"reference_spp": 1, "antialias": "none"}
+    f = report.get("filtering") or POINT
     solid = f"reference {f['reference_spp']} spp, frames AA {f['antialias']}"
     return solid + ("; dashed: 1 spp both" if f["reference_spp"] > 1 or f["antialias"] != "none" else "")
 
