@@ -633,3 +633,20 @@ def test_unknown_key_with_a_newline_in_one_line():
         with pytest.raises(InputError) as e:
             parse_scene_dict(data, "s.toml")
         assert "\n" not in str(e.value) and "\\n" in str(e.value)
+
+
+def test_a_signal_turned_into_another_exception_still_exits_as_the_signal(capsys):
+    """SIGTERM arriving inside an extension module's import surfaces as ImportError ("initialization failed"; CI saw
+    it in OpenEXR's lazy import during a render): the tool still exits 143, not 1 with a traceback."""
+    from vdmbake.errors import guarded
+
+    def work():
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+        except BaseException:
+            raise ImportError("initialization failed") from None
+
+    with pytest.raises(SystemExit) as e:
+        guarded(work, debug=False)
+    assert e.value.code == 143 and "interrupted" in capsys.readouterr().err
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)

@@ -51,3 +51,8 @@ def guarded(work, debug: bool):
     except OSError as e:
         fail(InputError(f"{escaped(str(e.filename)) + ': ' if e.filename else ''}{e.strerror or e} "
                         f"({type(e).__name__}); nothing was written."), debug)
+    except Exception as e:   # the signal's exception turned into another on its way up (an extension module's
+        if signals.received is None:   # initialisation raises ImportError: "initialization failed")
+            raise
+        click.echo(f"interrupted ({type(e).__name__} where the signal arrived); nothing was written", err=True)
+        raise SystemExit(signals.exit_code(e)) from None
