@@ -5,8 +5,8 @@ constant density (one copy per (SPACING r)^2 of ground, r the bounding radius, s
 seen by two cameras standing at the field's edge and looking across it (copies from near to far, as in a real
 scene). Every variant is timed interleaved (bench.interleave: GPU timer queries after a warm-up, medians), with its
 GPU bytes and per-pixel work (vdmrender.counters), and scored against the reference that traces every copy merged
-while that stays within MAX_REFERENCE_FACES (the memory guard's rule, vdmrender.render.BYTES_PER_FACE); beyond
-it the error is not measured, and said so. A variant whose frame would take longer than FRAME_BUDGET_S at the next
+while that fits the memory budget (vdmbake.bundle.budget, estimated as vdmrender.render.check_memory estimates
+it); beyond it the error is not measured, and said so. A variant whose frame would take longer than FRAME_BUDGET_S at the next
 N (its time growing with N) is not run there. Per-copy LOD (row lod@dluvLIMIT): one copy measured at SIZES pixels
 across (vdmrender.sweep's cameras, the same interleaved timing, its own reference) gives the chain of the cheapest
 variant within mean ΔLuv LIMIT per band of screen sizes (vdmrender.lod.chain); in every field each copy is then
@@ -26,13 +26,14 @@ import click
 import numpy as np
 
 from vdmbake.bake import bake
+from vdmbake.bundle import budget
 from vdmbake.bundle.directory import Bundle
 from vdmbake.common import instances
 from vdmbake.scene import Instances, Scatter
 
 from vdmrender import gl, images, lod, refcache, render, sweep
 from vdmrender.camera import Camera, cameras_for, clip_planes
-from vdmrender.render import BYTES_PER_FACE
+from vdmrender.render import BYTES_PER_FACE, BYTES_PER_PIXEL
 from vdmrender.techniques import variants
 
 from .interleave import costs, measure
@@ -42,7 +43,6 @@ ASSETS = {"scan": ('mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"', 'coarse 
                     'transform = { rotate_deg = [90, 0, 0] }', 'coarse = { ratios = [0.1] }')}
 COUNTS = (1, 10, 100, 1000, 10000)
 SPACING = 3.0                       # ground per copy: (SPACING r)^2
-MAX_REFERENCE_FACES = 12_000_000    # the merged reference's faces: about 7 GiB by the memory guard's estimate
 FRAME_BUDGET_S = 20.0               # wall time per frame a variant may be expected to take at the next N
 RESOLUTION = (960, 540)
 SIZES = (256, 64, 16)               # screen sizes of the one-copy sweep that picks the LOD chain, pixels across
@@ -113,7 +113,7 @@ def run(out: Path, quick: bool, log) -> dict:
                 cams = cameras(np.asarray(entry["centre"]), entry["radius"], n, w, h)
                 chosen = [v for v in variants(copies, entry, bundle, bundle.scene) if v.label not in too_slow]
                 ref8, traced = None, None
-                if faces * n <= MAX_REFERENCE_FACES:
+                if budget.fits(faces * n * BYTES_PER_FACE + w * h * BYTES_PER_PIXEL):   # the render's own rule
                     t0 = time.perf_counter()
                     ref, _ = refcache.object_reference(copies, entry, bundle, bundle.scene)
                     ref8 = [images.encode(ref.render(c), bundle.scene.render.background) for c in cams]
@@ -133,7 +133,7 @@ def run(out: Path, quick: bool, log) -> dict:
                                  "fragments_px": round(c["total"]["fragments"] / max(c["covered"], 1), 2),
                                  "reference_s": traced,
                                  "error": "measured" if ref8 is not None else
-                                 f"not measured: {n} x {faces} faces merged exceed {MAX_REFERENCE_FACES}"})
+                                 f"not measured: {n} x {faces} faces merged exceed the memory budget"})
                     log(f"{name} x{n}: {label:>32} {m['median_ms']:10.2f} ms  "
                         + (f"mean dLuv {m['mean_dluv']:.3f}" if m.get("mean_dluv") is not None else "(no reference)"))
                     grow = counts[counts.index(n) + 1] / n if n != counts[-1] else 1

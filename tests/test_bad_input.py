@@ -288,17 +288,25 @@ def test_render_resolution_usage_error(bundle, tmp_path):
 
 # ------------------------------------------------------------------------------------ memory guard
 
-def test_check_memory_refuses_above_80_percent():
+def test_check_memory_refuses_above_what_is_available():
     w, h = 640, 480
     need = w * h * BYTES_PER_PIXEL
-    with pytest.raises(InputError, match=r"640x480"):
-        check_memory(w, h, available=int(need / 0.8 * 0.99))
-    with pytest.raises(InputError):
-        check_memory(w, h, available=need)          # fits, but leaves less than the 20% margin
+    with pytest.raises(InputError, match=r"640x480.*memory available now"):
+        check_memory(w, h, free=need - 1)
 
 
-def test_check_memory_passes_below_80_percent():
+def test_check_memory_passes_within_the_budget():
     w, h = 640, 480
     need = w * h * BYTES_PER_PIXEL
-    assert check_memory(w, h, available=int(need / 0.8 * 1.01) + 1) is None
-    assert check_memory(w, h, available=100 * need) is None
+    assert check_memory(w, h, free=need) is None
+    assert check_memory(w, h, free=100 * need) is None
+
+
+def test_check_memory_holds_to_the_budget_however_much_is_free(monkeypatch):
+    """One rule for every job (vdmbake.bundle.budget): the render is held to the bake's BUDGET too."""
+    from vdmbake.bundle import budget
+
+    w, h = 640, 480
+    monkeypatch.setattr(budget, "BUDGET", w * h * BYTES_PER_PIXEL - 1)
+    with pytest.raises(InputError, match=r"640x480.*vdmbake.bundle.budget.BUDGET"):
+        check_memory(w, h, free=1 << 50)

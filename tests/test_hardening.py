@@ -545,8 +545,8 @@ def test_memory_guard_counts_geometry(baked):
     assert need == faces * BYTES_PER_FACE and "'ball'" in what
     pixels = 48 * 48 * BYTES_PER_PIXEL
     with pytest.raises(InputError, match="geometry of object 'ball'"):
-        check_memory(48, 48, available=int((pixels + need) / 0.8 * 0.99), geometry=(need, what))
-    assert check_memory(48, 48, available=int((pixels + need) / 0.8 * 1.01) + 1, geometry=(need, what)) is None
+        check_memory(48, 48, free=pixels + need - 1, geometry=(need, what))
+    assert check_memory(48, 48, free=pixels + need, geometry=(need, what)) is None
 
 
 def test_vdm_bake_memory_guard():
@@ -555,8 +555,8 @@ def test_vdm_bake_memory_guard():
 
     big = Mesostructure(height="bricks", size=1024)     # defaults: 32 phi, 8 theta, 16 curvatures: 16 GiB table
     with pytest.raises(InputError, match="mesostructure.size"):
-        vdm.check_memory(big, "object 'x'", available=24 << 30)
-    vdm.check_memory(Mesostructure(height="bricks", size=64), "object 'x'", available=24 << 30)
+        vdm.check_memory(big, "object 'x'", free=24 << 30)
+    vdm.check_memory(Mesostructure(height="bricks", size=64), "object 'x'", free=24 << 30)
 
 
 # ------------------------------------------------------------------------------- scene values and files

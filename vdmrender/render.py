@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from dataclasses import asdict, dataclass
 from functools import partial
 from pathlib import Path
@@ -12,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from vdmbake import __version__
+from vdmbake.bundle import budget as memory
 from vdmbake.bundle.directory import Bundle
 from vdmbake.common import instances
 from vdmbake.errors import InputError
@@ -80,17 +80,13 @@ def filtering(opts: Options, scene) -> Options:
                                antialias=opts.antialias or scene.render.antialias)
 
 
-def check_memory(width: int, height: int, available: int | None = None, geometry: tuple[int, str] = (0, "")) -> None:
-    """Refuse resolutions and geometry (bytes, what) whose reference and buffers would not fit in memory,
-    before any work starts."""
-    if available is None:
-        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+def check_memory(width: int, height: int, free: int | None = None, geometry: tuple[int, str] = (0, "")) -> None:
+    """Refuse resolutions and geometry (bytes, what) whose reference and buffers would not fit the memory budget
+    (vdmbake.bundle.budget: one rule for every job), before any work starts."""
     need = width * height * BYTES_PER_PIXEL
-    if need + geometry[0] > 0.8 * available:
-        raise InputError(f"resolution {width}x{height} ({need / 2**30:.1f} GiB for the reference)"
-                         + (f" and the geometry of {geometry[1]} (about {geometry[0] / 2**30:.1f} GiB)" if geometry[0] else "")
-                         + f" need more than 80% of the {available / 2**30:.1f} GiB available; lower render.resolution "
-                         "or --resolution, or bake fewer or simpler objects.")
+    memory.check(need + geometry[0], f"resolution {width}x{height} ({need / 2**30:.1f} GiB for the reference)"
+                 + (f" and the geometry of {geometry[1]} (about {geometry[0] / 2**30:.1f} GiB)" if geometry[0] else ""),
+                 "lower render.resolution or --resolution, or bake fewer or simpler objects", free)
 
 
 def _technique_filter(opts: Options, scene) -> set | None:

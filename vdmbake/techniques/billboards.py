@@ -65,7 +65,8 @@ def bake_bytes(resolution: int, boards: int, coloured: bool = False) -> int:
 
 def max_boards(job, coloured: bool) -> int:
     """The most billboards (up to the kernel's max_billboards) a projection's bake may make within the memory
-    budget: the kernel is held to it, so the bake never outgrows the budget; refused if not one billboard fits."""
+    budget: the kernel is held to it, so the bake never outgrows the budget; refused if not one billboard fits. The
+    count is chosen against the fixed BUDGET, so the bundle does not depend on the machine's load."""
     r = job.options.resolution
     boards = next((n for n in range(billboards.Settings.max_billboards, 0, -1)
                    if bake_bytes(r, n, coloured) <= budget.BUDGET), 0)
@@ -91,7 +92,7 @@ def bake(job) -> dict:
             raise InputError(f"object {job.obj.name!r}: the {mode} projection needs more billboards of "
                              f"{opts.resolution}^2 texels than the {boards} whose bake fits the memory budget (about "
                              f"{bake_bytes(opts.resolution, boards, coloured) / 2**30:.1f} GiB, vdmbake.bundle.budget"
-                             ".BUDGET); lower techniques.billboards.resolution.")
+                             "); lower techniques.billboards.resolution.")
         if not res.billboards:
             raise InputError(f"object {job.obj.name!r}: the {mode} projection captures no face of the mesh "
                              f"(faces left out: {res.leftover}); billboards have nothing to draw.")

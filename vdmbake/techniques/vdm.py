@@ -44,14 +44,14 @@ def variants(options: Options) -> list[Variant]:
     return [Variant(k, r) for r in options.refine for k in options.k]
 
 
-def check_memory(m, origin: str, available: int | None = None, k: int | str = "all") -> None:
-    """Refuse, before the bake starts, VDM tables whose bake (k eigenfunctions) would not fit `available` bytes
-    (the budget, vdmbake.bundle.budget.BUDGET)."""
+def check_memory(m, origin: str, free: int | None = None, k: int | str = "all") -> None:
+    """Refuse, before the bake starts, VDM tables whose bake (k eigenfunctions) would not fit the memory budget
+    (vdmbake.bundle.budget; `free`: the available memory, measured if None)."""
     table = m.size ** 2 * m.phi * m.theta * m.curvatures * 4
     budget.check(vdm.bake_bytes(m.size, m.phi, m.theta, m.curvatures, k),
                  f"{origin}: the VDM table of mesostructure size {m.size}, phi {m.phi}, theta {m.theta}, curvatures "
                  f"{m.curvatures} ({table / 2**30:.1f} GiB, k = {k})",
-                 "lower mesostructure.size, phi, theta or curvatures, or k", available)
+                 "lower mesostructure.size, phi, theta or curvatures, or k", free)
 
 
 def bake(job) -> dict:
