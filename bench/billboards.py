@@ -71,11 +71,11 @@ def _builders(bundle_path: Path, width: int, height: int):
 
 def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> list[dict]:
     """Interleaved timing in one GL context: per resolution, `rounds` rounds of one frame of each label
-    (after one untimed frame each), every pass in its own timer query (vdmrender/timing.py: GPU time, as
+    (after each is warmed up as vdmrender warms up a row: timing.warm_up_each), every pass in its own timer query (vdmrender/timing.py: GPU time, as
     vdmrender reports it), and the frame's process CPU time (llvmpipe's threads are the process's own: the
     work done, much less disturbed by other processes on a shared machine than wall time)."""
     from vdmrender import gl
-    from vdmrender.timing import FrameTimer
+    from vdmrender.timing import Budget, FrameTimer, warm_up_each
 
     ctx = gl.create_context()
     rows = []
@@ -86,8 +86,7 @@ def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> l
             timer = FrameTimer(ctx, target)
             renderers = {k: builds[k](ctx) for k in labels}
             wall, cpu = {k: [] for k in labels}, {k: [] for k in labels}
-            for r in renderers.values():
-                timer.frame(r, cam)
+            warm_up_each(timer, renderers, [cam], Budget())
             for _ in range(rounds):
                 for k, r in renderers.items():
                     c0 = time.process_time()

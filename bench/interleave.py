@@ -18,7 +18,7 @@ from vdmbake.formats import exr
 from vdmbake.bundle.directory import Bundle
 
 from vdmrender import counters, gl, images
-from vdmrender.timing import FrameTimer
+from vdmrender.timing import Budget, FrameTimer, warm_up_each
 from vdmrender.camera import cameras_for
 from vdmrender.metrics import compare
 
@@ -43,17 +43,15 @@ def reference8(render_dir: Path, name: str, count: int, background) -> list[np.n
 
 
 def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: int = 5,
-            score: bool = True) -> dict[str, dict]:
-    """Each build(ctx) -> renderer, warmed up once per camera, then `rounds` rounds of every variant on
-    every camera; medians over all timed frames, error over all frames (thesis eq. 2.2) unless not `score`
+            score: bool = True, budget: Budget = Budget()) -> dict[str, dict]:
+    """Each build(ctx) -> renderer, warmed up as vdmrender warms up a row (timing.warm_up_each, `budget`), then
+    `rounds` rounds of every variant on every camera; medians over all timed frames, error over all frames (thesis eq. 2.2) unless not `score`
     (no reference: the error fields are None)."""
     target = gl.Target(ctx, cams[0].width, cams[0].height)
     timer = FrameTimer(ctx, target)
     renderers = {k: b(ctx) for k, b in builds.items()}
     gpu, wall, cpu = ({k: [] for k in builds} for _ in range(3))
-    for r in renderers.values():
-        for cam in cams:
-            timer.frame(r, cam)
+    warm = warm_up_each(timer, renderers, cams, budget)
     for _ in range(rounds):
         for k, r in renderers.items():
             for cam in cams:
@@ -67,7 +65,7 @@ def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: in
         rows[k] = {"median_ms": round(statistics.median(gpu[k]), 2), "min_ms": round(min(gpu[k]), 2),
                    "median_wall_ms": round(statistics.median(wall[k]), 2),
                    "median_cpu_ms": round(statistics.median(cpu[k]), 2),
-                   "mean_dluv": None, "p95_dluv": None, "iou": None}
+                   "steady": warm[k]["steady"], "mean_dluv": None, "p95_dluv": None, "iou": None}
         if score:
             dists, ious = [], []
             for cam, r8 in zip(cams, ref8):

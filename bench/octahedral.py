@@ -10,7 +10,7 @@ maps, pyramid atlases, coarse mesh and occupancy-box buffers; not the per-frame 
 targets, reported apart) fix the octahedral atlases: N x N views of R^2 texels at 8 bytes a texel (RGBA16)
 with 8 N^2 R^2 as close as possible to the billboards' bytes, for N = 5, 9, 13, and N = 9 at a quarter
 of them. All variants of a model are timed interleaved (per camera: one render
-each, in turn) after one warm-up render, each pass in its own timer query (vdmrender/timing.py); the shadow map pass
+each, in turn) after a warm-up to steady times as vdmrender's rows (timing.warm_up_each), each pass in its own timer query (vdmrender/timing.py); the shadow map pass
 is part of every frame (billboards: the scene's 1024^2 map of the coarse mesh; octahedral: its own, shadow_scale 2, and one
 row with the scene's 1024^2 map for a like-for-like comparison). Octahedral rows also give the frame pass's
 texture fetches (atlas lookups, the albedo atlas's, the shadow map's) and search steps per covered pixel
@@ -38,7 +38,7 @@ from vdmrender import counters, gl, images, reference, techniques
 from vdmrender.camera import cameras_for
 from vdmrender.metrics import compare
 from vdmrender.techniques import octahedral
-from vdmrender.timing import FrameTimer
+from vdmrender.timing import Budget, FrameTimer, warm_up_each
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
           ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]
@@ -200,8 +200,7 @@ def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[d
     target = gl.Target(ctx, w, h)
     timer = FrameTimer(ctx, target)
     try:
-        for r in renderers.values():          # warm-up: shader compilation and first-use costs
-            timer.frame(r, cams[0])
+        warm_up_each(timer, renderers, cams, Budget())   # as vdmrender warms up a row
         ms = {k: [] for k in renderers}
         cpu = {k: [] for k in renderers}
         shadow_ms = {k: [] for k in renderers if k.startswith("octahedral")}

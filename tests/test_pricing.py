@@ -54,3 +54,42 @@ def test_contenders_are_within_some_chains_limits_and_near_its_fastest():
             {**row("boards", 30.0, 0.5), "iou": 1}, {**row("coarse@0.01", 1.0, 5.0), "iou": 1}]
     sets = (Thresholds(name="a", mean_dluv=1.0), Thresholds(name="b", mean_dluv=0.3))
     assert lod.contenders(rows, sets) == {"coarse@0.1", "mesh"}
+
+
+class _Timer:
+    """A frame timer that records which renderer drew each frame; every frame 1 ms (steady at once)."""
+
+    def __init__(self):
+        self.drawn = []
+
+    def frame(self, renderer, camera, index=0):
+        from vdmrender.timing import Sample
+
+        self.drawn.append(renderer.label)
+        return Sample(index, 1.0, 1.0, 0.0, {"frame": 1.0})
+
+
+class _Renderer:
+    def __init__(self, label):
+        self.label = label
+
+    def release(self):
+        pass
+
+
+def test_interleaved_pricing_warms_up_each_candidate_by_the_rows_rule():
+    """pricing.interleaved warms every candidate up as a row is warmed up (timing.warm_up with the run's budget:
+    at least `warmup` rounds over the cameras, one candidate after the other) before the first interleaved round;
+    with no warm-up asked for, it times from the first frame."""
+    from types import SimpleNamespace
+
+    from vdmrender.timing import Budget
+
+    cams = ["c0", "c1"]
+    for budget, warm in ((Budget(warmup=5, warmup_s=0.0), 10), (Budget(warmup=0, warmup_s=0.0), 0)):
+        timer = _Timer()
+        harness = SimpleNamespace(timer=timer, budget=budget, as_shipped=lambda r: r)
+        times = pricing.interleaved(harness, {k: (lambda k=k: _Renderer(k)) for k in "ab"}, cams)
+        assert timer.drawn[:2 * warm] == ["a"] * warm + ["b"] * warm
+        assert timer.drawn[2 * warm:2 * warm + 4] == ["a", "b", "a", "b"]   # the first interleaved round
+        assert len(times["a"]) == len(times["b"]) == (len(timer.drawn) - 2 * warm) // 2

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from . import measure
+from . import measure, timing
 
 EQUAL = 0.10        # costs within 10% of each other are the same cost
 Z = 1.96            # 95% confidence
@@ -50,15 +50,13 @@ def verdicts(times: dict[str, np.ndarray]) -> dict[str, str]:
 
 
 def interleaved(harness: measure.Harness, builds: dict, cams) -> dict[str, list[float]]:
-    """GPU ms per frame of each build ({label: build()}), timed interleaved over the cameras after one untimed
-    frame each, round by round until verdicts has none open (at least MIN_ROUNDS, at most MAX_ROUNDS): {label:
+    """GPU ms per frame of each build ({label: build()}), timed interleaved over the cameras after each is warmed
+    up by the run's rule (timing.warm_up_each), round by round until verdicts has none open (at least MIN_ROUNDS, at most MAX_ROUNDS): {label:
     [ms of round r, camera c, ...]}, aligned across labels."""
     renderers = {k: harness.as_shipped(measure.built(b)) for k, b in builds.items()}
     times = {k: [] for k in renderers}
     try:
-        for k, r in renderers.items():
-            for c, cam in enumerate(cams):
-                harness.timer.frame(r, cam, c)
+        timing.warm_up_each(harness.timer, renderers, cams, harness.budget)
         for n in range(MAX_ROUNDS):
             order = list(renderers)[n % len(renderers):] + list(renderers)[:n % len(renderers)]   # no fixed order
             for c, cam in enumerate(cams):

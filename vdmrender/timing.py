@@ -126,6 +126,12 @@ def warm_up(timer: FrameTimer, renderer, cams, budget: Budget) -> dict:
                     "windows_ms": [round(a, 4), round(b, 4)]}
 
 
+def warm_up_each(timer: FrameTimer, renderers: dict, cams, budget: Budget) -> dict[str, dict]:
+    """Every renderer of an interleaved comparison ({label: renderer}) warmed up in turn by the same rule as a
+    row (warm_up), so the tool's rows, its pricing and the benches start timing from the same state."""
+    return {k: warm_up(timer, r, cams, budget) for k, r in renderers.items()}
+
+
 def sample(timer: FrameTimer, renderer, cams, budget: Budget, desc: str) -> list[Sample]:
     """Rounds over the cameras until at least `repeats` rounds and `sample_s` have passed."""
     out, t0 = [], time.perf_counter()
