@@ -2,6 +2,7 @@
 # make test : install with test extras and run the test suite
 # make fuzz : the fuzzers (scene files, manifests, textured OBJ/glTF and their references, baselines, lod.json, composite
 #             sets, octahedral and pyramid parts), 1000 randomised examples each (FUZZ_EXAMPLES=N for more)
+# make docs : README's and docs' result tables written from the committed result files (docs/results/*.json)
 # make kill-test: 20 SIGKILLs and 20 SIGTERMs at random times during a small bake and render (debris, lost bundles)
 # make bench: the slow measurements (out/bench/*.json, *.md, *.png), never asserted
 #             (bench-vdm, bench-borders, bench-billboards, bench-octahedral, bench-quadrics, bench-instances: each 5-20
@@ -14,7 +15,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference bench-filtered bench-mipmaps sysdeps clean
+.PHONY: demo test docs fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference bench-filtered bench-mipmaps sysdeps clean
 
 # The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
 GLTF_VALIDATOR := 2.0.0-dev.3.10
@@ -54,6 +55,11 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# make docs: every table between <!-- table:FILE:KEY --> markers in README.md and docs/*.md rewritten from
+#            docs/results/FILE.json (tools/make_docs.py; tests/test_docs.py runs it with --check)
+docs:
+	$(PYTHON) tools/make_docs.py
 
 FUZZ_EXAMPLES ?= 1000
 fuzz: $(STAMP)

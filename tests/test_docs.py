@@ -1,8 +1,16 @@
 """Docs that cannot drift: README's scene reference and the CLIs' help come from the same
-declarations the scene reader validates against (vdmbake.schema, the technique registry)."""
+declarations the scene reader validates against (vdmbake.schema, the technique registry), and every
+result table of README.md and docs/*.md is written from its committed result file (tools/make_docs.py,
+`make docs`)."""
 from __future__ import annotations
 
 from pathlib import Path
+
+import importlib.util
+import json
+import re
+import subprocess
+import sys
 
 import pytest
 from click.testing import CliRunner
@@ -14,7 +22,15 @@ from vdmbake.scene import REGISTRY, Render, parse_scene_dict
 from vdmbake.schema import settings
 from vdmrender.cli import main as render_main
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+
+
+def make_docs():
+    spec = importlib.util.spec_from_file_location("make_docs", ROOT / "tools" / "make_docs.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def scene(**objects_extra) -> dict:
@@ -68,3 +84,34 @@ def test_typed_settings_refuse_what_they_would_mangle(techniques, key):
 def test_tiny_light_direction_normalises():
     s = parse_scene_dict({"light": {"direction": [1e-200, 0, 0]}, **scene()}, "s.toml")
     assert s.light.direction == (1.0, 0.0, 0.0)
+
+
+def test_result_tables_match_their_result_files():
+    """`make docs --check`: every marked table is what its result file renders (exit 0, nothing named)."""
+    run = subprocess.run([sys.executable, str(ROOT / "tools" / "make_docs.py"), "--check"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+
+
+def test_a_hand_edited_figure_is_caught():
+    """One figure typed into a generated table (the demo's bunny mesh time) is found and written back."""
+    docs = make_docs()
+    text = README.read_text()
+    block = re.search(r"<!-- table:demo:default -->.*?<!-- /table -->", text, re.S)[0]
+    edited = text.replace(block, block.replace("| bunny | mesh | 9,999 | 28.4 |", "| bunny | mesh | 9,999 | 28.5 |"))
+    assert edited != text
+    assert docs.render(edited) == text
+
+
+def test_every_measured_table_in_readme_is_generated():
+    """Every table under README's Measured results lies between table markers, and every marker names a result
+    file that exists and, when transcribed, says which command measured it, when and on what device."""
+    docs = make_docs()
+    text = README.read_text()
+    measured = text[text.index("## Measured results"):text.index("## Scenes")]
+    outside = re.sub(r"<!-- table:.*?<!-- /table -->", "", measured, flags=re.S)
+    assert not re.search(r"^\|---", outside, re.M), "a table under Measured results is typed in: move it to docs/results/"
+    names = {m[2] for path in docs.documents() for m in docs.BLOCK.finditer(path.read_text())}
+    assert names == {p.stem for p in docs.RESULTS.glob("*.json")}, "a result file without a table, or a table without one"
+    for name in names:
+        doc = json.loads((docs.RESULTS / f"{name}.json").read_text())
+        assert "tables" not in doc or {"measured_by", "when", "device"} <= set(doc), name

@@ -1,0 +1,102 @@
+"""Result tables of README.md and docs/*.md, written from the committed result files (`make docs`).
+
+One rule: a table between `<!-- table:FILE:KEY -->` and `<!-- /table -->` is the rendering of table KEY of
+docs/results/FILE.json, and nothing else. A result file is either
+
+* a bench's own output, committed as the bench wrote it, rendered by the view named after the file in VIEWS
+  (the figures formatted as the bench's own .md formats them), or
+* a transcription of a measurement's table (`"tables": {KEY: {"header", "align", "rows"}}`, every cell the
+  string that was published, never re-rounded), beside `measured_by`, `when` and `device`: which command
+  measured it, when and on what.
+
+`python tools/make_docs.py` rewrites the tables in place; `--check` changes nothing and exits 1 naming every
+table that differs from its result file (tests/test_docs.py runs it)."""
+from __future__ import annotations
+
+import json
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "docs" / "results"
+BLOCK = re.compile(r"(<!-- table:([\w.-]+):([\w.-]+) -->\n)(.*?)(<!-- /table -->)", re.S)
+
+
+def documents() -> list[Path]:
+    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def markdown(header: list[str], align: list[str], rows: list[list[str]]) -> str:
+    def line(cells):
+        return "|" + "|".join(f" {c} " if c else " " for c in cells) + "|\n"
+    return line(header) + "|" + "|".join(align) + "|\n" + "".join(line(r) for r in rows)
+
+
+def _filtered(doc: dict, key: str) -> str:
+    """bench.filtered's filtered.json: per object and variant, per size `aliased · none / msaa4 / ssaa2`."""
+    sizes, modes = doc["sizes_px"], doc["modes"]
+    rows = []
+    for config in doc["rows"].values():
+        by = {m: {(r["object"], r["label"], r["size_px"]): r for r in config[m]} for m in modes}
+        keys = list(dict.fromkeys((o, v) for o, v, _ in by[modes[0]]))
+        for obj, variant in keys:
+            cells = []
+            for px in sizes:
+                rs = [by[m][(obj, variant, px)] for m in modes]
+                cells.append(f"{rs[0]['aliased_mean_dluv']:.2f} · " + " / ".join(f"{r['mean_dluv']:.2f}" for r in rs))
+            rows.append([obj, variant, *cells])
+    return markdown(["object", "variant", *(f"{px} px" for px in sizes)], ["---"] * (2 + len(sizes)), rows)
+
+
+VIEWS = {"filtered": _filtered}
+
+
+def table(name: str, key: str) -> str:
+    """The markdown between the markers (a blank line either side of the table)."""
+    return "\n" + _table(name, key) + "\n"
+
+
+def _table(name: str, key: str) -> str:
+    path = RESULTS / f"{name}.json"
+    doc = json.loads(path.read_text())
+    if "tables" in doc:
+        t = doc["tables"][key]
+        return markdown(t["header"], t["align"], t["rows"])
+    return VIEWS[name](doc, key)
+
+
+def render(text: str) -> str:
+    """`text` with every marked table written from its result file."""
+    return BLOCK.sub(lambda m: m[1] + table(m[2], m[3]) + m[5], text)
+
+
+def stale() -> list[str]:
+    """Every marked table that differs from its result file, as `FILE: table NAME:KEY`."""
+    out = []
+    for path in documents():
+        text = path.read_text()
+        for m in BLOCK.finditer(text):
+            if m[4] != table(m[2], m[3]):
+                out.append(f"{path.relative_to(ROOT)}: table {m[2]}:{m[3]}")
+    return out
+
+
+def main(argv: list[str]) -> int:
+    if "--check" in argv:
+        wrong = stale()
+        for w in wrong:
+            print(f"{w} differs from docs/results/{w.split('table ')[1].split(':')[0]}.json "
+                  "(run make docs, or fix the result file)", file=sys.stderr)
+        return 1 if wrong else 0
+    for path in documents():
+        text = path.read_text()
+        new = render(text)
+        if new != text:
+            path.write_text(new)
+            print(f"rewrote {path.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
