@@ -1,7 +1,7 @@
 """The code's shape: the renderer renders what the bundle holds (it imports from vdmbake only the
-bundle, its part kinds, the scene, errors, EXR, Embree and the neutral geometry, colour and pyramid modules;
-the benchmarks, which drive both tools, live outside both packages in bench/), the baker never imports the
-renderer, neither package has an import cycle, and every declared technique has its renderer."""
+package itself, scene, schema, errors and three rooms: bundle/, formats/ and common/; the benchmarks, which
+drive both tools, live outside both packages in bench/), the baker never imports the renderer, neither
+package has an import cycle, and every declared technique has its renderer."""
 from __future__ import annotations
 
 import ast
