@@ -10,7 +10,7 @@ it); beyond it the error is not measured, and said so. A variant whose frame wou
 N (its time growing with N) is not run there. Per-copy LOD (row lod@dluvLIMIT): one copy measured at SIZES pixels
 across (vdmrender.sweep's cameras, the same interleaved timing, its own reference) gives the chain of the cheapest
 variant within mean ΔLuv LIMIT per band of screen sizes (vdmrender.lod.chain); in every field each copy is then
-drawn per frame by the variant its screen size selects (vdmrender.lod.LodMix), as an engine would. The crossover:
+drawn per frame by the variant its screen size selects (vdmrender.lodmix.LodMix), as an engine would. The crossover:
 the smallest N at which each impostor's median time is below the full mesh's.
 
     python -m bench.instances -o out/bench [--quick]
@@ -31,7 +31,7 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.common import instances
 from vdmbake.scene import Instances, Scatter
 
-from vdmrender import gl, images, lod, refcache, render, sweep
+from vdmrender import gl, images, lod, lodmix, refcache, sweep
 from vdmrender.camera import Camera, cameras_for, clip_planes
 from vdmrender.render import BYTES_PER_FACE, BYTES_PER_PIXEL
 from vdmrender.techniques import variants
@@ -121,7 +121,7 @@ def run(out: Path, quick: bool, log) -> dict:
                 builds = {v.label: v.build for v in chosen}
                 if mixed not in too_slow:   # as vdmrender draws the row lod@CHAIN
                     world = instances.matrices(copies.instances, bundle.scene.camera.up, entry["centre"])
-                    builds[mixed] = render.mixed(copies, entry, bundle, bundle.scene, chain_name, entries, world).build
+                    builds[mixed] = lodmix.mixed(copies, entry, bundle, bundle.scene, chain_name, entries, world).build
                 measured = measure(ctx, builds, cams, ref8 or [None] * len(cams), bundle.scene.render.background,
                                    rounds=1 if quick else 3, score=ref8 is not None)
                 for label, build in builds.items():

@@ -180,17 +180,17 @@ def test_bench_quick_smoke(tmp_path):
 
 
 def test_each_copy_takes_the_band_its_screen_size_falls_in():
-    from vdmrender import lod
+    from vdmrender import lodmix
     from vdmrender.camera import Camera
     from vdmrender.sweep import distance_for
 
     entries = [{"variant": "mesh", "min_px": 64, "max_px": 256}, {"variant": "coarse@0.1", "min_px": 16, "max_px": 64},
                {"variant": "octahedral@x", "min_px": 0, "max_px": 16}]
     sizes = np.array([1000.0, 256, 65, 64, 17, 16, 3, 0.5, np.inf])
-    assert lod.pick(entries, sizes).tolist() == [0, 0, 0, 1, 1, 2, 2, 2, 0]
+    assert lodmix.pick(entries, sizes).tolist() == [0, 0, 0, 1, 1, 2, 2, 2, 0]
     cam = Camera(np.zeros(3), np.array([0, 0, -1.0]), np.array([0, 1.0, 0]), 40.0, 300, 200, 0.1, 100.0)
     d = distance_for(48, 1.5, 40.0, 200)   # the sweep's distance for 48 px gives back 48 px
-    px = lod.screen_px(cam, np.array([[0, 0, -d], [0, 0, -0.5]]), np.array([1.5, 1.0]))
+    px = lodmix.screen_px(cam, np.array([[0, 0, -d], [0, 0, -0.5]]), np.array([1.5, 1.0]))
     assert px[0] == pytest.approx(48) and px[1] == np.inf
 
 
@@ -232,7 +232,7 @@ def test_a_variant_holding_two_bands_draws_the_copies_of_both(ctx):
     """A chain may come back to a variant (coarse@0.1 near, octahedral between, coarse@0.1 far): each frame places
     every copy whose band names it, not the last band's alone."""
     from vdmbake.scene import Light
-    from vdmrender import lod
+    from vdmrender import lodmix
     from vdmrender.camera import Camera
 
     class Fake:
@@ -256,9 +256,9 @@ def test_a_variant_holding_two_bands_draws_the_copies_of_both(ctx):
     world[:, 0, 3] = [-5.0, -15.0, -400.0]   # one copy near (144 px), one between (47 px), one far (2 px)
     fakes = {"coarse@0.1": Fake(), "oct": Fake()}
     cam = Camera(np.zeros(3), np.array([-1.0, 0, 0]), np.array([0, 0, 1.0]), 40.0, 256, 256, 0.1, 1000.0)
-    sizes = lod.screen_px(cam, world[:, :3, 3], np.ones(3))
-    assert [lod.pick(entries, sizes).tolist()] == [[0, 1, 2]]
-    mix = lod.LodMix(ctx, fakes, entries, world, (np.zeros(3), 1.0), (np.zeros(3), 500.0), Light(), 256)
+    sizes = lodmix.screen_px(cam, world[:, :3, 3], np.ones(3))
+    assert [lodmix.pick(entries, sizes).tolist()] == [[0, 1, 2]]
+    mix = lodmix.LodMix(ctx, fakes, entries, world, (np.zeros(3), 1.0), (np.zeros(3), 500.0), Light(), 256)
     target = type("T", (), {"kept": lambda self: self})()
     mix.passes(cam, target)
     assert fakes["coarse@0.1"].placed == [2] and fakes["oct"].placed == [1]

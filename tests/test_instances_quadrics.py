@@ -201,7 +201,7 @@ def test_copies_far_from_the_origin_keep_float32_precision(tmp_path):
 
 @pytest.mark.gl
 def test_place_draws_the_copies_it_is_given(ctx):
-    """A per-copy LOD mix (vdmrender.lod.LodMix) hands each variant, per frame, the copies whose band names it:
+    """A per-copy LOD mix (vdmrender.lodmix.LodMix) hands each variant, per frame, the copies whose band names it:
     `place` sets how many copies the next frame draws, from the buffer sized for all of them."""
     from vdmbake.kernels import quadrics
     from vdmrender import counters, gl

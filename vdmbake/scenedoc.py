@@ -46,7 +46,7 @@ def reference() -> str:
                   "bounding-sphere centre. The cameras frame every copy, the shadow map spans them, and the "
                   "reference traces them all, merged (the memory guard counts each copy's faces). With "
                   "`[[render.sweep.lod]]`, the sweep draws one copy, and each chain adds a row `lod@CHAIN`: per frame "
-                  "every copy drawn by the variant its screen size selects, as an engine would (vdmrender.lod.LodMix).")
+                  "every copy drawn by the variant its screen size selects, as an engine would (vdmrender.lodmix.LodMix).")
     out += _table("`[objects.mesostructure]`", markdown(Mesostructure),
                   "Mesh or primitive objects with texture coordinates; needed by `vdm`, `pom`, `bump`, `displaced`.")
     out += ["#### Techniques (`[objects.techniques]`)", "",

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vdmbake.common import instances
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -132,3 +134,12 @@ def enclosing_sphere(centres, radii) -> tuple[np.ndarray, float]:
     if len(r) == 1:
         return c[0].copy(), float(r[0])
     return centre, float((np.linalg.norm(c - centre, axis=1) + r).max())
+
+
+def framed(obj, entry, scene) -> tuple[np.ndarray, float]:
+    """The sphere an object's cameras frame (scene object `obj`, its manifest `entry`): its bounding sphere, or
+    one holding every copy of it."""
+    if not obj.instances:
+        return np.asarray(entry["centre"], float), entry["radius"]
+    return instances.enclosing(instances.matrices(obj.instances, scene.camera.up, entry["centre"]), entry["centre"],
+                               entry["radius"])

@@ -14,16 +14,12 @@ switch that would pop more is avoided where a variant within the limits pops les
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 
-from vdmbake.common import instances
-
 from . import pricing
 from .baseline import POINT
-from .composite import Composite
 
 NOISE = 0.1   # separately timed medians (no interleaved times): a difference below this share is not one in cost
 TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
@@ -111,12 +107,17 @@ def _object_chains(rows: list[dict], t, height: int, pop=None) -> dict:
     return {**one(rows), **({"meshes_only": one(meshes)} if meshes else {})}
 
 
-def chains(sweep_rows: list[dict], lod_sets, device: str, resolution, filtering: dict | None = None,
-           pops=None) -> dict:
-    """lod.json's content: per set of limits, per object, its chain; `filtering`: what the errors judged are
-    against (report.json's: the reference's samples per pixel, the frames' anti-aliasing); pops(object) -> pop(size,
-    a, b) (vdmrender.render: the sweep's frames compared)."""
-    objects = list(dict.fromkeys(r["object"] for r in sweep_rows))
+def object_chains(rows: list[dict], lod_sets, height: int, pop=None) -> dict[str, dict]:
+    """One object's chains from its sweep rows, by the name of their set of limits (scene.Thresholds); pop(size, a,
+    b): the mean ΔLuv between two variants' frames at that size (vdmrender.render: the sweep's frames compared)."""
+    return {t.name: _object_chains(rows, t, height, pop) for t in lod_sets}
+
+
+def chains(per_object: dict[str, dict], sweep_rows: list[dict], lod_sets, device: str, resolution,
+           filtering: dict | None = None) -> dict:
+    """lod.json's content: per set of limits, per object, its chain (per_object: {object: object_chains}) as
+    measured on the sweep (`sweep_rows`); `filtering`: what the errors judged are against (report.json's: the
+    reference's samples per pixel, the frames' anti-aliasing)."""
     filtering = filtering or POINT
     return {"device": device, "resolution": list(resolution), "sizes_px": sorted({r["size_px"] for r in sweep_rows},
                                                                                   reverse=True),
@@ -128,14 +129,13 @@ def chains(sweep_rows: list[dict], lod_sets, device: str, resolution, filtering:
                     "entry's (what a viewer sees change at the switch)",
             "rule": __doc__.split("\n\n", 1)[1].replace("\n", " "),
             "chains": [{"name": t.name, "limits": t.limits(), "pop_dluv": t.pop_dluv, "hysteresis": t.hysteresis,
-                        "objects": {o: _object_chains([r for r in sweep_rows if r["object"] == o], t, resolution[1],
-                                                      pops(o) if pops else None) for o in objects}}
+                        "objects": {o: by_name[t.name] for o, by_name in per_object.items()}}
                        for t in lod_sets]}
 
 
 def priced_on_field(lod: dict, rows: list[dict]) -> None:
     """Chains priced where they are used: for an object drawn as many copies, its lod@CHAIN row (every copy by the
-    variant its size selects, vdmrender.render.mixed) against every single variant drawing the same field. The
+    variant its size selects, vdmrender.lodmix.mixed) against every single variant drawing the same field. The
     cheapest of those within the chain's limits on the field (cheapest's rule) is what the field ships: where
     that is a single variant, the chain becomes that variant at every size (the sweep's chain kept as
     sweep_entries), so a chain is never slower than one representation meeting the same limits there. Where none
@@ -261,52 +261,3 @@ def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-
-
-def screen_px(camera, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """Each sphere's silhouette diameter in pixels as vdmrender.sweep measures it (seen at the image centre: what
-    an engine's screen-size test computes), infinite for a sphere around the eye."""
-    f = 0.5 * camera.height / math.tan(math.radians(camera.fov_deg) / 2)
-    d2 = ((centres - camera.eye) ** 2).sum(1)
-    gap = d2 - radii ** 2
-    with np.errstate(divide="ignore"):
-        return np.where(gap > 0, 2 * f * radii / np.sqrt(np.maximum(gap, 1e-300)), np.inf)
-
-
-def pick(entries: list[dict], sizes: np.ndarray) -> np.ndarray:
-    """Each size's entry index: the band (min_px, max_px] it falls in; above the chain's top, its finest entry."""
-    lows = np.array([e["min_px"] for e in entries], float)   # decreasing
-    return np.clip((sizes <= lows[:, None]).sum(0), 0, len(entries) - 1)
-
-
-def chosen(entries: list[dict], camera, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """Each copy's variant label under `camera`: the entry whose band its screen size falls in (pick)."""
-    return np.array([e["variant"] for e in entries])[pick(entries, screen_px(camera, centres, radii))]
-
-
-class LodMix(Composite):
-    """Per-instance LOD, as an engine does it: per frame every copy of the object is drawn by the variant its
-    screen size selects in the chain (`entries`, lod.json's), all in one frame with one depth buffer and one
-    shadow map (vdmrender.composite.Composite: each copy casts what its variant casts). renderers: {variant label:
-    renderer built with every copy, with `place`}; world: the copies' matrices; sphere: the object's bounding
-    sphere (centre, radius); around: the sphere holding every copy."""
-
-    def __init__(self, ctx, renderers: dict, entries: list[dict], world: np.ndarray, sphere, around, light,
-                 shadow_size: int):
-        super().__init__(ctx, renderers, *around, light, shadow_size)
-        self.all, self.entries, self.world = dict(self.renderers), entries, world
-        self.centres, self.radii = instances.spheres(world, *sphere)
-
-    def passes(self, camera, target) -> list:
-        labels = chosen(self.entries, camera, self.centres, self.radii)
-        self.renderers = {}
-        for label, r in self.all.items():   # a variant may hold several bands: all its copies at once
-            mine = self.world[labels == label]
-            if len(mine):
-                r.place(mine)
-                self.renderers[label] = r
-        return super().passes(camera, target)
-
-    def release(self) -> None:
-        self.renderers = self.all
-        super().release()

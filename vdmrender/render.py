@@ -8,7 +8,6 @@ from dataclasses import asdict, dataclass
 from functools import partial
 from pathlib import Path
 
-import numpy as np
 
 from vdmbake import __version__
 from vdmbake.bundle import budget as memory
@@ -18,11 +17,11 @@ from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, composite, gl, html, images, lod, measure, pricing, refcache, report, scoring, sweep, timing
+from . import baseline, composite, gl, html, images, lod, lodmix, measure, pricing, refcache, report, scoring, sweep, timing
 from . import device as gpu
-from .camera import cameras_for
+from .camera import cameras_for, framed
 from .metrics import summarise
-from .techniques import Variant, variants
+from .techniques import variants
 
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
 # (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
@@ -156,23 +155,22 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     out = StagedDir(out_path, "report.json", "vdmrender output folder")
     harness = measure.Harness(ctx, gl.Target(ctx, width, height), plan, opts.counters, opts.antialias)
     try:
-        # the sweep first: its LOD chains choose per copy in an instanced object's lod@CHAIN row
-        sized = {}
-        sizes = opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ())
-        if sizes:
-            rows_by_size, sweep_frames = _sweep(harness, out, bundle, scene, only, opts, device, log,
-                                                sorted(sizes, reverse=True))
-            sized["sweep"] = {"sizes_px": sorted(sizes, reverse=True), "how": SWEEP, "rows": rows_by_size}
-            if scene.render.sweep and scene.render.sweep.lod:
-                sized["lod"] = lod.chains(rows_by_size, scene.render.sweep.lod, device, (width, height),
-                                          filtering_note(opts), lambda o: scoring.pops(sweep_frames[o]))
-                sized["lod"]["bundle"] = {"manifest_sha256": bundle.identity}   # vdmexport refuses another's
-                _log_chains(sized["lod"], log, "from the sweep")
-            del sweep_frames
-        rows = _render_all(harness, out, bundle, scene, only, opts, device, log, sized.get("lod"))
-        if "lod" in sized and any(r["technique"] == "lod" for r in rows):
-            lod.priced_on_field(sized["lod"], rows)
-            _log_chains(sized["lod"], log, "priced on the field")
+        sizes = sorted(opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ()), reverse=True)
+        lod_sets = scene.render.sweep.lod if sizes and scene.render.sweep else ()
+        rows, sweep_rows, per_object = [], [], {}
+        for obj in scene.objects:   # each object once: its sweep, its chains, then its cameras (vdmrender.lodmix)
+            views = render_views(harness, out, bundle, scene, obj, only, opts, device, log, sizes, lod_sets)
+            rows += views.rows
+            sweep_rows += views.sweep
+            if views.chains:
+                per_object[obj.name] = views.chains
+        sized = {"sweep": {"sizes_px": sizes, "how": SWEEP, "rows": sweep_rows}} if sizes else {}
+        if lod_sets:
+            sized["lod"] = lod.chains(per_object, sweep_rows, lod_sets, device, (width, height), filtering_note(opts))
+            sized["lod"]["bundle"] = {"manifest_sha256": bundle.identity}   # vdmexport refuses another's
+            if any(r["technique"] == "lod" for r in rows):
+                lod.priced_on_field(sized["lod"], rows)
+                _log_chains(sized["lod"], log, "priced on the field")
         report.add_baseline_ratios(rows)
         composite_rows = composite.render_sets(harness, out, bundle, scene, only, opts, device, log)
         result = {"tool_version": __version__, "bundle": str(bundle.path), "device": device,
@@ -269,87 +267,67 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, 
     return rows
 
 
-def sphere(obj, entry, scene) -> tuple[np.ndarray, float]:
-    """The sphere the cameras frame: the object's bounding sphere, or one holding every copy of it."""
-    if not obj.instances:
-        return np.asarray(entry["centre"], float), entry["radius"]
-    return instances.enclosing(instances.matrices(obj.instances, scene.camera.up, entry["centre"]), entry["centre"],
-                               entry["radius"])
+@dataclass
+class Views:
+    """One object's rows: at its cameras (`rows`, with an instanced object's lod@CHAIN rows), at each size of the
+    sweep (`sweep`, one copy, with size_px), and the chains chosen from the sweep ({name: lod.object_chains'})."""
+    rows: list[dict]
+    sweep: list[dict]
+    chains: dict
 
 
-def _sweep(harness, out, bundle, scene, only, opts, device, log, sizes) -> tuple[list[dict], dict]:
-    """Every object's variants at each screen size (vdmrender.sweep), an instanced object's as one copy: rows as
-    _render_all's, with size_px; and the frames, {object: {size: {label: sRGB frames}}} (the LOD chains' pops)."""
+def render_views(harness, out, bundle, scene, obj, only, opts, device, log, sizes, lod_sets) -> Views:
+    """One object, once: its variants at each screen size of the sweep (one copy: the chain is the object's), its
+    LOD chains chosen from those rows (vdmrender.lod, no drawing), then its variants from its cameras, an instanced
+    object's also per chain with each copy drawn by the variant its screen size selects (lod@CHAIN:
+    vdmrender.lodmix)."""
+    entry = bundle.manifest["objects"][obj.name]
+    chosen = variants(obj, entry, bundle, scene, only)
+    if not chosen:
+        return Views([], [], {})
+    sweep_rows, frames = _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) if sizes else ([], {})
+    chains = lod.object_chains(sweep_rows, lod_sets, harness.target.size[1], scoring.pops(frames)) \
+        if lod_sets else {}
+    for name, c in chains.items():
+        log(f"LOD chain {name} of {obj.name} (from the sweep): " + ", ".join(
+            f"{e['variant']} {e['min_px']}-{e['max_px']} px{'' if e['meets'] else ' (over the limits)'}"
+            for e in c["entries"]))
+    cams = cameras_for(scene.camera, *framed(obj, entry, scene), *harness.target.size)
+    world = instances.matrices(obj.instances, scene.camera.up, entry["centre"]) if obj.instances else None
+    mixes = {name: c["entries"] for name, c in chains.items()} if world is not None else {}
+    rows = render_object(harness, out, bundle, scene, obj, cams,
+                         chosen + [lodmix.mixed(obj, entry, bundle, scene, name, entries, world)
+                                   for name, entries in mixes.items()], opts, device, log)
+    for row in rows:
+        if row["technique"] == "lod":
+            row["lod_copies"] = lodmix.copies_chosen(entry, world, mixes[row["value"]], cams)
+    return Views(rows, sweep_rows, chains)
+
+
+def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) -> tuple[list[dict], dict]:
+    """An object's variants at each screen size (vdmrender.sweep), an instanced object's as one copy: rows as
+    render_object's, with size_px; and the frames, {size: {label: sRGB frames}} (the LOD chains' pops)."""
     width, height = harness.target.size
+    entry = bundle.manifest["objects"][obj.name]
+    obj = dataclasses.replace(obj, instances=None)   # one copy: the chain is the object's
+    chosen = variants(obj, entry, bundle, scene, only)
+    centre, radius = framed(obj, entry, scene)
+    views = cameras_for(scene.camera, centre, radius, width, height)
     rows, frames = [], {}
-    for obj in scene.objects:
-        entry = bundle.manifest["objects"][obj.name]
-        obj = dataclasses.replace(obj, instances=None)   # one copy: the chain is the object's
-        chosen = variants(obj, entry, bundle, scene, only)
-        if not chosen:
-            continue
-        centre, radius = sphere(obj, entry, scene)
-        views = cameras_for(scene.camera, centre, radius, width, height)
-        for size in sizes:
-            cams = sweep.sized(views, centre, radius, size)
-            distance = round(sweep.distance_for(size, 1.0, views[0].fov_deg, height), 4)
-            here = [{**r, "size_px": size, "distance_radii": distance}
-                    for r in render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log,
-                                           f"sizes/{size}px/", f"{obj.name} @{size}px",
-                                           frames.setdefault(obj.name, {}).setdefault(size, {}))]
-            contest = lod.contenders(here, scene.render.sweep.lod if scene.render.sweep else ())
-            if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.pricing)
-                times = pricing.interleaved(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
-                                                      if v.label in contest}, cams)
-                for r in here:
-                    if r["label"] in times:
-                        r["interleaved_ms"] = times[r["label"]]
-                log(f"{obj.name} @{size}px: {', '.join(sorted(contest))} timed interleaved, "
-                    f"{len(next(iter(times.values()))) // len(cams)} rounds")
-            rows += here
+    for size in sizes:
+        cams = sweep.sized(views, centre, radius, size)
+        distance = round(sweep.distance_for(size, 1.0, views[0].fov_deg, height), 4)
+        here = [{**r, "size_px": size, "distance_radii": distance}
+                for r in render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log,
+                                       f"sizes/{size}px/", f"{obj.name} @{size}px", frames.setdefault(size, {}))]
+        contest = lod.contenders(here, scene.render.sweep.lod if scene.render.sweep else ())
+        if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.pricing)
+            times = pricing.interleaved(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
+                                                  if v.label in contest}, cams)
+            for r in here:
+                if r["label"] in times:
+                    r["interleaved_ms"] = times[r["label"]]
+            log(f"{obj.name} @{size}px: {', '.join(sorted(contest))} timed interleaved, "
+                f"{len(next(iter(times.values()))) // len(cams)} rounds")
+        rows += here
     return rows, frames
-
-
-def _render_all(harness, out, bundle, scene, only, opts, device, log, chains=None) -> list[dict]:
-    """Every object's variants from its cameras; an instanced object also drawn per chain of `chains` (lod.json's)
-    with each copy by the variant its screen size selects (lod@CHAIN: vdmrender.lod.LodMix)."""
-    width, height = harness.target.size
-    rows = []
-    for obj in scene.objects:
-        entry = bundle.manifest["objects"][obj.name]
-        chosen = variants(obj, entry, bundle, scene, only)
-        if not chosen:
-            continue
-        cams = cameras_for(scene.camera, *sphere(obj, entry, scene), width, height)
-        world = instances.matrices(obj.instances, scene.camera.up, entry["centre"]) if obj.instances else None
-        mixes = {c["name"]: c["objects"][obj.name]["entries"] for c in (chains or {}).get("chains", [])
-                 if world is not None}
-        mine = render_object(harness, out, bundle, scene, obj, cams,
-                             chosen + [mixed(obj, entry, bundle, scene, name, entries, world)
-                                       for name, entries in mixes.items()], opts, device, log)
-        for row in mine:
-            if row["technique"] == "lod":
-                row["lod_copies"] = _copies_chosen(entry, world, mixes[row["value"]], cams)
-        rows += mine
-    return rows
-
-
-def mixed(obj, entry, bundle, scene, name: str, entries: list[dict], world) -> Variant:
-    """The variant lod@NAME of an instanced object whose copies `world` places: every copy drawn by the variant of
-    chain NAME its screen size selects, per frame (vdmrender.lod.LodMix)."""
-    builds = {v.label: v.build for v in variants(obj, entry, bundle, scene)}
-    labels = list(dict.fromkeys(e["variant"] for e in entries))
-
-    def build(ctx):
-        return lod.LodMix(ctx, {label: builds[label](ctx) for label in labels}, entries, world,
-                          (entry["centre"], entry["radius"]), sphere(obj, entry, scene), scene.light,
-                          scene.render.shadow_map)
-
-    return Variant("lod", "chain", name, f"lod@{name}", build)
-
-
-def _copies_chosen(entry, world, entries, cams) -> dict:
-    """How many copies each variant of the chain drew, summed over the cameras (lod.chosen, as LodMix draws)."""
-    centres, radii = instances.spheres(world, entry["centre"], entry["radius"])
-    which = np.concatenate([lod.chosen(entries, c, centres, radii) for c in cams])
-    return {label: int((which == label).sum()) for label in dict.fromkeys(e["variant"] for e in entries)}
