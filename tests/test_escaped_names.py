@@ -1,7 +1,6 @@
 """Raw control characters in names the user gives (scene files, bundles, output folders) are escaped in every
 progress and log line the tools print (issue 32): an escape sequence in a scene file's name recoloured the
-terminal and a newline split a progress line. One escaping function does it everywhere (vdmbake.errors.escaped;
-vdmbake.schema.printable is that function under the name vdmbake.scene imports)."""
+terminal and a newline split a progress line. One escaping function does it everywhere (vdmbake.errors.escaped)."""
 import re
 
 import pytest
@@ -23,7 +22,15 @@ def _clean(output: str) -> None:
 
 
 def test_one_escaping_function():
-    assert schema.printable is errors.escaped
+    """No module of the tools defines an escaping of its own or another name for errors.escaped."""
+    from pathlib import Path
+
+    root = Path(errors.__file__).parents[1]
+    for path in [*root.glob("vdmbake/**/*.py"), *root.glob("vdmrender/**/*.py")]:
+        text = path.read_text()
+        assert not re.search(r"^def \w*(escap|printable)", text, re.M) or path.name == "errors.py", path
+        assert not re.search(r"^\w+ = escaped\b", text, re.M), path
+    assert not hasattr(schema, "printable")
     assert errors.escaped(EVIL) == SHOWN and errors.escaped("plain/it's \\ fine") == "plain/it's \\ fine"
 
 

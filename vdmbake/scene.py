@@ -12,13 +12,13 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import InputError
+from .errors import InputError, escaped
 from .formats.safeio import read_regular
 from .assets.heightfields import PATTERNS, SKIMAGE_PHOTOS
 from .assets import meso_albedo
 from .assets.molecules import STYLES
 from .assets.primitives import PRIMITIVES
-from .schema import (REQUIRED, printable, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, ListOf, Number, Reader,
+from .schema import (REQUIRED, Boolean, Choice, Custom, Direction, unit, Integer, Invalid, ListOf, Number, Reader,
                      Square, Table, Tables, Text, Type,
                      Vector, dump, read, setting)
 from .techniques import REGISTRY
@@ -337,7 +337,7 @@ def check_composite(sets: tuple, objects: tuple, origin: str) -> None:
         where = f"render.composite[{i}]"
         for key, label in s.items():
             if key not in names:
-                raise InputError(f"{origin}: key '{where}.{printable(key)}' names no object of the scene; "
+                raise InputError(f"{origin}: key '{where}.{escaped(key)}' names no object of the scene; "
                                  f"its objects: {', '.join(names)}.")
             labels = variant_labels(next(o for o in objects if o.name == key))
             if label not in labels:
@@ -422,7 +422,7 @@ def _techniques(t: Reader, name: str, kind: str, has_meso: bool) -> dict:
     out = {}
     for tech in t.data:
         if tech not in REGISTRY:
-            raise InputError(f"{t.origin}: unknown technique '{printable(tech)}' in [{t.where}]; "
+            raise InputError(f"{t.origin}: unknown technique '{escaped(tech)}' in [{t.where}]; "
                              f"known techniques: {', '.join(REGISTRY)}.")
         spec = REGISTRY[tech]
         if kind not in spec.kinds:

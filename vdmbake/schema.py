@@ -15,7 +15,6 @@ from typing import Any, Callable
 
 from .errors import InputError, escaped
 
-printable = escaped   # the name vdmbake.scene imports: one escaping for every message
 
 REQUIRED = dataclasses.MISSING
 
