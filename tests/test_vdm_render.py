@@ -34,9 +34,9 @@ def scene(camera, obj, techniques=ALL, **kw):
 # ----------------------------------------------------------------------------- baseline
 
 def test_torus_bricks_baseline(tmp_path):
-    """Bricks on a torus, 64^2, two orbit frames. Measured (llvmpipe): mesh 6.261, vdm@2 3.384,
-    vdm@8 2.764, vdm@all 2.682, pom@16 2.824, bump 4.300, displaced@1 2.775 (IoU 0.9995);
-    IoU vdm@all 0.9921, bump 0.9883."""
+    """Bricks on a torus, 64^2, two orbit frames: vdm and pom within their bounds of the displaced reference,
+    more eigenfunctions no worse, every vdm below bump below the plain mesh, vdm's IoU at least bump's; the bake
+    keeps the k asked (all: the rank) and its truncation error falls with k."""
     text = scene(ORBIT.format(count=2), TORUS, 'mesh = {}, vdm = { k = [2, 8, "all"] }, pom = { steps = [16] }, '
                  'bump = {}, displaced = { levels = [1] }', size=32, tiling=(8, 2), res=64, shadow_map=512)
     rows, _ = render(tmp_path, text)
@@ -69,8 +69,9 @@ def test_torus_bricks_baseline(tmp_path):
 # ----------------------------------------------------------------------------- views
 
 def test_view_along_the_normal_on_a_plane(tmp_path):
-    """theta_V = 0 at the centre pixel (33^2, odd): V parallel to N, the paper's c_V a 0/0.
-    Measured: vdm@all 0.119, pom@16 0.089, bump 0.506, mesh 3.931; centre pixel vdm 0.0 dLuv."""
+    """theta_V = 0 at the centre pixel (33^2, odd): V parallel to N, the paper's c_V a 0/0. vdm covers exactly
+    the plane, stays within its bound, below bump below the plain mesh, and the centre pixel is right; the plane
+    gets one curvature sample."""
     rows, out = render(tmp_path, scene(TOP, PLANE, res=33))
     assert rows["vdm@all"]["coverage"] == 1.0 and rows["vdm@all"]["iou"] == 1.0
     assert mean(rows, "vdm@all") <= 0.2                               # 0.119
@@ -81,9 +82,9 @@ def test_view_along_the_normal_on_a_plane(tmp_path):
 
 
 def test_view_along_the_normal_on_a_curved_surface(tmp_path):
-    """The same at a cylinder's side (c = 0.49 around it in texture units): V = N with curvature.
-    Measured: vdm@all 0.541, pom@16 0.736, bump 0.681, mesh 3.857; at the centre pixel vdm and bump
-    agree (the mesostructure's shading normal there, not the lookup)."""
+    """The same at a cylinder's side (c = 0.49 around it in texture units): V = N with curvature; vdm within its
+    bound, and at the centre pixel vdm and bump agree (the mesostructure's shading normal there, not the
+    lookup)."""
     rows, out = render(tmp_path, scene(HEAD_ON, CYLINDER, tiling=(8, 2), res=33))
     assert mean(rows, "vdm@all") <= 0.8                                # 0.541
     assert mean(rows, "vdm@all") < mean(rows, "mesh")                  # 3.857
@@ -92,8 +93,8 @@ def test_view_along_the_normal_on_a_curved_surface(tmp_path):
 
 
 def test_grazing_view(tmp_path):
-    """theta_V up to 88.5 degrees, beyond the table's last theta sample (84.4). Measured: vdm@all 0.748,
-    pom@16 1.459, bump 2.762, mesh 3.072."""
+    """theta_V up to 88.5 degrees, beyond the table's last theta sample (84.4): vdm within its bound and below
+    bump."""
     rows, _ = render(tmp_path, scene(GRAZING, BIG_PLANE, tiling=(8, 8)))
     assert mean(rows, "vdm@all") <= 1.0                               # 0.748
     assert mean(rows, "vdm@all") < mean(rows, "bump")                 # 2.726
@@ -122,9 +123,8 @@ def test_light_at_the_horizon(tmp_path, direction, bound):
 # ----------------------------------------------------------------------------- curvature
 
 def test_curvature_outside_the_table(tmp_path):
-    """curvatures = 1: the table has the single sample lo = -0.535 (the torus's most concave
-    texture curvature), every other curvature clamps to it. Measured 64^2: vdm@all 1.765, pom@16
-    1.673, bump 2.152, mesh 4.218."""
+    """curvatures = 1: the table has the single sample lo = -0.535 (the torus's most concave texture curvature)
+    and every other curvature clamps to it; vdm stays within its bound and below bump."""
     rows, _ = render(tmp_path, scene(ORBIT.format(count=2), TORUS, tiling=(8, 2), curvatures=1, res=64))
     meso = manifest(tmp_path)["objects"]["p"]["techniques"]["vdm"]
     assert meso["curvatures"] == [pytest.approx(-0.5351586, abs=1e-6)]
@@ -135,9 +135,8 @@ def test_curvature_outside_the_table(tmp_path):
 # ----------------------------------------------------------------------------- height fields
 
 def test_cliffs_on_a_torus(tmp_path):
-    """Vertical walls (0 to 1 between neighbouring texels) and a one-texel slot, on a curved
-    surface. Measured: vdm@all 4.307 (IoU 0.9716), pom@16 6.759 (0.9006), bump 7.497, mesh 9.858
-    (0.8993), displaced@1 1.605 (0.9981)."""
+    """Vertical walls (0 to 1 between neighbouring texels) and a one-texel slot, on a curved surface: vdm within
+    its bound and below pom, in mean ΔLuv and in IoU."""
     rows, _ = render(tmp_path, scene(ORBIT.format(count=2), TORUS, ALL + ", displaced = { levels = [1] }",
                                      height="cliffs", tiling=(8, 2)))
     assert mean(rows, "vdm@all") <= 4.8                               # 4.307
@@ -147,8 +146,7 @@ def test_cliffs_on_a_torus(tmp_path):
 
 
 def test_cliffs_on_a_plane(tmp_path):
-    """Cliffs 0.15 deep, seen obliquely. Measured: vdm@all 0.947 (p95 2.52), pom@16 0.188, bump
-    2.487, mesh 2.827."""
+    """Cliffs 0.15 deep, seen obliquely: vdm within its bound and below bump."""
     rows, _ = render(tmp_path, scene(OBLIQUE, PLANE, height="cliffs", depth=0.15))
     assert mean(rows, "vdm@all") <= 1.1                               # 0.947
     assert mean(rows, "vdm@all") < mean(rows, "bump")                 # 2.487
@@ -157,10 +155,8 @@ def test_cliffs_on_a_plane(tmp_path):
 @pytest.mark.parametrize("shape", ["plane", "torus"])
 @pytest.mark.parametrize("what", ["flat", "depth 0"])
 def test_no_relief_renders_the_base_surface(tmp_path, what, shape):
-    """All-one heights, or depth 0: the mesostructure is the base surface itself, so vdm must match
-    the plain mesh technique. Measured: plane, vdm@all = mesh = 0.000 (IoU 1). Torus: mesh 0.036
-    (IoU 1.0), pom and bump 0.036, vdm@all 0.438 (IoU 0.9914; 0.705 and 0.9828 before vdm.py's
-    horizon change of 13:11 UTC): VDM loses pixels near the torus's outline, a bake bug (see
+    """All-one heights, or depth 0: the mesostructure is the base surface itself, so vdm must match the plain
+    mesh technique (on the plane exactly; on the torus within the bound left by the bake's outline, see
     test_no_relief_tables_on_a_convex_surface)."""
     obj, cam, tiling = (PLANE, OBLIQUE, (2, 2)) if shape == "plane" else (TORUS, ORBIT.format(count=2), (8, 2))
     kw = {"height": "flat"} if what == "flat" else {"depth": 0.0}
@@ -173,13 +169,10 @@ def test_no_relief_renders_the_base_surface(tmp_path, what, shape):
 
 @pytest.mark.parametrize("what", ["flat", "depth 0"])
 def test_no_relief_tables_on_a_convex_surface(what):
-    """The cause of the torus failure above, in the bake: with every hit at the entry point (d = 0),
-    a ray at any theta up to 90 degrees hits, also on a convex surface; the MVM must be pi / 2 and no
-    entry -1. Measured: for c > 0 the last theta sample is -1 (vdm_curved_rows: has_hi is false
-    when the last kept sample's angle equals theta_j exactly, as it does for d = 0, th' = th); the
-    SVD then stores the MVM angle (pi / 2) there as d. Baking the torus with those entries set to 0
-    makes vdm@all equal the mesh (0.036, IoU 1.0). (The MVM itself was 84.375 degrees, the last
-    sample, until vdm.py's change of 13:11 UTC gave entry-point hits a horizon of pi / 2.)"""
+    """The cause of the torus's lost outline pixels, in the bake: with every hit at the entry point (d = 0), a
+    ray at any theta up to 90 degrees hits, also on a convex surface; the MVM must be pi / 2 and no entry -1
+    (vdm_curved_rows: has_hi is false when the last kept sample's angle equals theta_j exactly, as it does for d
+    = 0, th' = th, and the SVD then stores the MVM angle there as d)."""
     heights, depth = (np.ones((8, 8)), 0.06) if what == "flat" else (np.full((8, 8), 0.5), 0.0)
     s = vdm.Sampling(8, 8, 8, (-0.5, 0.0, 1.0, 4.0))
     table, theta_mvm, _ = vdm.bake_tables(heights, depth, s)
@@ -191,13 +184,11 @@ def test_no_relief_tables_on_a_convex_surface(what):
 
 
 def test_all_zero_heights(tmp_path):
-    """An 8-bit PNG all zero but one texel (heights are normalised by min / max, and a constant image
-    has no relief): the surface lies at the floor, depth * s_n inside the torus, an offset surface,
-    save one small bump per tile. Measured: vdm@all 4.503 (IoU
-    0.9692), pom@16 9.867 (0.8359), mesh 10.084 (0.8287), displaced@1 0.154 (1.0); with no bump at all
-    (main, before the normalisation rule) 4.379, 9.922, 10.110, 0.040. (The VDM's
-    outline comes early: the curved tables' horizon is 67 degrees at c = 1 where the floor is
-    visible up to asin(1 - c depth) = 70.1 degrees; see the report.)"""
+    """An 8-bit PNG all zero but one texel (heights are normalised by min / max, and a constant image has no
+    relief): the surface lies at the floor, depth * s_n inside the torus, an offset surface, save one small bump
+    per tile. vdm within its bound and under half of pom's error (pom has no silhouettes); displaced, which has
+    the offset surface's outline, near exact. (VDM's outline comes early: the curved tables' horizon at c = 1
+    lies below the angle up to which the floor is visible.)"""
     img = np.zeros((16, 16), np.uint8)
     img[8, 8] = 255
     Image.fromarray(img).save(tmp_path / "zeros.png")
@@ -214,8 +205,8 @@ def test_all_zero_heights(tmp_path):
 # ----------------------------------------------------------------------------- SVD and the bake's rules
 
 def test_k_above_the_rank(tmp_path):
-    """k = 256 asks for more eigenfunctions than A has columns (theta x c + c = 36): the bake keeps
-    rank of them, and the render uses those. Measured: rank 27, vdm@256 1.848 = vdm@all's (48^2)."""
+    """k = 256 asks for more eigenfunctions than A has columns (theta x c + c = 36): the bake keeps rank of them
+    (nearly lossless), and the render uses those, within vdm@all's bound."""
     rows, _ = render(tmp_path, scene(ORBIT.format(count=2), TORUS, 'vdm = { k = [256] }, bump = {}', tiling=(8, 2)))
     meso = manifest(tmp_path)["objects"]["p"]["techniques"]["vdm"]
     assert meso["k"] == meso["rank"] <= 8 * 4 + 4
@@ -261,12 +252,11 @@ def dark_fractions(tmp_path, out, label):
 
 @pytest.mark.parametrize("height", ["skimage:gravel", "bricks"])
 def test_no_false_self_shadows_under_a_low_light(tmp_path, height):
-    """The light 0.6 degrees above the horizon, beyond the tables' last polar angle (84.4 degrees): the
-    lookup toward the light used to return the clamped, steeper ray's hit, short of P', so the test
-    d_L < h / cos(theta_L) - eps shadowed most lit pixels. Now the light's angle is clamped to the
-    sampled ones before the shadow ray is built. Measured (false dark / missed dark): gravel photo
-    vdm@all 0.0009 / 0.0189 (before 0.3767 / 0.0002), pom@16 0.0022 / 0.0123; bricks 0.0004 / 0.0304
-    (before 0.6050 / 0.0004), pom@16 0.0026 / 0.0091."""
+    """The light 0.6 degrees above the horizon, beyond the tables' last polar angle (84.4 degrees): the lookup
+    toward the light used to return the clamped, steeper ray's hit, short of P', so the test d_L < h /
+    cos(theta_L) - eps shadowed most lit pixels. Now the light's angle is clamped to the sampled ones before the
+    shadow ray is built: the share of falsely dark and of missed dark pixels stays within the bounds, as pom's
+    does, on the gravel photo and on bricks."""
     text = scene(OBLIQUE, PLANE, 'vdm = { k = ["all"] }, pom = { steps = [16] }', height=height,
                  light="[light]\ndirection = [1, 0, 0.01]\n")
     rows, out = render(tmp_path, text)
@@ -279,10 +269,9 @@ def test_no_false_self_shadows_under_a_low_light(tmp_path, height):
 # ----------------------------------------------------------------------------- refined VDM
 
 def test_refine_brings_vdm_below_pom(tmp_path):
-    """refine = R finishes the lookup's hit on the height field (R + 1 samples and a secant step) and
-    tests self-shadows with R samples toward the light. Torus, bricks, 64^2, k = 8. Measured: vdm@8
-    2.782, vdm@8r1 2.251, vdm@8r2 2.038, vdm@8r4 1.910 (IoU 0.9985, vdm@8 0.9911); pom@16 2.824;
-    displaced@1 2.775."""
+    """refine = R finishes the lookup's hit on the height field (R + 1 samples and a secant step) and tests
+    self-shadows with R samples toward the light. Torus, bricks, 64^2, k = 8: the error falls with R, and
+    vdm@8r4 comes well below pom@16 and displaced@1 with no less coverage than vdm@8."""
     text = scene(ORBIT.format(count=2), TORUS, 'vdm = { k = [8], refine = [0, 1, 2, 4] }, pom = { steps = [16] }, '
                  'displaced = { levels = [1] }', size=32, tiling=(8, 2), res=64, shadow_map=512)
     rows, _ = render(tmp_path, text)
@@ -298,13 +287,12 @@ def test_refine_brings_vdm_below_pom(tmp_path):
 def test_costs_per_fragment(tmp_path):
     """The cost counters (vdmrender/counters.py) of vdm.frag at k = 8 (two RGBA groups), per what a fragment
     does past its V.z test: the view ray is a search, and so is the light ray where the light is above the
-    surface. The paper's algorithm (refine 0) looks each up with 2 x 2 weight fetches (phi interpolated) and
-    2 x 2 eigenfunction fetches; unless the MVM says miss, the height at T', the normal and the shadow map
-    follow: fetches - 8 searches lies in [0, 3 view searches], and nothing steps. Refined (refine 4): the
-    view lookup with the nearest phi (2 + 4 fetches), 5 height samples along the view ray, 4 toward the
-    light where lit, each a step and a fetch, then the 3: view searches V = steps - 4 searches, light
-    searches 5 searches - steps, and fetches - 6 V - steps in [0, 3 V]. (At most 19 and 18 fetches a
-    fragment, as the colour-coded counts of the first implementation measured.)"""
+    surface. The paper's algorithm (refine 0) looks each up with 2 x 2 weight fetches (phi interpolated) and 2 x
+    2 eigenfunction fetches; unless the MVM says miss, the height at T', the normal and the shadow map follow:
+    fetches - 8 searches lies in [0, 3 view searches], and nothing steps. Refined (refine 4): the view lookup
+    with the nearest phi (2 + 4 fetches), 5 height samples along the view ray, 4 toward the light where lit,
+    each a step and a fetch, then the 3: view searches V = steps - 4 searches, light searches 5 searches -
+    steps, and fetches - 6 V - steps in [0, 3 V]."""
     from bench.interleave import scene_of
     from vdmrender import counters, gl
     from vdmrender.techniques import Source
@@ -335,10 +323,9 @@ def test_costs_per_fragment(tmp_path):
 
 
 def test_more_layers_than_the_device_has_is_refused(tmp_path, monkeypatch):
-    """W's texture array holds ceil(k / 4) x phi layers; over the device's GL_MAX_ARRAY_TEXTURE_LAYERS
-    (2048 on llvmpipe; the Utah teapot at phi 32 with k = all needed 2336) the driver drew garbage and the
-    run exited 0 (45.4 mean dLuv, IoU 0.23). Now it exits 2 naming the limit: shown by lowering the
-    limit the device reports to below what a small table needs."""
+    """W's texture array holds ceil(k / 4) x phi layers; over the device's GL_MAX_ARRAY_TEXTURE_LAYERS the
+    driver drew garbage and the run exited 0. Now it exits 2 naming the limit: shown by lowering the limit the
+    device reports to below what a small table needs."""
     import moderngl
 
     from meso_scenes import bake_and_render
