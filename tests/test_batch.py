@@ -3,6 +3,7 @@ stops the others, the closing table and the exit codes, a worker killed mid-bake
 and the library of 100+ scenes (vdmbake/library/scenes.py)."""
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -11,6 +12,7 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
+from vdmbake.bundle import parts
 from vdmbake.bundle.directory import Bundle
 from vdmbake.cli import main as bake_main
 
@@ -103,24 +105,89 @@ def _wait_for_staging(folder: Path, proc, timeout: float = 120) -> int:
     raise AssertionError("no bake started")
 
 
+def _announced(folder: Path, stem: str, proc, timeout: float = 120) -> int:
+    """The pid of the process baking scene `stem`, as the scene's own bake announces it: its bundle's staging
+    folder `.STEM.bundle.tmp-PID` (vdmbake.bundle.staging names it after the writing process), waited for."""
+    pattern = re.compile(rf"\.{re.escape(stem)}\.bundle\.tmp-(\d+)")
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        for name in hidden(folder):
+            if m := pattern.fullmatch(name):
+                return int(m[1])
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.005)
+    raise AssertionError(f"no bake of {stem} started")
+
+
+def _ancestors(pid: int) -> list[int]:
+    """The pids above `pid` (its parent, the parent's parent, ...), from /proc."""
+    out = []
+    while pid > 1:
+        pid = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+        out.append(pid)
+    return out
+
+
+def kill_the_baker(folder: Path, stem: str, proc) -> tuple[int, Path]:
+    """SIGKILL the worker process that announced the bake of scene `stem`, while that bake's staging folder is
+    still there (the bake not finished); the process must be a worker under `proc`, not `proc` itself. Returns
+    the pid killed and the staging folder it left."""
+    pid = _announced(folder, stem, proc)
+    staging = folder / f".{stem}.bundle.tmp-{pid}"
+    assert pid != proc.pid and proc.pid in _ancestors(pid), (pid, proc.pid)      # a worker of this run
+    assert staging.is_dir()                                                       # still baking `stem`
+    os.kill(pid, signal.SIGKILL)
+    return pid, staging
+
+
+def files(bundle: Path) -> dict:
+    """The bundle's files by path, timing.json (wall times, who took what from the cache) left out."""
+    return {p.relative_to(bundle).as_posix(): p.read_bytes() for p in sorted(bundle.rglob("*"))
+            if p.is_file() and p.name != "timing.json"}
+
+
+def whole(bundle: Path) -> dict:
+    """The bundle opened as the renderer opens it, every part read through its checksum and its kind's reader;
+    its files (files())."""
+    b = Bundle(bundle)
+    for rel, meta in b.manifest["parts"].items():
+        b.read(rel, parts.KINDS[meta["kind"]])
+    return files(bundle)
+
+
+def redone_elsewhere(rows: dict, stem: str, killed: int, staging: Path, proc) -> None:
+    """The scene `stem`, whose bake in process `killed` was killed, was baked by another process of the run: its
+    row names the process that wrote its bundle (batch.bake_one's pid), which is neither the killed one nor the
+    command, and that bake's log (--verbose) says it removed the staging folder the killed bake of `stem` left."""
+    row = rows[stem]
+    assert row["status"] == "baked", row
+    assert row["pid"] != killed and row["pid"] != proc.pid, (row["pid"], killed)
+    assert f"removed {staging.name}, left by a bake that did not finish (process {killed} no longer runs)" in \
+        "\n".join(row["log"]), row["log"]
+    assert not staging.exists() and hidden(staging.parent) == []
+
+
 def test_worker_killed_mid_bake_is_retried(tmp_path):
-    """Fault test: the worker process baking a scene is killed (SIGKILL) mid-bake; the scene is baked again in a
-    fresh worker, the run completes (exit 0) and no staging folder is left."""
+    """Fault test: the worker process holding scene `slow` (its bake's staging folder names it) is killed
+    (SIGKILL) mid-bake; `slow` is baked again by another worker process, whose log shows it found the killed
+    bake's staging folder, into a bundle identical to an uninterrupted bake's; the other scene is baked; exit 0,
+    no staging folder left."""
     write(tmp_path / "s", slow=SLOW, a=SMALL.format(name="a", prim="sphere"))
     out = tmp_path / "out"
-    p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--jobs", "1", "--json"],
+    p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--jobs", "2", "--json",
+                          "--verbose"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          env={k: v for k, v in os.environ.items() if k != "VDM_CACHE"})
-    pid = _wait_for_staging(out, p)
-    assert pid != p.pid                                  # a worker of the pool, not the command
-    os.kill(pid, signal.SIGKILL)
+    killed, staging = kill_the_baker(out, "slow", p)
     stdout, stderr = p.communicate(timeout=300)
     assert p.returncode == 0, stderr
-    rows = json.loads(stdout)["scenes"]
-    assert [r["status"] for r in rows] == ["baked", "baked"]
-    for r in rows:
-        Bundle(Path(r["bundle"]))
-    assert hidden(out) == []
+    rows = {Path(r["scene"]).stem: r for r in json.loads(stdout)["scenes"]}
+    assert [r["status"] for r in rows.values()] == ["baked", "baked"], rows
+    redone_elsewhere(rows, "slow", killed, staging, p)
+    r = bake(tmp_path / "s" / "slow.toml", "-o", tmp_path / "uninterrupted.bundle")
+    assert r.exit_code == 0, r.output
+    assert whole(out / "slow.bundle") == files(tmp_path / "uninterrupted.bundle")
+    whole(out / "a.bundle")
 
 
 def test_signal_stops_the_batch_and_its_workers(tmp_path):

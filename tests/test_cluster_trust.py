@@ -74,8 +74,9 @@ def test_a_scheduler_lost_mid_run_ends_in_the_closing_table(tmp_path):
     finished are named in the closing table, exit 1, no traceback."""
     env = {k: v for k, v in os.environ.items() if k != "VDM_CACHE"}
     info = tmp_path / "scheduler.json"
-    sched = subprocess.Popen([str(BIN / "dask"), "scheduler", "--port", "0", "--no-dashboard", "--scheduler-file",
-                              str(info)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    sched = subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                              "--scheduler-file", str(info)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                             env=env)
     worker = None
     try:
         for _ in range(300):
@@ -83,8 +84,10 @@ def test_a_scheduler_lost_mid_run_ends_in_the_closing_table(tmp_path):
                 break
             time.sleep(0.1)
         address = json.loads(info.read_text())["address"]
-        worker = subprocess.Popen([str(BIN / "dask"), "worker", address, "--nthreads", "1", "--nworkers", "1",
-                                   "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        assert address.startswith("tcp://127.0.0.1:"), address                  # on the loopback only
+        worker = subprocess.Popen([str(BIN / "dask"), "worker", address, "--host", "127.0.0.1", "--nthreads", "1",
+                                   "--nworkers", "1", "--no-dashboard"], stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.DEVNULL, env=env)
         write(tmp_path / "s", **{f"slow{i}": SLOW for i in range(4)})
         out = tmp_path / "out"
         p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--scheduler", address],

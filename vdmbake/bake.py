@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import re
 import time
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -145,7 +147,7 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
     base = scene_path.parent
     code = bake_code()
     digest, inputs = input_hash(scene, base, code)
-    staging.recover(out, MANIFEST)       # what an interrupted run left at `out`
+    _recover(out, log)
     reason = "--force" if force else stale(out, digest, code)
     if reason is None:
         log(f"{out}: up to date (inputs, settings and bake code unchanged); use --force to bake again")
@@ -165,6 +167,29 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
         _CACHE.reset(token)
         if cache is not None:
             cache.record(scene=str(scene_path))
+
+
+def _recover(out: Path, log) -> None:
+    """What an interrupted run left at `out` put right (vdmbake.bundle.staging.recover); each staging folder of a
+    bake whose process no longer runs, which that removes, is named in the log with the process."""
+    out = Path(out)
+    pattern = re.compile(rf"\.{re.escape(out.name)}\.tmp-(\d+)")
+    left = [p for p in out.parent.iterdir() if pattern.fullmatch(p.name)] if out.parent.is_dir() else []
+    staging.recover(out, MANIFEST)
+    for p in left:
+        pid = int(pattern.fullmatch(p.name)[1])
+        if not p.exists() and pid != os.getpid() and not _running(pid):
+            log(f"{out}: removed {p.name}, left by a bake that did not finish (process {pid} no longer runs)")
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:           # another user's process
+        return True
+    return True
 
 
 def _write(scene: Scene, scene_path: Path, out: Path, digest: str, code: str, inputs: dict, log,

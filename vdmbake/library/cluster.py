@@ -94,7 +94,7 @@ def run_dask(tasks: list[Task], address: str, done) -> tuple[list[dict], str]:
     try:
         if m:
             cluster = LocalCluster(n_workers=int(m[1]), threads_per_worker=1, processes=True, dashboard_address=None,
-                                   silence_logs=logging.ERROR)
+                                   host="127.0.0.1", silence_logs=logging.ERROR)     # this machine's loopback only
             client = Client(cluster)
         else:
             _reachable(address)
