@@ -44,7 +44,7 @@ $(STAMP): pyproject.toml | sysdeps
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e '.[test]'
-	npm install --silent --no-save --prefix $(VENV)/node gltf-validator@$(GLTF_VALIDATOR)
+	npm install --silent --no-save --prefix $(VENV)/node gltf-validator@$(GLTF_VALIDATOR) babylonjs@9.28.0 babylonjs-loaders@9.28.0 three@0.187.0
 	@touch $@
 
 demo: $(STAMP)

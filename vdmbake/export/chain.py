@@ -4,10 +4,10 @@ chose (octahedral atlases, enhanced billboards) as their bundle parts copied unc
 that gives their layout and bands (docs/export.md)."""
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -133,7 +133,7 @@ def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None =
                          f"{', '.join(repr(c['name']) for c in lod['chains'])}.")
     objects = {o.name: o for o in bundle.scene.objects}
     out = StagedDir(out_path, "export.json", "vdmexport output folder")
-    summary = {"bundle": str(bundle.path), "lod": str(lod_path), "device": lod["device"], "files": []}
+    summary = {"bundle": str(bundle.path), "lod": str(lod_path), "device": lod["device"], "files": [], "warnings": []}
     try:
         for c in chains:
             for name, ch in c["objects"].items():
@@ -142,9 +142,13 @@ def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None =
                                      f"{bundle.path} lacks; export with the bundle the chain was rendered from.")
                 obj, entry, stem = objects[name], bundle.manifest["objects"][name], f"{name}-{c['name']}"
                 if "meshes_only" in ch:
-                    levels = merged(ch["meshes_only"]["entries"])
-                    summary["files"].append(_gltf(out, bundle, obj, entry, levels, stem, lod["resolution"][1]))
-                    log(f"{stem}.gltf: {len(levels)} levels")
+                    levels, note = _gltf(out, bundle, obj, entry, merged(ch["meshes_only"]["entries"]), stem,
+                                         lod["resolution"][1])
+                    summary["files"].append(f"{stem}.gltf")
+                    if note:
+                        summary["warnings"].append(note)
+                        log(f"warning: {note}")
+                    log(f"{stem}.gltf: {levels} levels")
                 impostors = [e for e in merged(ch["entries"]) if e["technique"] not in TRIANGLE_MESHES]
                 if impostors:
                     summary["files"].append(_sidecar(out, bundle, obj, entry, impostors, stem, lod))
@@ -170,28 +174,60 @@ def merged(entries: list[dict]) -> list[dict]:
     return out
 
 
-def _gltf(out, bundle, obj, entry, levels: list[dict], stem: str, height: int) -> str:
-    """The chain's triangle-mesh levels as STEM.gltf: level k shown while the object spans more than its band's
-    min_px (MSFT_screencoverage: that over the frame height), the last down to nothing left to cull."""
-    w = Writer()
-    texture_uri = None
-    nodes = []
-    for k, e in enumerate(levels):
+def finest_first(levels: list[dict], faces: list[int]) -> tuple[list[tuple[dict, int]], str | None]:
+    """The levels as MSFT_lod needs them: finest first (most triangles), each distinct variant once, each paired
+    with the band limit (px) down to which it shows: the smallest size it or a finer level was chosen at, so the
+    switch sizes fall (a finer level takes over a band a coarser one held above it; a level whose bands all lie
+    above a finer one's is never shown and is left out). With a note where that is not the chain as lod.json
+    has it (a chain picked by noisy costs can come out coarse -> fine -> coarse)."""
+    seen: dict[str, tuple[dict, int, int]] = {}
+    for e, f in zip(levels, faces):
+        first, _, low = seen.get(e["variant"], (e, f, e["min_px"]))
+        seen[e["variant"]] = (first, f, min(low, e["min_px"]))
+    out, switch = [], math.inf
+    for e, _, low in sorted(seen.values(), key=lambda t: -t[1]):   # stable: equal counts keep the chain's order
+        if min(switch, low) < switch:
+            switch = min(switch, low)
+            out.append((e, switch))
+    if [e["variant"] for e, _ in out] == [e["variant"] for e in levels] and all(
+            a > b for a, b in zip(faces, faces[1:])):
+        return out, None
+    was = " -> ".join(f"{e['variant']} ({f} triangles, from {e['min_px']} px)" for e, f in zip(levels, faces))
+    now = " -> ".join(f"{e['variant']} down to {px} px" for e, px in out)
+    left = [v for v in seen if v not in {e["variant"] for e, _ in out}]
+    return out, (f"the chain's levels are not finest first ({was}); exported finest first, each level once ({now})"
+                 + "".join(f"; {v} left out, chosen only above a finer level" for v in left)
+                 + ". Check the chain's costs in lod.md, or render again.")
+
+
+def _gltf(out, bundle, obj, entry, levels: list[dict], stem: str, height: int) -> tuple[int, str | None]:
+    """The chain's triangle-mesh levels as STEM.gltf, finest first: level k shown while the object spans more than
+    its switch size (MSFT_screencoverage: that over the frame height), the last down to nothing left to cull.
+    Returns the number of levels and what was said about their order."""
+    meshes = {}
+    for e in levels:
         tech, value = variant_value(obj, e["variant"])
         rel = next(iter(REGISTRY[tech].reads(entry["techniques"][tech], value, obj))) if REGISTRY[tech].reads \
             else entry["mesh"]
-        mesh = bundle.surface(entry, rel)
+        meshes[e["variant"]] = bundle.surface(entry, rel)
+    ordered, note = finest_first(levels, [len(meshes[e["variant"]].faces) for e in levels])
+    if note:
+        note = f"{stem}.gltf: {note}"
+    w = Writer()
+    texture_uri = None
+    nodes = []
+    for k, (e, _) in enumerate(ordered):
+        mesh = meshes[e["variant"]]
         if mesh.texture is not None and texture_uri is None:
             texture_uri = f"{obj.name}-albedo.png"
             from PIL import Image
             Image.fromarray(np.ascontiguousarray(mesh.texture[::-1])).save(out.file(texture_uri))
-        material = w.material(f"{obj.name} {e['variant']}", texture_uri if mesh.texture is not None else None,
-                              obj.material.albedo)
-        nodes.append(w.mesh(f"{obj.name} LOD{k} {e['variant']}", mesh, material))
-    coverage = [e["min_px"] / height for e in levels[:-1]] + [0.0]
-    w.lod(nodes, coverage, bundle.scene.camera.up)
+        material = w.material(f"{obj.name}_{e['variant']}", texture_uri if mesh.texture is not None else None,
+                              obj.material.albedo, mesh.colors is not None)
+        nodes.append(w.mesh(f"{obj.name}_LOD{k}_{e['variant']}", mesh, material))
+    w.lod(nodes, [px / height for _, px in ordered[:-1]] + [0.0], bundle.scene.camera.up, [note] if note else [])
     w.save(out.file(f"{stem}.gltf"))
-    return f"{stem}.gltf"
+    return len(ordered), note
 
 
 def _sidecar(out, bundle, obj, entry, impostors: list[dict], stem: str, lod: dict) -> str:
@@ -203,13 +239,12 @@ def _sidecar(out, bundle, obj, entry, impostors: list[dict], stem: str, lod: dic
         files = []
         for rel, kind in REGISTRY[tech].reads(entry["techniques"][tech], value, obj).items():
             name = f"{obj.name}-{Path(rel).name}"
-            if not out.file(name).exists():
-                shutil.copyfile(bundle.part_path(rel), out.file(name))
+            part = _copied(bundle, rel, kind, out.file(name))
             meta = bundle.manifest["parts"][rel]
             files.append({"file": name, "kind": kind.name, "sha256": meta["sha256"],
                           "layout": {k: v for k, v in meta.items() if k not in ("sha256", "bytes", "kind")}})
             if kind.name == "octahedral":
-                files[-1]["preview"] = _atlas_preview(out, bundle.read(rel, kind), name)
+                files[-1]["preview"] = _atlas_preview(out, part, name)
         items.append({"variant": e["variant"], "technique": tech, "band_px": [e["min_px"], e["max_px"]],
                       "screen_coverage": e["screen_coverage"], "within_limits": e["meets"], "measured": e["measured"],
                       "files": files})
@@ -218,6 +253,30 @@ def _sidecar(out, bundle, obj, entry, impostors: list[dict], stem: str, lod: dic
            "read": "docs/export.md: each part kind's layout and how a shader reads it", "impostors": items}
     out.file(f"{stem}.impostors.json").write_text(json.dumps(doc, indent=1) + "\n")
     return f"{stem}.impostors.json"
+
+
+def _copied(bundle: Bundle, rel: str, kind, dest: Path):
+    """Copy part `rel` to `dest`, verified as it is made: its bytes against the manifest's sha256 and read by its
+    kind's reader before they are written, the copy read back against the same sha256; returns what the reader
+    made of it. A part that fails ends the export (InputError naming it) before any sidecar states its sha256."""
+    data = bundle.read_bytes(rel)   # the manifest's sha256 (InputError: "checksum mismatch")
+    meta = bundle.manifest["parts"][rel]
+    if meta.get("kind") != kind.name:
+        raise InputError(f"{bundle.path / rel}: the manifest records a {escaped(str(meta.get('kind')))!r} part where "
+                         f"a {kind.name!r} part is expected; re-bake with vdmbake --force.")
+    try:
+        value = kind.unpack(data, meta, str(bundle.path / rel))
+    except InputError:
+        raise
+    except Exception as e:   # a reader's own error on bytes that match their sha256: a bundle written wrong
+        raise InputError(f"{bundle.path / rel}: the {kind.name} part does not read ({type(e).__name__}: "
+                         f"{escaped(str(e))[:200]}); re-bake with vdmbake --force.") from None
+    if not dest.exists():
+        dest.write_bytes(data)
+    if hashlib.sha256(dest.read_bytes()).hexdigest() != meta["sha256"]:
+        raise InputError(f"{dest}: the copy of {bundle.path / rel} does not have the manifest's sha256 (the "
+                         "output disk changed it); export again to another folder.")
+    return value
 
 
 def _atlas_preview(out, atlas, name: str) -> str:

@@ -4,12 +4,14 @@ MSFT_screencoverage in the node's extras), in one .gltf beside one .bin and the 
 Written from numpy alone: every attribute float32 and tightly packed (§3.6.2.2), indices uint32, each buffer
 view 4-byte aligned (§3.6.2.4); POSITION with its min and max (§3.7.2.1: required); normals unit length;
 TEXCOORD_0 with t = 1 - v, since a glTF image's first row is at t = 0 (§3.8.4.1) and the bundle's maps keep
-row 0 at v = 0; COLOR_0 the asset's linear per-vertex colour (§3.7.2.1: linear, multiplying the texture);
-the scene's up turned to glTF's +Y by the root node (§3.4)."""
+row 0 at v = 0; COLOR_0 the asset's linear per-vertex colour (§3.7.2.1: linear, multiplying the texture); the scene's up turned
+to glTF's +Y by every level node itself (§3.5.3), since MSFT_lod's lower levels are outside the scene's node tree and
+no parent's transform reaches them."""
 from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -44,17 +46,22 @@ class Writer:
         self.doc["accessors"].append(acc)
         return len(self.doc["accessors"]) - 1
 
-    def material(self, name: str, texture_uri: str | None, albedo) -> int:
-        """A rough dielectric: the texture where the asset has one, else `albedo` (linear RGB) as the factor."""
+    def material(self, name: str, texture_uri: str | None, albedo, colours: bool) -> int:
+        """A rough dielectric coloured as the asset is: glTF multiplies baseColorFactor, the texture and COLOR_0
+        (§3.9.2), so the factor is the scene material's `albedo` (linear RGB) only where the level has neither a
+        texture nor colours of its own, else 1 (the default), so they are not multiplied again. A texture gets an
+        image entry of its own per material: Babylon.js's MSFT_lod loader throws a TypeError on LOD materials that
+        share one image entry (valid glTF, §3.8.3)."""
         pbr = {"metallicFactor": 0.0, "roughnessFactor": 0.6}
         if texture_uri is not None:
-            if not self.doc.get("images"):
-                self.doc.update(images=[{"uri": texture_uri}], samplers=[{"magFilter": 9729, "minFilter": 9987}],
-                                textures=[{"source": 0, "sampler": 0}])
-            pbr["baseColorTexture"] = {"index": 0}
-        else:
+            if not self.doc.get("samplers"):
+                self.doc["samplers"] = [{"magFilter": 9729, "minFilter": 9987}]
+            self.doc.setdefault("images", []).append({"uri": texture_uri})
+            self.doc.setdefault("textures", []).append({"source": len(self.doc["images"]) - 1, "sampler": 0})
+            pbr["baseColorTexture"] = {"index": len(self.doc["textures"]) - 1}
+        elif not colours:
             pbr["baseColorFactor"] = [*map(float, albedo), 1.0]
-        self.doc["materials"].append({"name": name, "pbrMetallicRoughness": pbr})
+        self.doc["materials"].append({"name": safe(name), "pbrMetallicRoughness": pbr})
         return len(self.doc["materials"]) - 1
 
     def mesh(self, name: str, mesh, material: int) -> int:
@@ -65,22 +72,28 @@ class Writer:
             attrs["TEXCOORD_0"] = self.accessor(np.column_stack([mesh.uvs[:, 0], 1.0 - mesh.uvs[:, 1]]), "VEC2")
         if mesh.colors is not None:
             attrs["COLOR_0"] = self.accessor(mesh.colors, "VEC3")
+        name = safe(name)
         self.doc["meshes"].append({"name": name, "primitives": [
             {"attributes": attrs, "indices": self.accessor(mesh.faces.ravel(), "SCALAR", indices=True),
              "material": material, "mode": 4}]})
         self.doc["nodes"].append({"name": name, "mesh": len(self.doc["meshes"]) - 1})
         return len(self.doc["nodes"]) - 1
 
-    def lod(self, levels: list[int], coverage: list[float], up) -> None:
+    def lod(self, levels: list[int], coverage: list[float], up, notes: list[str] = ()) -> None:
         """Node levels[0] the finest level, the rest its lower levels (MSFT_lod), each shown down to its
-        coverage; under a root node that turns `up` to +Y, the scene's only root."""
+        coverage; every level node turns `up` to +Y itself (MSFT_lod's lower levels are no node's children, so an
+        importer that places them apart, as Blender does, still places them in the scene's orientation); the
+        finest is the scene's only root. `notes`: what the export said about the chain (asset.extras)."""
         first = self.doc["nodes"][levels[0]]
         if len(levels) > 1:
             first["extensions"] = {"MSFT_lod": {"ids": levels[1:]}}
             self.doc["extensionsUsed"] = ["MSFT_lod"]
         first["extras"] = {"MSFT_screencoverage": [float(c) for c in coverage]}
-        self.doc["nodes"].append({"name": "root", "rotation": up_to_y(up), "children": [levels[0]]})
-        self.doc["scenes"].append({"nodes": [len(self.doc["nodes"]) - 1]})
+        for n in levels:
+            self.doc["nodes"][n]["rotation"] = up_to_y(up)
+        self.doc["scenes"].append({"nodes": [levels[0]]})
+        if notes:
+            self.doc["asset"]["extras"] = {"vdmexport": list(notes)}
 
     def save(self, path: Path) -> None:
         """PATH.gltf and PATH.bin (its one buffer)."""
@@ -88,6 +101,13 @@ class Writer:
         self.doc["buffers"] = [{"uri": bin_path.name, "byteLength": len(self.blob)}]
         bin_path.write_bytes(bytes(self.blob))
         path.write_text(json.dumps({k: v for k, v in self.doc.items() if v != []}, indent=1) + "\n")
+
+
+def safe(name: str) -> str:
+    """A name importers keep as it is: Blender reads '.' as its own duplicate suffix (it renamed "coarse@0.03"),
+    three.js turns spaces, '.' and other characters to '_'; so '.' becomes 'p' (0.03: 0p03), anything outside
+    A-Z a-z 0-9 _ - becomes '_'."""
+    return re.sub(r"[^A-Za-z0-9_-]", "_", name.replace(".", "p"))
 
 
 def unit(v: np.ndarray) -> np.ndarray:
