@@ -92,3 +92,30 @@ def test_a_bundle_failing_with_any_error_is_named_and_the_others_render(library,
     runs = {x["scene"]: x for x in combined["runs"]}
     assert runs["ball"]["status"] == "failed" and "RuntimeError: the GL driver lost" in runs["ball"]["reason"]
     assert runs["cone"]["status"] == "rendered" and combined["filtering"]["reference_spp"] == 4
+
+
+@pytest.mark.gl
+def test_the_combined_folder_is_swapped_in_whole(library, tmp_path, monkeypatch):
+    """OUT is staged as every output folder is: a run that fails while combining leaves the previous OUT exactly as
+    it was (no half-written combined report beside new runs), and the next run finds each bundle's cached
+    references through its staging copy."""
+    from vdmrender import many
+
+    out = tmp_path / "renders"
+    assert CliRunner().invoke(render_main, [str(library), "-o", str(out), "--no-flip"]).exit_code == 0
+    before = {p.relative_to(out): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+
+    def broken(folder, result):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(many.html, "write", broken)
+    r = CliRunner().invoke(render_main, [str(library), "-o", str(out), "--no-flip", "--resolution", "24x24"])
+    assert r.exit_code != 0
+    after = {p.relative_to(out): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file()}
+    assert after == before
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".renders.")] == []
+    monkeypatch.undo()
+    r = CliRunner().invoke(render_main, [str(library), "-o", str(out), "--no-flip"])
+    assert r.exit_code == 0, r.output
+    rows = json.loads((out / "report.json").read_text())["rows"]
+    assert rows and all(x["reference_cached"] for x in rows)

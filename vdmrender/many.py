@@ -3,14 +3,19 @@ OUTDIR/<bundle name without .bundle>/ (its own atomic output folder and referenc
 one GL device; a bundle that fails is a row of the closing table and never stops the others. OUTDIR/report.json
 combines every run's rows, each keyed by scene, object and variant (`object` spelled SCENE/OBJECT, so that
 `--baseline` compares a combined report with an earlier one row by row), beside report.csv, error_vs_time.png and
-runs.md (scene, status, rows, seconds, reason)."""
+runs.md (scene, status, rows, seconds, reason). OUTDIR is staged whole as every output folder is
+(vdmbake.bundle.staging): the runs go to its staging folder, each starting from a hard-linked copy of its previous
+folder (so its cached references are found), and the previous OUTDIR stays as it was until the swap."""
 from __future__ import annotations
 
 import dataclasses
+import os
+import shutil
 import time
 from pathlib import Path
 
 from vdmbake import __version__
+from vdmbake.bundle.staging import StagedDir
 from vdmbake.errors import InputError, escaped, paragraph
 
 from . import baseline, html, report
@@ -43,20 +48,33 @@ def run_many(paths: list[Path], out: Path, opts, log=lambda m: None) -> dict:
     if (out / "manifest.json").is_file():
         raise InputError(f"{out}: is a bundle; -o names the folder the renders go to.")
     old = baseline.load(opts.baseline) if opts.baseline else None
-    out.mkdir(parents=True, exist_ok=True)
+    staged = StagedDir(out, "runs.md", "vdmrender output folder of many bundles")
+    try:
+        combined = _render_each(paths, staged, opts, old, log)
+        staged.commit()
+    except BaseException:
+        staged.abort()
+        raise
+    return combined
+
+
+def _render_each(paths: list[Path], staged: StagedDir, opts, old, log) -> dict:
     each = dataclasses.replace(opts, baseline=None, max_error_increase=None, max_slowdown=None)
     runs, rows, devices, filterings = [], [], [], []
     for k, path in enumerate(paths, 1):
         scene = path.name.removesuffix(".bundle")
-        log(f"[{k}/{len(paths)}] {path} -> {out / scene}")
+        log(f"[{k}/{len(paths)}] {path} -> {staged.path / scene}")
+        if staged.previous(scene).is_dir():   # its cached references, without touching the folder in place
+            shutil.copytree(staged.previous(scene), staged.tmp / scene, symlinks=True, copy_function=os.link)
         t0 = time.perf_counter()
         try:
-            result = run(path, out / scene, each, log)
+            result = run(path, staged.tmp / scene, each, log)
         except Exception as e:   # a GL, library or OS error of one bundle too: the others still render
             why = paragraph(str(e) if isinstance(e, InputError) else f"{type(e).__name__}: {e}")
             runs.append({"scene": scene, "bundle": str(path), "status": "failed", "rows": 0,
                          "seconds": round(time.perf_counter() - t0, 2), "reason": why})
             log(f"{scene}: failed: {why}")
+            shutil.rmtree(staged.tmp / scene, ignore_errors=True)   # no folder of a failed run
             continue
         filterings.append(result["filtering"])
         mine = [{**r, "scene": scene, "object": f"{scene}/{r['object']}"} for r in result["rows"]]
@@ -74,9 +92,9 @@ def run_many(paths: list[Path], out: Path, opts, log=lambda m: None) -> dict:
                                 **baseline.compare(old, combined, opts.max_error_increase, opts.max_slowdown,
                                                    opts.compare_devices)}
     combined = report.finite(combined)
-    report.write(out, combined)
-    (out / "runs.md").write_text(table(runs))
-    html.write(out, combined)
+    report.write(staged.tmp, combined)
+    (staged.tmp / "runs.md").write_text(table(runs))
+    html.write(staged.tmp, combined)
     return combined
 
 
