@@ -197,9 +197,9 @@ def test_empty_mesh_and_bad_settings_are_input_errors():
 
 
 def test_greedy_against_axis_baseline():
-    """Sec. 4.2: the greedy choice needs no more billboards than the axis projection. Measured:
-    sphere 5 greedy against 6 axis, both capturing every non-degenerate face; torus: the axis
-    views leave the inner ring's faces hidden (192 of 2304) that greedy views capture."""
+    """Sec. 4.2: the greedy choice needs fewer billboards than the axis projection on the sphere, both capturing
+    every non-degenerate face; on the torus the axis views leave the inner ring's faces hidden, and the greedy
+    views capture every face."""
     sphere = primitives.sphere(1.0, 48, 24)
     g, a = run(sphere), run(sphere, mode="axis")
     whole = len(sphere.faces) - degenerate_count(sphere)   # the poles' collapsed triangles

@@ -224,10 +224,10 @@ def look(eye, target, mesh, fov=50.0, size=64) -> Camera:
 
 
 def test_open_surface_seen_from_behind(ctx):
-    """An open sheet seen from behind: the reference (like the mesh) shades its back side, unlit. Before
-    issue 9 the thesis's march drew the lit front there (mean dLuv 45.95) and the improved march nothing
-    (IoU 0.000); now the thesis's hit is shaded from the side its ray comes from, and hier finds the
-    crossing from below. The improved march, kept as it was for the comparison, still draws nothing."""
+    """An open sheet seen from behind: the reference (like the mesh) shades its back side, unlit. Before issue 9
+    the thesis's march drew the lit front there and the improved march nothing (docs/impostors.md has the
+    figures); now the thesis's hit is shaded from the side its ray comes from, and hier finds the crossing from
+    below. The improved march, kept as it was for the comparison, still draws nothing."""
     mesh = wavy_sheet()
     baked = bb.bake(mesh, bb.Settings(resolution=64))
     bounds = mesh.bounding_sphere()
@@ -239,8 +239,8 @@ def test_open_surface_seen_from_behind(ctx):
 
 
 def test_camera_inside_a_closed_model(ctx):
-    """The camera inside a sphere, looking at its inner wall: every surface is seen from behind. Before
-    issue 9 nothing was drawn (improved: IoU 0.000, thesis 23.07 dLuv, IoU 0.72); hier draws the inner wall."""
+    """The camera inside a sphere, looking at its inner wall: every surface is seen from behind. Before issue 9
+    nothing was drawn; hier draws the inner wall."""
     mesh = primitives.sphere(1.0, 48, 24)
     baked = bb.bake(mesh, bb.Settings(resolution=64))
     cam = look([0.2, 0.1, 0.0], [1.0, 0.3, 0.2], mesh, fov=90.0)
@@ -264,10 +264,9 @@ def floating_plate() -> TriMesh:
 
 def test_no_curtain_below_a_depth_discontinuity(ctx):
     """The streak out of a thin tip (issue 9, a cow's horn): the bilinear surface of a depth map bridges a
-    discontinuity with a wall, here a curtain hung from the floating plate's rim down to the base, seen
-    through the gap from the side. Before issue 9 the improved march drew it (mean dLuv 18.38, IoU 0.80,
-    397 pixels the reference leaves empty), and hier without its bake's steep-cell rule as well (17.76,
-    408); cells steeper than any captured face are empty, and the gap stays open."""
+    discontinuity with a wall, here a curtain hung from the floating plate's rim down to the base, seen through
+    the gap from the side. Before issue 9 the improved march drew it, and hier without its bake's steep-cell
+    rule as well (docs/impostors.md); cells steeper than any captured face are empty, and the gap stays open."""
     mesh = floating_plate()
     baked = bb.bake(mesh, bb.Settings(resolution=64))
     cam = orbit_camera(mesh, 30, 6, distance=2.2)
@@ -282,9 +281,9 @@ def test_no_curtain_below_a_depth_discontinuity(ctx):
 
 def test_no_pinholes_without_the_coarse_mesh(ctx):
     """Pinholes without +coarse (issue 9): pixels inside the reference's silhouette (two pixels in) that no
-    billboard covers, over five views of the torus with no coarse mesh. Before issue 9: the thesis's march
-    855 (sec. 3.4's holes), the improved march 8 (steps of a texel cross thin slivers of surface); the
-    exact hierarchical march leaves none."""
+    billboard covers, over five views of the torus with no coarse mesh. The thesis's march leaves many (sec.
+    3.4's holes), the improved march a few (steps of a texel cross thin slivers of surface; docs/impostors.md
+    has the counts); the exact hierarchical march leaves none."""
     from scipy import ndimage
 
     from vdmrender import reference

@@ -45,9 +45,9 @@ def test_inverses():
 
 def test_second_order_in_c_t_against_the_exact_bend():
     """A point s along the surface and h below it, bent to curvature c exactly (vdmbake/kernels/vdm.py bend),
-    seen from the entry point at distance t and angle theta: the model puts the ray's point at that
-    distance over arc sigma sin(theta) and at a depth within 0.5 (c t)^2 t and 0.3 (c t)^2 t (measured
-    0.377 and 0.204 over |c t| <= 0.2, theta <= 85 degrees)."""
+    seen from the entry point at distance t and angle theta: the model puts the ray's point at that distance
+    over arc sigma sin(theta) and at a depth within 0.5 (c t)^2 t and 0.3 (c t)^2 t over |c t| <= 0.2, theta <=
+    85 degrees."""
     s, h, c = RNG.uniform(0, 0.3, 5 * N), RNG.uniform(0, 0.06, 5 * N), RNG.uniform(-2, 3, 5 * N)
     x, y = vdm.bend(s, h, c)
     t, th = np.hypot(x, y), np.arctan2(x, -y)

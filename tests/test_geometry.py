@@ -79,9 +79,9 @@ def test_primitive_normals_unit_and_uvs_in_range(key):
 
 @pytest.mark.parametrize("key", list(PRIMS))
 def test_primitive_normals_match_face_normal_estimate(key):
-    """Analytic normals vs area-weighted face normals of the (welded) fine mesh. Welding joins
-    the seam column and the pole rows, so every vertex, poles included, sees all its faces;
-    measured worst case 0.75 deg (the vase's open rim, where only one side contributes)."""
+    """Analytic normals vs area-weighted face normals of the (welded) fine mesh, within 1 degree. Welding joins
+    the seam column and the pole rows, so every vertex, poles included, sees all its faces (the worst is the
+    vase's open rim, where only one side contributes)."""
     m = _build(key)
     v, f, inv = _weld(m)
     est = vertex_normals(v, f)[inv]
@@ -262,9 +262,9 @@ def test_simplify_ratio_one_is_identity():
 
 
 def test_simplify_far_from_origin_same_shape():
-    """A welded sphere at the origin and the same at 1e5 simplify to the same shape: the
-    radius error of the coarse mesh is identical (measured 0.0037847 both ways, 1e-11 apart).
-    Without the re-centring in simplify() the far one comes out at 0.0064."""
+    """A welded sphere at the origin and the same at 1e5 simplify to the same shape: the radius error of the
+    coarse mesh is the same both ways (without the re-centring in simplify() the far one comes out clearly
+    worse)."""
     m = _welded_sphere(1.0)
     far = TriMesh(m.vertices + FAR, m.faces, m.normals)
     c0, c1 = coarse.simplify(m, 0.1), coarse.simplify(far, 0.1)

@@ -139,8 +139,8 @@ def test_mesostructure_size_changed(tmp_path):
 # ------------------------------------------------------------------------------------------ the parts
 
 def test_part_parsed_from_the_bytes_hashed(bundle, monkeypatch):
-    """A re-bake swapping the part between its checksum and its parse cannot mix bundles: the part is
-    read once and the very bytes hashed are parsed (the issue's 9.42 dLuv mix)."""
+    """A re-bake swapping the part between its checksum and its parse cannot mix bundles: the part is read once
+    and the very bytes hashed are parsed (the issue's mixed frame)."""
     b = Bundle(bundle)
     before = b.read(MESH, parts.MESH)
     unpack = parts.MESH.unpack
@@ -325,10 +325,9 @@ def _sphere_file(tmp_path: Path, scale: float, offset: float) -> str:
 
 @pytest.mark.parametrize("scale,offset", [(1e-8, 0.0), (1e-9, 0.0), (1.0, 1e11), (1e-9, 1e3)])
 def test_any_scale_and_offset(tmp_path, scale, offset):
-    """A unit sphere (162 vertices) at 1e-9 or 1e11 from the origin keeps its vertices (an absolute
-    weld made 18 or 1 of them) and renders like at unit scale. Measured mean dLuv at 32 px: 0.067-0.099 (0.067 at unit scale) at
-    every case (before: 0.06 on the wrong mesh, ZeroDivisionError, and with the vertices kept, 5.8 and 3.9
-    from the reference's own shadow acne)."""
+    """A unit sphere (162 vertices) at 1e-9 or 1e11 from the origin keeps its vertices (an absolute weld lost
+    most of them) and renders like at unit scale, within the bound (before: the wrong mesh, a ZeroDivisionError,
+    and with the vertices kept, the reference's own shadow acne)."""
     from scenes import bake_and_render, rows_by_label
 
     name = _sphere_file(tmp_path, scale, offset)
@@ -535,8 +534,8 @@ def test_concurrent_bakes_to_one_output(tmp_path):
 # ------------------------------------------------------------------------------------------ memory
 
 def test_memory_guard_counts_geometry(baked):
-    """The guard counts the largest object's faces and quadrics beside the pixels (the issue: a
-    1e6-atom render peaked at 13.7 GB for a 48x48 image while only the resolution was checked)."""
+    """The guard counts the largest object's faces and quadrics beside the pixels (the issue: a 1e6-atom render
+    at a tiny resolution ran out of memory while only the resolution was checked)."""
     from vdmrender.render import BYTES_PER_FACE, BYTES_PER_PIXEL, check_memory, geometry_bytes
 
     b = Bundle(baked)

@@ -53,10 +53,10 @@ def assert_traced_exactly(q, o, d, tmin, tmax):
 @pytest.mark.parametrize("aligned", [False, True])
 def test_rounded_coordinates_whose_box_faces_line_up(aligned, monkeypatch):
     """Equal spheres and axis-aligned cylinders on rounded coordinates (as PDB files round to 0.001 A):
-    axis-aligned boxes share face planes, and a walk that steps past one face skips the others in the
-    step. The one-box-a-quadric walk (bench/quadric_reference.py) got 4.3% of these rays wrong. With
-    every group box axis-aligned (aligned), the faces line up again, and the float64 check of the
-    faces stepped over alone keeps the tracer exact (without it: 1.3% wrong)."""
+    axis-aligned boxes share face planes, and a walk that steps past one face skips the others in the step (the
+    one-box-a-quadric walk of bench/quadric_reference.py got some of these rays wrong). With every group box
+    axis-aligned (aligned), the faces line up again, and the float64 check of the faces stepped over alone keeps
+    the tracer exact."""
     if aligned:
         monkeypatch.setattr(quadric_groups, "random_rotations", lambda n, seed=0: np.tile(np.eye(3), (n, 1, 1)))
     rng = np.random.default_rng(5)

@@ -267,9 +267,9 @@ def test_camera_inside_a_water_box(tmp_path):
 
 
 def test_camera_inside_a_cylinder(tmp_path):
-    """The eye inside a long capped cylinder looking at its far cap: one cap in front of the eye plane,
-    the other behind, so the caps' projected boxes do not bound what is seen; cylinder.vert covers
-    the screen then (before, only the far cap's box was drawn: IoU 0.072)."""
+    """The eye inside a long capped cylinder looking at its far cap: one cap in front of the eye plane, the
+    other behind, so the caps' projected boxes do not bound what is seen; cylinder.vert covers the screen then
+    (before, only the far cap's box was drawn and most of the frame was missing)."""
     s = "[[0, 0, -3, 0.5], [0, 0, 3, 0.5], [2.0, 1.0, 0.0, 0.8]]"
     c = "[[0, 0, -3, 0, 0, 3, 0.3], [0, 0, 3, 2.0, 1.0, 0.0, 0.2]]"
     rows = run(tmp_path, pose([0.05, 0.0, 0.2], [0.5, 0.3, 3.0]), s, c, w=96, h=72)
@@ -277,9 +277,9 @@ def test_camera_inside_a_cylinder(tmp_path):
 
 
 def test_tracer_from_inside_overlapping_quadrics_matches_brute_force():
-    """Rays from points inside many overlapping spheres and cylinders: the box walk's first hit is the
-    nearest of every quadric tested by brute force (the old walk got 27-67% of them wrong), and
-    shadow rays (any hit) with a short range agree on whether something lies within it."""
+    """Rays from points inside many overlapping spheres and cylinders: the box walk's first hit is the nearest
+    of every quadric tested by brute force (the old walk got many of them wrong), and shadow rays (any hit) with
+    a short range agree on whether something lies within it."""
     from vdmbake.kernels.quadrics import QuadricSet
     from vdmrender.reference import QuadricTracer
 
