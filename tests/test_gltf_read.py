@@ -242,7 +242,7 @@ def test_node_transforms_and_colours_follow_each_instance(tmp_path):
     want = np.r_[np.c_[place(trs), np.full((4, 3), 0.25)], np.c_[place(np.eye(4)), np.full((4, 3), 0.25)],
                  np.c_[place(trs @ [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 3], [0, 0, 0, 1]]),   # child after parent
                        np.tile(0.5 * np.array([0.75, 0.5, 0.25]), (4, 1))]]
-    got = np.c_[m.vertices, m.colors]
+    got = np.round(np.c_[m.vertices, m.colors], 9)   # sorted below: a rotation's 1e-16 must not reorder rows
     assert len(got) == len(want)
     assert np.allclose(got[np.lexsort(got.T)], want[np.lexsort(want.T)], rtol=0, atol=1e-6)
 

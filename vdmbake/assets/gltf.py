@@ -1,23 +1,35 @@
-"""glTF 2.0 colours, read from the file's own JSON and accessors. trimesh rounds COLOR_0 and baseColorFactor to 8
-bits (and misreads a 16-bit COLOR_0), and keeps COLOR_0 apart from the visual where the primitive has a material;
-glTF 2.0 gives both as linear multipliers of the base-colour texture (§3.9.2, §3.7.2.1). So they are read here as
-one linear colour per vertex, never re-encoded: the texture stays the file's sRGB picture, and the renderer and the
-reference multiply the two (mesh.frag, texture.surface_albedo). Textures read otherwise than the renderer reads
-every map are refused (check_texture_read)."""
+"""glTF 2.0 meshes read from the file's own JSON and accessors (not through trimesh, whose scene merge packs several
+base-colour pictures and the materials' factors into one atlas whose UVs point at other regions, and multiplies a
+factor in twice): the default scene's node tree with each node's transform (§3.5.2), each triangle primitive with
+its POSITION, NORMAL, TEXCOORD_0 and COLOR_0 in any legal encoding, sparse accessors (§3.6.2.3), morph targets at
+the default weights (§3.7.2.2), strips and fans (§3.7.2.1), and its material: baseColorFactor x COLOR_0 as one
+linear colour per vertex, applied once (§3.9.2), and the base-colour picture kept as the file's own sRGB texels.
+Several pictures (or pictured and unpictured primitives) in one file go into an atlas built here, each picture in
+its own tile with a one-texel gutter that repeats what the file's wrap mode reads past its edge, so the renderer's
+and the reference's bilinear read (vdmbake.common.texture.sample) reads every texel as the file means it."""
 from __future__ import annotations
 
+import base64
+import binascii
 import functools
+import io
+from dataclasses import dataclass
 
 import numpy as np
 
+from ..common import texture
 from ..errors import InputError, escaped
-from .references import gltf_buffer, gltf_tree
+from .references import check_picture, gltf_buffer, gltf_tree
 
-ALBEDO = "vdm_albedo"   # the vertex attribute that carries a primitive's colour through trimesh's to_mesh
 _REPEAT = 10497          # glTF 2.0 §5.26: the sampler's default wrapS/wrapT, as the renderer and the reference wrap
 _COLOUR_TYPES = {5121: np.dtype("u1"), 5123: np.dtype("<u2"), 5126: np.dtype("<f4")}   # COLOR_0's (§3.7.2.1)
 _COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}                # §3.6.2.2
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}          # what a primitive's attributes and indices are
+_DTYPES = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}     # §3.6.2.2, little-endian
+_WRAPS = (33071, 33648, _REPEAT)                                   # CLAMP_TO_EDGE, MIRRORED_REPEAT, REPEAT (§5.26)
+_MODES = {0: "points", 1: "lines", 2: "line loop", 3: "line strip", 4: "triangles", 5: "triangle strip",
+          6: "triangle fan"}                                       # §3.7.2.1
+MAX_ELEMENTS = 1 << 26     # the most elements of an accessor, or node instances, one file may make (our bound)
 
 
 def check_accessors(files: dict, origin: str) -> None:
@@ -89,105 +101,407 @@ def _accessor(tree: dict, index, buffer, shown: str) -> int:
     return count
 
 
-def gltf_albedo(scene, files: dict, textures: bool, origin: str) -> None:
-    """Give each triangle geometry of a glTF's trimesh `scene` (before to_mesh places its instances) its linear
-    albedo per vertex as the vertex attribute ALBEDO: its material's baseColorFactor times its COLOR_0 (`textures`:
-    the material is read, else only COLOR_0). None where no primitive gives a colour (the scene's material applies);
-    glTF's default 1 where another does. A base-colour texture read otherwise than the renderer reads it is refused."""
-    import trimesh
+@dataclass
+class Read:
+    """A glTF's triangles as one mesh, before vertices are merged (meshes.load_mesh_file)."""
+    vertices: np.ndarray               # (V, 3) in the scene's space
+    faces: np.ndarray                  # (F, 3) counter-clockwise seen from the front
+    normals: np.ndarray                # (V, 3) unit, the file's; NaN where its primitive has no NORMAL
+    uvs: np.ndarray | None             # (V, 2), v up (the file's v flipped, as texture maps are stored)
+    colors: np.ndarray | None          # (V, 3) linear baseColorFactor x COLOR_0; None where no primitive has either
+    texture: np.ndarray | None         # the albedo map read at `uvs` (the file's picture, or the atlas of them)
 
+
+def read_gltf(files: dict, textures: bool, origin: str, warn) -> Read:
+    """The triangles of the glTF among `files` (references.reached_files) as the default scene places them, with
+    their albedo (`textures`: materials read, else COLOR_0 only). Points and lines beside triangles are left out and
+    named to `warn`; a file of only those is refused by name. Every other fault is an InputError naming `origin`."""
     tree = gltf_tree(files)
-    buffer = functools.cache(lambda i: gltf_buffer(files, tree, i, origin))
+    buffer = functools.cache(lambda i: (_at(tree, "buffers", i, origin), gltf_buffer(files, tree, i, origin))[1])
     try:
-        # trimesh makes one geometry of each primitive it can draw (points, lines, triangles, strips), in file order
-        prims = [p for m in tree.get("meshes", []) for p in m["primitives"] if p.get("mode", 4) in (0, 1, 4, 5)]
-        pairs = [(g, p) for g, p in zip(scene.geometry.values(), prims) if isinstance(g, trimesh.Trimesh)]
-        if len(prims) != len(scene.geometry) or any(
-                len(g.vertices) != tree["accessors"][p["attributes"]["POSITION"]]["count"] for g, p in pairs):
-            raise InputError(f"{origin}: trimesh loads its primitives otherwise than the file lists them, so their "
-                             "colours cannot be matched to them; report the file.")
-        colours = [primitive_albedo(tree, p, buffer, textures, origin) for g, p in pairs]
-        if textures:
-            for g, p in pairs:
-                check_texture_read(tree, p, g.visual, origin)
-    except (KeyError, IndexError, TypeError, AttributeError, ValueError) as e:
-        raise InputError(f"{origin}: cannot read its colours or material ({type(e).__name__}: "
-                         f"{escaped(str(e))}); fix the file.") from None
-    if any(c is not None for c in colours):
-        for (g, p), c in zip(pairs, colours):
-            g.vertex_attributes[ALBEDO] = np.ones((len(g.vertices), 3)) if c is None else c
+        return _read(tree, files, buffer, textures, origin, warn)
+    except (KeyError, IndexError, TypeError, AttributeError, ValueError, OverflowError, RecursionError) as e:
+        raise InputError(f"{origin}: cannot read its meshes ({type(e).__name__}: {escaped(str(e))[:200]}); fix the "
+                         "file.") from None
 
 
-def primitive_albedo(tree: dict, prim: dict, buffer, textures: bool, origin: str) -> np.ndarray | None:
-    """(V, 3) linear albedo of a glTF primitive's vertices: baseColorFactor's RGB (if `textures`) times COLOR_0's
-    (alpha is coverage, not albedo); None where it has neither."""
-    pbr = tree["materials"][prim["material"]].get("pbrMetallicRoughness", {}) if textures and "material" in prim else {}
+def _at(tree: dict, key: str, index, origin: str):
+    """tree[key][index], refused unless `index` is an int in range (a negative one would count from the end)."""
+    items = tree.get(key, [])
+    if type(index) is not int or not 0 <= index < len(items):
+        raise InputError(f"{origin}: {key[:-1]} {escaped(repr(index))} does not exist (the file has {len(items)}); "
+                         "fix the file.")
+    return items[index]
+
+
+def _read(tree, files, buffer, textures, origin, warn) -> Read:
+    packed = [e for e in tree.get("extensionsUsed", [])
+              if e in ("KHR_draco_mesh_compression", "EXT_meshopt_compression")]
+    if packed:   # their accessors have no bufferView: read as zeros they would draw nothing, silently
+        raise InputError(f"{origin}: its geometry is compressed ({escaped(', '.join(packed))}), which is not read "
+                         "here; export it uncompressed (e.g. gltf-transform copy without compression).")
+    parts, skipped, geometry = [], {}, {}
+    for mesh_index, matrix, weights in _instances(tree, origin):
+        mesh = _at(tree, "meshes", mesh_index, origin)
+        weights = mesh.get("weights") if weights is None else weights   # a node's weights override (§3.7.2.2)
+        for p, prim in enumerate(mesh["primitives"]):
+            where, mode = f"mesh {mesh_index} primitive {p}", prim.get("mode", 4)
+            if mode in (0, 1, 2, 3):
+                skipped[where] = f"{where} draws {_MODES[mode]} (mode {mode})"
+                continue
+            if mode not in _MODES:
+                raise InputError(f"{origin}: {where} has mode {escaped(repr(mode))}; glTF 2.0 gives 0 to 6; fix the "
+                                 "file.")
+            key = (mesh_index, p, repr(weights))
+            if key not in geometry:
+                geometry[key] = _geometry(tree, buffer, prim, weights, f"{origin}: {where}")
+            pos, normal, uv, faces = geometry[key]
+            m3 = matrix[:3, :3]
+            det = np.linalg.det(m3)
+            if normal is not None:   # normals by the inverse transpose (§3.7.2.1 attributes are in the node's space)
+                normal = normal @ np.linalg.inv(m3) if abs(det) > 1e-300 else np.full_like(normal, np.nan)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    normal = normal / np.linalg.norm(normal, axis=1, keepdims=True)
+            parts.append(dict(where=where, prim=prim, pos=pos @ m3.T + matrix[:3, 3], normal=normal, uv=uv,
+                              faces=faces if det >= 0 else faces[:, ::-1]))   # a mirroring node flips the winding
+    if skipped and not parts:
+        raise InputError(f"{origin}: {'; '.join(skipped.values())}; only triangles are rendered (modes 4, 5 and 6) "
+                         "and the file has none; export its surfaces as triangles.")
+    if skipped:
+        warn(f"{origin}: left out {'; '.join(skipped.values())}: only triangles are rendered (modes 4, 5 and 6)")
+    if not parts:
+        return Read(np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)), None, None, None)
+    for part in parts:
+        part.update(_material(tree, part, buffer, textures, origin))
+    offsets = np.cumsum([0] + [len(q["pos"]) for q in parts[:-1]])
+    colours = [q["albedo"] for q in parts]
+    uvs, albedo_map = _texture(tree, files, buffer, parts, origin) if textures else (None, None)
+    if uvs is None and all(q["uv"] is not None for q in parts):
+        uvs = np.concatenate([q["uv"] for q in parts])
+    return Read(np.concatenate([q["pos"] for q in parts]),
+                np.concatenate([q["faces"] + o for q, o in zip(parts, offsets)]),
+                np.concatenate([np.full((len(q["pos"]), 3), np.nan) if q["normal"] is None else q["normal"]
+                                for q in parts]),
+                uvs,
+                None if all(c is None for c in colours) else
+                np.concatenate([np.ones((len(q["pos"]), 3)) if c is None else c for q, c in zip(parts, colours)]),
+                albedo_map)
+
+
+def _instances(tree: dict, origin: str):
+    """(mesh, 4x4 transform, node weights or None) for every node of the default scene that draws a mesh, its
+    transform the product of its ancestors' (§3.5.2); without scenes, the nodes no node names as a child; without
+    nodes, every mesh in place."""
+    nodes = tree.get("nodes", [])
+    if tree.get("scenes"):
+        roots = _at(tree, "scenes", tree.get("scene", 0), origin).get("nodes", [])
+    elif nodes:
+        children = {c for n in nodes for c in n.get("children", [])}
+        roots = [i for i in range(len(nodes)) if i not in children]
+    else:
+        return [(m, np.eye(4), None) for m in range(len(tree.get("meshes", [])))]
+    out, stack, visits = [], [(r, np.eye(4), ()) for r in reversed(roots)], 0
+    while stack:
+        i, parent, path = stack.pop()
+        visits += 1
+        if i in path or visits > MAX_ELEMENTS:
+            raise InputError(f"{origin}: node {escaped(repr(i))} is its own ancestor (or the node tree makes more than "
+                             f"{MAX_ELEMENTS} instances); glTF 2.0 node hierarchies are trees (§3.5.1); fix the file.")
+        node = _at(tree, "nodes", i, origin)
+        matrix = parent @ _local(node, f"{origin}: node {i}")
+        if "mesh" in node:
+            out.append((node["mesh"], matrix, node.get("weights")))
+        stack += [(c, matrix, path + (i,)) for c in reversed(node.get("children", []))]
+    return out
+
+
+def _local(node: dict, shown: str) -> np.ndarray:
+    """A node's 4x4 local transform: its column-major `matrix`, or T x R x S (rotation a unit quaternion x, y, z, w)."""
+    if "matrix" in node:
+        m = np.array(node["matrix"], np.float64).reshape(4, 4).T
+    else:
+        t = np.array(node.get("translation", [0, 0, 0]), np.float64).reshape(3)
+        x, y, z, w = np.array(node.get("rotation", [0, 0, 0, 1]), np.float64).reshape(4)
+        scale = np.array(node.get("scale", [1, 1, 1]), np.float64).reshape(3)
+        r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        m = np.eye(4)
+        m[:3, :3], m[:3, 3] = r * scale, t
+    if not np.isfinite(m).all():
+        raise InputError(f"{shown}: its transform has a non-finite number; fix the file.")
+    return m
+
+
+def _geometry(tree, buffer, prim, weights, where):
+    """A primitive's positions, normals (or None), UVs (or None, v flipped) and triangles, morphed at `weights`."""
+    attrs = prim["attributes"]
+    pos = values(tree, attrs["POSITION"], buffer, f"{where} POSITION", ("VEC3",))
+    count = len(pos)
+    normal = values(tree, attrs["NORMAL"], buffer, f"{where} NORMAL", ("VEC3",)) if "NORMAL" in attrs else None
+    uv = values(tree, attrs["TEXCOORD_0"], buffer, f"{where} TEXCOORD_0", ("VEC2",)) if "TEXCOORD_0" in attrs else None
+    for name, got in (("NORMAL", normal), ("TEXCOORD_0", uv)):
+        if got is not None and len(got) != count:
+            raise InputError(f"{where}: {name} has {len(got)} entries, POSITION {count}; glTF 2.0 gives every "
+                             "attribute one entry per vertex; fix the file.")
+    targets = prim.get("targets", [])
+    weights = [0.0] * len(targets) if weights is None else weights
+    if len(weights) != len(targets) or not all(type(w) in (int, float) and np.isfinite(w) for w in weights):
+        raise InputError(f"{where}: {len(targets)} morph targets and weights {escaped(repr(weights))[:100]}; glTF "
+                         "2.0 gives one finite weight per target (§3.7.2.2); fix the file.")
+    for t, (target, w) in enumerate(zip(targets, weights)):
+        for name, index in target.items():   # morphed = base + sum of weight x target delta (§3.7.2.2)
+            if w == 0 or name == "TANGENT":
+                continue
+            if name not in ("POSITION", "NORMAL") or (name == "NORMAL" and normal is None):
+                raise InputError(f"{where}: morph target {t} moves {escaped(name)} at weight {w:g}; only POSITION "
+                                 "and NORMAL targets are applied here; bake the morph into the mesh, or set that "
+                                 "weight to 0.")
+            delta = values(tree, index, buffer, f"{where} morph target {t} {name}", ("VEC3",))
+            if len(delta) != count:
+                raise InputError(f"{where}: morph target {t} {name} has {len(delta)} entries, POSITION {count}; fix "
+                                 "the file.")
+            if name == "POSITION":
+                pos = pos + w * delta
+            else:
+                normal = normal + w * delta
+    if "indices" in prim:
+        idx = values(tree, prim["indices"], buffer, f"{where} indices", ("SCALAR",), (5121, 5123, 5125), raw=True)
+        idx = idx[:, 0].astype(np.int64)
+        if len(idx) and idx.max() >= count:
+            raise InputError(f"{where}: index {int(idx.max())} reaches past its {count} vertices; fix the file.")
+    else:
+        idx = np.arange(count)
+    n = len(idx) - 2
+    mode = prim.get("mode", 4)
+    if mode == 4:
+        faces = idx[:len(idx) // 3 * 3].reshape(-1, 3)
+    elif n <= 0:
+        faces = np.zeros((0, 3), np.int64)
+    elif mode == 5:   # strip: triangle i is (i, i+1, i+2), its second and third swapped when i is odd (§3.7.2.1)
+        i = np.arange(n)
+        faces = np.column_stack([idx[i], idx[i + 1 + i % 2], idx[i + 2 - i % 2]])
+    else:             # fan: triangle i is (i+1, i+2, 0)
+        i = np.arange(n)
+        faces = np.column_stack([idx[i + 1], idx[i + 2], np.full(n, idx[0])])
+    if mode != 4:     # a strip's or fan's repeated index makes a triangle of no area, as a restart: dropped
+        faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
+    if uv is not None:
+        uv = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]])   # glTF's v runs down the picture; maps have row 0 at v = 0
+    return pos, normal, uv, faces
+
+
+def values(tree: dict, index, buffer, shown: str, types, components=tuple(_DTYPES), raw: bool = False) -> np.ndarray:
+    """(count, width) elements of accessor `index`: from its bufferView (or zeros without one), its sparse part
+    written over them (§3.6.2.3), as float64 with normalized integers mapped to [0, 1] or [-1, 1] (§3.11), or as
+    stored (`raw`). `types` and `components` are what the attribute allows."""
+    if type(index) is not int or not 0 <= index < len(tree.get("accessors", [])):
+        raise InputError(f"{shown}: no such accessor ({escaped(repr(index))}); fix the file.")
+    a = tree["accessors"][index]
+    shown = f"{shown} (accessor {index})"
+    ct, kind, count = a.get("componentType"), a.get("type"), a.get("count")
+    if ct not in components or kind not in types or type(count) is not int or not 1 <= count <= MAX_ELEMENTS:
+        raise InputError(f"{shown}: {escaped(repr(kind))} of componentType {escaped(repr(ct))}, count "
+                         f"{escaped(repr(count))}; allowed here: {' or '.join(types)} of componentType "
+                         f"{sorted(components)}, a count from 1 to {MAX_ELEMENTS}; fix the file.")
+    dtype, width = np.dtype(_DTYPES[ct]), _WIDTHS[kind]
+    out = (_strided(tree, a["bufferView"], a.get("byteOffset", 0), count, dtype, width, buffer, shown).copy()
+           if "bufferView" in a else np.zeros((count, width), dtype))
+    sparse = a.get("sparse")
+    if sparse is not None:
+        n, ix = sparse["count"], sparse["indices"]
+        if type(n) is not int or not 1 <= n <= count or ix.get("componentType") not in (5121, 5123, 5125):
+            raise InputError(f"{shown}: sparse count {escaped(repr(n))} with indices of componentType "
+                             f"{escaped(repr(ix.get('componentType')))}; glTF 2.0 gives 1 to the accessor's count "
+                             "(5121, 5123 or 5125); fix the file.")
+        at = _strided(tree, ix["bufferView"], ix.get("byteOffset", 0), n, np.dtype(_DTYPES[ix["componentType"]]), 1,
+                      buffer, f"{shown} sparse indices")[:, 0].astype(np.int64)
+        if (np.diff(at) <= 0).any() or at[-1] >= count:
+            raise InputError(f"{shown}: its sparse indices are not strictly increasing below its count {count}, as "
+                             "glTF 2.0 requires (§3.6.2.3); fix the file.")
+        out[at] = _strided(tree, sparse["values"]["bufferView"], sparse["values"].get("byteOffset", 0), n, dtype,
+                           width, buffer, f"{shown} sparse values")
+    if raw:
+        return out
+    result = out.astype(np.float64)
+    if a.get("normalized") is True and dtype.kind in "iu":
+        result = np.maximum(result / np.iinfo(dtype).max, -1.0)
+    if not np.isfinite(result).all():
+        raise InputError(f"{shown}: NaN or Inf among its values; fix the file.")
+    return result
+
+
+def _strided(tree, view_index, offset, count, dtype, width, buffer, shown) -> np.ndarray:
+    """(count, width) elements of `dtype` from bufferView `view_index` at byte `offset`, its byteStride apart,
+    each within the view and the view within its buffer (§3.6.2.4)."""
+    view = _at(tree, "bufferViews", view_index, shown)
+    item = dtype.itemsize * width
+    start, length, stride = view.get("byteOffset", 0), view.get("byteLength"), view.get("byteStride", item)
+    if not all(type(x) is int and x >= 0 for x in (offset, start, length, stride)) or stride < item:
+        raise InputError(f"{shown}: bufferView {view_index} or its accessor's byteOffset, byteLength or byteStride "
+                         "is not a non-negative integer (a stride at least one element); fix the file.")
+    data = buffer(view["buffer"])
+    if offset + stride * (count - 1) + item > length or start + length > len(data):
+        raise InputError(f"{shown}: {count} elements from byte {offset} of bufferView {view_index} reach past it or "
+                         "its buffer; fix the file.")
+    return np.ndarray((count, width), dtype, data, start + offset, (stride, dtype.itemsize))
+
+
+def _material(tree, part, buffer, textures, origin) -> dict:
+    """A part's `albedo` ((V, 3) baseColorFactor x COLOR_0, or None), `picture` (the base-colour texture as
+    (image, wrapS, wrapT), or None) and `shown` (its primitive and material, for messages)."""
+    prim, where = part["prim"], part["where"]
+    index = prim.get("material")
+    shown = f"{origin}: {where}" + ("" if index is None else f" (material {index})")
+    pbr = _at(tree, "materials", index, shown).get("pbrMetallicRoughness", {}) if textures and index is not None \
+        else {}
     factor = pbr.get("baseColorFactor")
     if factor is not None and not (isinstance(factor, list) and len(factor) == 4 and all(
             type(x) in (int, float) and 0 <= x <= 1 for x in factor)):
-        raise InputError(f"{origin}: material {prim['material']}'s baseColorFactor is {escaped(repr(factor))}; "
+        raise InputError(f"{origin}: material {index}'s baseColorFactor is {escaped(repr(factor))}; "
                          "glTF 2.0 gives four numbers from 0 to 1; fix the file.")
-    colour = colour_0(tree, prim["attributes"]["COLOR_0"], buffer, origin) if "COLOR_0" in prim["attributes"] else None
-    if factor is None and colour is None:
-        return None
-    rgb = np.ones((tree["accessors"][prim["attributes"]["POSITION"]]["count"], 3)) if colour is None else colour
-    return rgb * (1.0 if factor is None else np.asarray(factor[:3], np.float64))
+    attrs = prim["attributes"]
+    colour = colour_0(tree, attrs["COLOR_0"], buffer, origin) if "COLOR_0" in attrs else None
+    if colour is not None and len(colour) != len(part["pos"]):
+        raise InputError(f"{shown}: COLOR_0 has {len(colour)} entries, POSITION {len(part['pos'])}; fix the file.")
+    albedo = None
+    if factor is not None or colour is not None:   # the factor applied once, here, to COLOR_0 (§3.9.2)
+        albedo = (np.ones((len(part["pos"]), 3)) if colour is None else colour) * (
+            1.0 if factor is None else np.asarray(factor[:3], np.float64))
+    info = pbr.get("baseColorTexture")
+    if info is None:
+        return {"albedo": albedo, "picture": None, "shown": shown}
+    said = f"{shown}: its base-colour texture"
+    transform = info.get("extensions", {}).get("KHR_texture_transform")
+    if info.get("texCoord", 0) != 0 or (transform or {}).get("texCoord", 0) != 0:
+        raise InputError(f"{said} is read at another TEXCOORD than TEXCOORD_0, which is the only one read; "
+                         'export it with one UV set, or set textures = "ignore" on the object.')
+    if transform is not None and (transform.get("offset", [0, 0]) != [0, 0] or transform.get("rotation", 0) != 0
+                                  or transform.get("scale", [1, 1]) != [1, 1]):
+        raise InputError(f"{said} has a KHR_texture_transform ({escaped(repr(transform))}), which is not "
+                         'applied here; bake it into the UVs, or set textures = "ignore" on the object.')
+    if part["uv"] is None:
+        raise InputError(f"{said} is read at TEXCOORD_0, which the primitive does not have; fix the file, or set "
+                         'textures = "ignore" on the object.')
+    tex = _at(tree, "textures", info.get("index"), said)
+    if "source" not in tex:
+        raise InputError(f"{said} names its picture only through an extension ({escaped(repr(list(tex)))[:80]}), "
+                         "which is not read; export a PNG or JPEG source, or set textures = \"ignore\".")
+    sampler = _at(tree, "samplers", tex["sampler"], said) if "sampler" in tex else {}
+    wrap = (sampler.get("wrapS", _REPEAT), sampler.get("wrapT", _REPEAT))
+    if not all(w in _WRAPS for w in wrap):
+        raise InputError(f"{said}: sampler wrap modes {escaped(repr(wrap))}; glTF 2.0 gives {list(_WRAPS)}; fix the "
+                         "file.")
+    _at(tree, "images", tex["source"], said)
+    return {"albedo": albedo, "picture": (tex["source"], *wrap), "shown": shown}
+
+
+def _picture(tree, files, buffer, source: int, origin: str) -> np.ndarray:
+    """Image `source` as an albedo map (texture.from_image): a file the glTF names, a data: URI or a bufferView."""
+    from PIL import Image
+
+    image, shown = tree["images"][source], f"{origin}: image {source}"
+    if "uri" in image:
+        uri = image["uri"]
+        if uri.startswith("data:"):
+            try:
+                data = base64.b64decode(uri.partition(",")[2], validate=True)
+            except binascii.Error:
+                raise InputError(f"{shown}: its data: URI is not base64; fix the file.") from None
+        else:
+            spec = next(chain for chain in files if len(chain) == 1)
+            data = files[spec + (uri,)].data
+    else:
+        view = _at(tree, "bufferViews", image.get("bufferView"), shown)
+        data = _strided(tree, image["bufferView"], 0, view["byteLength"], np.dtype("u1"), 1, buffer, shown).tobytes()
+    check_picture(data, shown)
+    with Image.open(io.BytesIO(data)) as im:
+        return texture.from_image(im)
+
+
+def _texture(tree, files, buffer, parts, origin):
+    """(UVs, albedo map) of the parts: None, None where none has a base-colour texture; the file's picture and
+    UVs where every part reads one picture the same way; else an atlas of every (picture, wrapS, wrapT) and a white
+    tile for the unpictured parts, with UVs moved into the tiles."""
+    keys = list(dict.fromkeys(q["picture"] for q in parts if q["picture"] is not None))
+    if not keys:
+        return None, None
+    pictures = {k: _picture(tree, files, buffer, k[0], origin) for k in keys}
+    if len(keys) == 1 and all(q["picture"] is not None for q in parts):
+        picture, uvs = pictures[keys[0]], np.concatenate([q["uv"] for q in parts])
+        for axis, key in enumerate(("wrapS", "wrapT")):   # the map is read wrapping around, as REPEAT
+            mode, size = keys[0][1 + axis], picture.shape[1 - axis]
+            near = (0.5 / size <= uvs[:, axis]) & (uvs[:, axis] <= 1 - 0.5 / size)
+            if mode != _REPEAT and not near.all():
+                raise InputError(f"{parts[0]['shown']}: its base-colour texture has {key} = {mode} and UVs that reach "
+                                 f"its edge, where only REPEAT ({_REPEAT}) is read as the file means; set {key} to "
+                                 f"{_REPEAT} (or leave it out), or set textures = \"ignore\" on the object.")
+        return uvs, picture
+    tiles = [(k, pictures[k]) for k in keys]
+    if any(q["picture"] is None for q in parts):
+        tiles.append((None, np.full((1, 1, 3), 255, np.uint8)))   # glTF's default base colour: white (§3.9.2)
+    atlas, place = _atlas(tiles, origin)
+    h, w = atlas.shape[:2]
+    uvs = []
+    for q in parts:
+        x, y, tw, th = place[q["picture"]]
+        if q["picture"] is None:
+            uvs.append(np.tile([(x + 0.5 * tw) / w, (y + 0.5 * th) / h], (len(q["pos"]), 1)))
+            continue
+        uv = q["uv"]
+        if not ((uv >= 0) & (uv <= 1)).all():   # NaN fails too
+            raise InputError(f"{q['shown']}: TEXCOORD_0 outside [0, 1] (u {uv[:, 0].min():.3g} to "
+                             f"{uv[:, 0].max():.3g}, v {1 - uv[:, 1].max():.3g} to {1 - uv[:, 1].min():.3g}), and the "
+                             "file has several base-colour pictures, read here from one atlas where a wrapped UV would "
+                             "read a neighbouring picture; keep each primitive's UVs within [0, 1], give the file one "
+                             'picture, or set textures = "ignore" on the object.')
+        uvs.append(np.column_stack([(x + uv[:, 0] * tw) / w, (y + uv[:, 1] * th) / h]))
+    return np.concatenate(uvs), atlas
+
+
+def _atlas(tiles, origin):
+    """One albedo map holding every tile (key, map) on shelves, each framed by a one-texel gutter that repeats what
+    its sampler reads past the edge (REPEAT: the opposite edge; CLAMP_TO_EDGE and MIRRORED_REPEAT: the edge itself),
+    so that bilinear reads at UVs in [0, 1] see the texels the file's sampler sees. Returns the map and, per key,
+    the tile's (x, y, width, height) in texels without its gutter."""
+    framed = []
+    for key, m in tiles:
+        wrap_s, wrap_t = (_REPEAT, _REPEAT) if key is None else key[1:]
+        m = np.pad(m, ((1, 1), (0, 0), (0, 0)), mode="wrap" if wrap_t == _REPEAT else "edge")
+        framed.append((key, np.pad(m, ((0, 0), (1, 1), (0, 0)), mode="wrap" if wrap_s == _REPEAT else "edge")))
+    width = max(max(m.shape[1] for _, m in framed), int(np.ceil(np.sqrt(sum(m.shape[0] * m.shape[1]
+                                                                             for _, m in framed)))))
+    x = y = shelf = 0
+    spots = []
+    for key, m in sorted(framed, key=lambda t: -t[1].shape[0]):
+        if x + m.shape[1] > width:
+            x, y, shelf = 0, y + shelf, 0
+        spots.append((key, m, x, y))
+        x, shelf = x + m.shape[1], max(shelf, m.shape[0])
+    height = y + shelf
+    if width * height > texture.MAX_PIXELS:
+        raise InputError(f"{origin}: its {len(tiles)} base-colour pictures make an atlas of {width} x {height} texels,"
+                         f" over the {texture.MAX_PIXELS} accepted; scale them down, or set textures = \"ignore\".")
+    atlas = np.zeros((height, width, 3), np.uint8)
+    place = {}
+    for key, m, x, y in spots:
+        atlas[y:y + m.shape[0], x:x + m.shape[1]] = m
+        place[key] = (x + 1, y + 1, m.shape[1] - 2, m.shape[0] - 2)
+    return atlas, place
 
 
 def colour_0(tree: dict, index: int, buffer, origin: str) -> np.ndarray:
     """(V, 3) linear RGB of COLOR_0 accessor `index`: float, or unsigned byte or short normalized to [0, 1]
-    (glTF 2.0 §3.7.2.1; divided by 255 or 65535), laid out as §3.6.2 says (the view's and the accessor's
-    byteOffset, the view's byteStride)."""
-    a = tree["accessors"][index]
+    (glTF 2.0 §3.7.2.1; divided by 255 or 65535), sparse or not."""
+    a = tree["accessors"][index] if type(index) is int and 0 <= index < len(tree.get("accessors", [])) else {}
     dtype, width = _COLOUR_TYPES.get(a.get("componentType")), {"VEC3": 3, "VEC4": 4}.get(a.get("type"))
-    shown = f"{origin}: COLOR_0 accessor {index}"
+    shown = f"{origin}: COLOR_0 accessor {escaped(repr(index))}"
     if dtype is None or width is None or a.get("normalized", False) != (dtype.kind == "u"):
         raise InputError(f"{shown} is {escaped(repr(a.get('type')))} of componentType "
                          f"{escaped(repr(a.get('componentType')))}{' normalized' if a.get('normalized') else ''}; "
                          "glTF 2.0 allows VEC3 or VEC4 of float (5126), or of normalized unsigned byte (5121) or "
                          "short (5123); fix the file.")
-    if "bufferView" not in a or "sparse" in a:
-        raise InputError(f"{shown} is sparse or compressed (no bufferView); not read here: export it uncompressed.")
-    view = tree["bufferViews"][a["bufferView"]]
-    item = dtype.itemsize * width
-    stride, start = view.get("byteStride", item), view.get("byteOffset", 0) + a.get("byteOffset", 0)
-    data = buffer(view["buffer"])
-    if start + stride * (a["count"] - 1) + item > min(len(data), view.get("byteOffset", 0) + view["byteLength"]):
-        raise InputError(f"{shown} reaches past its bufferView or buffer; fix the file.")
-    rgb = np.ndarray((a["count"], width), dtype, data, start, (stride, dtype.itemsize))[:, :3].astype(np.float64)
-    rgb /= np.iinfo(dtype).max if dtype.kind == "u" else 1.0
-    if not ((rgb >= 0) & (rgb <= 1)).all():    # NaN fails too
-        raise InputError(f"{shown} has values outside [0, 1] (or NaN); a colour is a multiplier from 0 to 1; "
-                         "fix the file.")
+    rgb = values(tree, index, buffer, f"{origin}: COLOR_0", ("VEC3", "VEC4"), (5121, 5123, 5126))[:, :3]
+    if not ((rgb >= 0) & (rgb <= 1)).all():
+        raise InputError(f"{shown} has values outside [0, 1]; a colour is a multiplier from 0 to 1; fix the file.")
     return rgb
-
-
-def check_texture_read(tree: dict, prim: dict, visual, origin: str) -> None:
-    """Refuse a primitive's base-colour texture read otherwise than the renderer and the reference read every map:
-    at TEXCOORD_0 (trimesh reads no other), untransformed (KHR_texture_transform other than the identity), and
-    wrapping around (the default wrapS/wrapT, §5.26); another wrap mode only where a UV reaches within half a texel
-    of an edge or past it, where the mode decides what bilinear filtering reads."""
-    info = tree["materials"][prim["material"]].get("pbrMetallicRoughness", {}).get("baseColorTexture") \
-        if "material" in prim else None
-    if info is None:
-        return
-    shown = f"{origin}: material {prim['material']}'s base-colour texture"
-    transform = info.get("extensions", {}).get("KHR_texture_transform")
-    if info.get("texCoord", 0) != 0 or (transform or {}).get("texCoord", 0) != 0:
-        raise InputError(f"{shown} is read at another TEXCOORD than TEXCOORD_0, which is the only one read; "
-                         'export it with one UV set, or set textures = "ignore" on the object.')
-    if transform is not None and (transform.get("offset", [0, 0]) != [0, 0] or transform.get("rotation", 0) != 0
-                                  or transform.get("scale", [1, 1]) != [1, 1]):
-        raise InputError(f"{shown} has a KHR_texture_transform ({escaped(repr(transform))}), which is not "
-                         'applied here; bake it into the UVs, or set textures = "ignore" on the object.')
-    sampler = tree["textures"][info["index"]].get("sampler")
-    sampler = tree["samplers"][sampler] if sampler is not None else {}
-    image, uv = getattr(visual.material, "baseColorTexture", None), getattr(visual, "uv", None)
-    if image is None or uv is None:
-        return   # nothing read
-    for axis, key in enumerate(("wrapS", "wrapT")):
-        mode, size = sampler.get(key, _REPEAT), image.size[axis]
-        if mode != _REPEAT and not ((0.5 / size <= uv[:, axis]) & (uv[:, axis] <= 1 - 0.5 / size)).all():
-            raise InputError(f"{shown} has {key} = {escaped(repr(mode))} and UVs that reach its edge, where "
-                             f"only REPEAT ({_REPEAT}) is read as the file means; set {key} to {_REPEAT} (or "
-                             'leave it out), or set textures = "ignore" on the object.')

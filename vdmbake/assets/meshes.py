@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import io
+import sys
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,7 +15,7 @@ import numpy as np
 from ..common import texture
 from ..common.colour import srgb8_to_linear
 from ..errors import InputError, escaped
-from .gltf import ALBEDO, check_accessors, gltf_albedo
+from .gltf import check_accessors, read_gltf
 from .references import check_picture, described, names_texture, reached_files
 
 
@@ -44,6 +45,7 @@ class TriMesh:
     colors: np.ndarray | None = None   # (V, 3) linear RGB albedo per vertex (the asset's own), or None
     texture: np.ndarray | None = None  # the asset's albedo map (vdmbake.common.texture: (H, W, 3) uint8 sRGB, row 0
                                        # at v = 0), read at `uvs`; None where it has none
+    file_normals: bool = False         # normals the asset file gives (glTF NORMAL), which coarse levels follow
 
     @staticmethod
     def concatenate(parts: list["TriMesh"]) -> "TriMesh":
@@ -55,7 +57,8 @@ class TriMesh:
                        None if any(u is None for u in uvs) else np.concatenate(uvs),
                        None if any(f is None for f in frames) else SurfaceFrame.concatenate(frames),
                        None if any(c is None for c in colors) else np.concatenate(colors),
-                       parts[0].texture if all(p.texture is parts[0].texture for p in parts) else None)
+                       parts[0].texture if all(p.texture is parts[0].texture for p in parts) else None,
+                       any(p.file_normals for p in parts))
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre of the bounding box and the radius that encloses every vertex (infinite, without a warning,
@@ -169,7 +172,7 @@ def transformed(mesh: TriMesh, transform) -> TriMesh:
         f = mesh.frame
         frame = SurfaceFrame(f.dpdu @ m.T, f.dpdv @ m.T, f.k1 / sx, f.k2 / sx, f.d1 @ rotation_xyz(transform.rotate_deg).T)
     return TriMesh(mesh.vertices @ m.T + np.asarray(transform.translate), faces, n, mesh.uvs, frame, mesh.colors,
-                   mesh.texture)
+                   mesh.texture, mesh.file_normals)
 
 
 def validate(mesh: TriMesh, origin: str) -> TriMesh:
@@ -221,15 +224,17 @@ def file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
+def load_mesh_file(path: Path, textures: bool = True, warn=None) -> TriMesh:
     """Any format trimesh reads, merged to one triangle mesh with area-weighted vertex normals, and with its
     texture as an albedo map if `textures` and it has one. trimesh reads only the bytes of
     `references.reached_files`, through a resolver, and each texture file is checked first
     (`references.check_picture`); an embedded picture (a GLB's) over texture.MAX_PIXELS is left out undecoded.
-    A glTF's colours per vertex are read here, not by trimesh (gltf_albedo)."""
+    glTF is read here (gltf.read_gltf), not by trimesh: each primitive with its own material, and its NORMALs kept
+    where it has them. `warn` hears what of the file was left out (default: printed to stderr)."""
     import trimesh  # imported here: only scenes with mesh files pay for it
     from PIL import Image
 
+    warn = warn or (lambda m: print(f"warning: {m}", file=sys.stderr))
     shown = escaped(str(path))
     files = reached_files(path, str(path), textures)
     for chain, f in files.items():
@@ -244,12 +249,13 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
         Image.MAX_IMAGE_PIXELS = texture.MAX_PIXELS
         with warnings.catch_warnings():   # a picture over the limit: refused, not decoded with a warning
             warnings.simplefilter("error", Image.DecompressionBombWarning)
-            scene = trimesh.load_scene(io.BytesIO(files[(str(path),)].data), resolver=resolver,
-                                       file_type=trimesh.util.split_extension(path.name, special=["tar.gz", "tar.bz2"]),
-                                       process=False, skip_materials=not textures)
             if gltf:
-                gltf_albedo(scene, files, textures, shown)
-            loaded = scene.to_mesh()   # every instance with its node's transform applied (glTF 2.0 §3.5.2)
+                loaded = read_gltf(files, textures, shown, warn)
+            else:
+                loaded = trimesh.load_scene(io.BytesIO(files[(str(path),)].data), resolver=resolver,
+                                            file_type=trimesh.util.split_extension(path.name,
+                                                                                   special=["tar.gz", "tar.bz2"]),
+                                            process=False, skip_materials=not textures).to_mesh()
     except InputError:
         raise
     except ImportError as e:  # trimesh reads some formats through optional packages
@@ -264,29 +270,39 @@ def load_mesh_file(path: Path, textures: bool = True) -> TriMesh:
         raise InputError(f"{shown}: vertices of shape {vertices.shape}, not three coordinates each.")
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
     validate(TriMesh(vertices, faces, np.zeros_like(vertices)), shown)
-    # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces; vertices
-    # with different texture coordinates stay apart (UV seams), and the UVs are kept.
-    visual = getattr(loaded, "visual", None)
-    uv = getattr(visual, "uv", None)
-    uv = np.asarray(uv, np.float64) if uv is not None else None
-    uv = uv if uv is not None and uv.shape == (len(vertices), 2) else None
-    albedo_map = base_colour_map(visual) if uv is not None else None
-    if textures and albedo_map is None and names_texture(path.suffix[1:].lower(), files):
-        raise InputError(f"{shown}: its material names a base-colour texture, but the mesh loads without one (no "
-                         "texture coordinates for every vertex, a material trimesh cannot parse, or an embedded "
-                         'picture it cannot decode); fix the file, or set textures = "ignore" on the object.')
+    if gltf:
+        uv, albedo_map, colors, normals = loaded.uvs, loaded.texture, loaded.colors, loaded.normals
+    else:
+        visual = getattr(loaded, "visual", None)
+        uv = getattr(visual, "uv", None)
+        uv = np.asarray(uv, np.float64) if uv is not None else None
+        uv = uv if uv is not None and uv.shape == (len(vertices), 2) else None
+        albedo_map = base_colour_map(visual) if uv is not None else None
+        colors, normals = vertex_colors(visual, len(vertices)), np.full_like(vertices, np.nan)
+        if textures and albedo_map is None and names_texture(path.suffix[1:].lower(), files):
+            raise InputError(f"{shown}: its material names a base-colour texture, but the mesh loads without one (no "
+                             "texture coordinates for every vertex, a material trimesh cannot parse, or an embedded "
+                             'picture it cannot decode); fix the file, or set textures = "ignore" on the object.')
     if albedo_map is not None and not np.isfinite(uv).all():
         raise InputError(f"{shown}: {int((~np.isfinite(uv)).any(1).sum())} vertices have NaN or Inf texture "
                          'coordinates, where its texture is read; fix the UVs, or set textures = "ignore" on the '
                          "object.")
-    colors = loaded.vertex_attributes.get(ALBEDO) if gltf else vertex_colors(visual, len(vertices))
-    # vertices that differ in colour stay apart too: the colour is an attribute like the UV
-    v, f, uvs, colors = merge_vertices(vertices, faces, uv, None if colors is None else np.asarray(colors, np.float64))
+    # Merge coincident vertices (STL and OBJ split them) so normals are smooth across faces; vertices with different
+    # texture coordinates (UV seams), colours or file normals (hard edges) stay apart.
+    given = np.isfinite(normals).all(1)
+    keyed = np.where(given[:, None], normals, 2.0)    # 2: no normal from the file
+    extra = keyed if colors is None else np.column_stack([np.asarray(colors, np.float64), keyed])
+    v, f, uvs, extra = merge_vertices(vertices, faces, uv, extra)
+    colors = None if colors is None else extra[:, :3]
+    keyed = extra[:, -3:]
     # Normals over the surface, not over the UV charts: a vertex split at a UV seam gets the normal
-    # of all its faces on both sides, so shading and displacement agree across the seam.
+    # of all its faces on both sides, so shading and displacement agree across the seam; the file's where it has
+    # them (glTF NORMAL, §3.7.2.1: the normals it is meant to be shaded with).
     w = weld(v)
-    return TriMesh(v, f, vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w], uvs, colors=colors,
-                   texture=albedo_map)
+    n = vertex_normals(v[np.unique(w, return_index=True)[1]], w[f])[w]
+    given = keyed[:, 0] != 2.0
+    n[given] = keyed[given]
+    return TriMesh(v, f, n, uvs, colors=colors, texture=albedo_map, file_normals=bool(given.any()))
 
 
 def base_colour_map(visual) -> np.ndarray | None:

@@ -28,10 +28,12 @@ def simplify(mesh: TriMesh, ratio: float) -> TriMesh:
     textured = mesh.texture is not None
     if ratio >= 1.0:
         return TriMesh(mesh.vertices, mesh.faces, mesh.normals, mesh.uvs if textured else None,
-                       colors=mesh.colors, texture=mesh.texture)
+                       colors=mesh.colors, texture=mesh.texture, file_normals=mesh.file_normals)
     v, f, colors, lineage = surface(mesh, ratio)
     if not len(f):                                     # nothing left: the caller names the setting
         return TriMesh(v[:0], f, v[:0])
+    if mesh.file_normals:
+        return _with_file_normals(mesh, v, f, colors, lineage)
     # Welding joined the faces across sharp edges too (a cone's rim): normals are smoothed only within
     # CREASE_DEG, so an edge sharp in the input stays sharp in the shading.
     v, f, n, source = crease_normals(v, f, CREASE_DEG)
@@ -48,6 +50,22 @@ def simplify(mesh: TriMesh, ratio: float) -> TriMesh:
                    colors=None if colors is None else colors[keep], texture=mesh.texture)
 
 
+def _with_file_normals(mesh: TriMesh, v, f, colors, lineage) -> TriMesh:
+    """The simplified surface shaded as the file's normals shade the full mesh (not by the crease rule, which
+    would round a hard edge of less than CREASE_DEG or crease a smooth one): each corner takes the normal (and,
+    textured, the UV) of the nearest point of the full mesh's piece its face descends from (`transferred_uvs`), and
+    a vertex whose corners disagree is split, so the coarse level shades like the full mesh."""
+    corners = v[f]
+    n = transferred_uvs(mesh, lineage, corners, mesh.normals).reshape(-1, 3)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    uv = transferred_uvs(mesh, lineage, corners).reshape(-1, 2) if mesh.texture is not None else np.zeros((len(n), 0))
+    _, first, inv = np.unique(np.column_stack([f.ravel(), np.round(n * 1e6), uv]), axis=0, return_index=True,
+                              return_inverse=True)
+    keep = f.ravel()[first]
+    return TriMesh(v[keep], inv.reshape(-1, 3), n[first], uv[first] if mesh.texture is not None else None,
+                   colors=None if colors is None else colors[keep], texture=mesh.texture, file_normals=True)
+
+
 class Lineage(NamedTuple):
     """Where the simplified surface came from (the faces keep their order through every later step)."""
     origin: np.ndarray     # (F,) the full mesh's face each face descends from
@@ -56,8 +74,10 @@ class Lineage(NamedTuple):
     ids: np.ndarray        # full mesh vertex -> welded vertex (meshes.weld)
 
 
-def transferred_uvs(mesh: TriMesh, lineage: Lineage, corners: np.ndarray) -> np.ndarray:
-    """(F, 3, 2) texture coordinates of the coarse faces' corners (positions `corners`, (F, 3, 3)).
+def transferred_uvs(mesh: TriMesh, lineage: Lineage, corners: np.ndarray,
+                    values: np.ndarray | None = None) -> np.ndarray:
+    """(F, 3, 2) texture coordinates of the coarse faces' corners (positions `corners`, (F, 3, 3)); or of the
+    full mesh's per-vertex `values` (V, C) instead of its UVs, (F, 3, C).
 
     Each coarse face descends from one face of the full mesh (`lineage.origin`: an edge collapse moves a
     face's corners but keeps the face), and a corner from the vertices that collapsed into it. The faces
@@ -88,7 +108,8 @@ def transferred_uvs(mesh: TriMesh, lineage: Lineage, corners: np.ndarray) -> np.
     b, dist = _project(mesh.vertices[mesh.faces[cand_face]], p[cand_corner])
     order = np.lexsort((dist, cand_corner))
     best = order[np.searchsorted(cand_corner[order], np.arange(len(p)))]
-    return np.einsum("nk,nkc->nc", b[best], mesh.uvs[mesh.faces[cand_face[best]]]).reshape(-1, 3, 2)
+    values = mesh.uvs if values is None else values
+    return np.einsum("nk,nkc->nc", b[best], values[mesh.faces[cand_face[best]]]).reshape(-1, 3, values.shape[1])
 
 
 def _pieces(pairs: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -132,7 +153,7 @@ def _project(tri: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, Lineage | None]:
     """The simplified surface: vertices, faces (manifold edges only, no fins), per-vertex colours (or
-    None) and, for an asset with an albedo map, its Lineage (None otherwise: the replay of the collapses
+    None) and, for an asset with an albedo map or file normals, its Lineage (None otherwise: the replay of the collapses
     and the face matching are about a third of the time): one vertex per point, but where a pinched edge
     was split."""
     import fast_simplification
@@ -150,7 +171,7 @@ def surface(mesh: TriMesh, ratio: float) -> tuple[np.ndarray, np.ndarray, np.nda
     v, f, collapses = fast_simplification.simplify(points - centre, faces, target_count=target, return_collapses=True)
     v = np.asarray(v, np.float64) + centre
     f = np.asarray(f, np.int64).reshape(-1, 3)
-    textured = mesh.texture is not None
+    textured = mesh.texture is not None or mesh.file_normals    # both need the lineage (transferred_uvs)
     mapping = (np.asarray(fast_simplification.replay_simplification(points, faces, collapses)[2])
                if textured or mesh.colors is not None else None)
     colors = None if mesh.colors is None else collapsed_colors(points, faces, ids, mesh.colors, mapping, len(v))

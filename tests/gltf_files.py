@@ -1,0 +1,184 @@
+"""glTF files rebuilt in the tests from the numbers of published Khronos glTF-Sample-Models (no package on PyPI or
+npm ships those models; nothing is downloaded at test time): each generator writes a file like the named sample,
+with the same structure (primitives, materials, accessors, modes) and the values written out here, so a test can
+state the colour, position or normal the file means."""
+from __future__ import annotations
+
+import numpy as np
+
+from tests.test_gltf_read import QUAD, UV, Gltf
+
+# four sRGB texels per picture (rows top to bottom as in the file), one picture per textured primitive
+PICTURES = [np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 0]]], np.uint8),
+            np.array([[[255, 255, 255], [0, 0, 0]], [[128, 128, 128], [64, 32, 16]]], np.uint8),
+            np.array([[[10, 200, 30], [200, 10, 30]], [[30, 10, 200], [250, 250, 250]]], np.uint8)]
+
+
+def texture_coordinate_test(path, pictures=PICTURES, factor_only=(0.85, 0.425, 0.2, 1.0)):
+    """TextureCoordinateTest-like: one quad per picture, each its own material and texture, side by side (node k
+    at x = 2k), and a factor-only quad beside them (x = 2 * len(pictures))."""
+    g = Gltf()
+    for k, picture in enumerate(pictures):
+        g.node(mesh=g.mesh(g.primitive(material=g.material(picture=picture), uv=UV)), translation=[2.0 * k, 0, 0])
+    if factor_only is not None:
+        g.node(mesh=g.mesh(g.primitive(material=g.material(list(factor_only)))),
+               translation=[2.0 * len(pictures), 0, 0])
+    return g.write(path)
+
+
+def factor_only_engine(path, factors=(0.85, 0.425)):
+    """2CylinderEngine-like: one mesh of several primitives whose materials have a baseColorFactor only (grey
+    values of the sample's materials); primitive k moved to z = k by its own positions."""
+    g = Gltf()
+    prims = []
+    for k, f in enumerate(factors):
+        p = g.primitive(material=g.material([f, f, f, 1.0]))
+        p["attributes"]["POSITION"] = g.accessor(QUAD + np.float32([0, 0, k]))
+        prims.append(p)
+    g.node(mesh=g.mesh(*prims))
+    return g.write(path)
+
+
+def simple_sparse_accessor(path, zeros=False):
+    """SimpleSparseAccessor: a strip of 14 vertices (x 0..6, y 0 and 1) and 12 triangles, whose POSITION accessor
+    has a sparse part replacing vertices 8, 10 and 12 by (1, 2, 0), (3, 3, 0), (5, 4, 0) (`zeros`: the base is
+    no bufferView, so every other vertex is at the origin, and two triangles join the origin and the moved ones)."""
+    g = Gltf()
+    base = np.array([[x, y, 0] for y in (0, 1) for x in range(7)], np.float32)
+    tri = [[0, 12, 8], [0, 10, 8]] if zeros else []   # zeros: the strip has no area left; triangles of the moved ones
+    for x in range(0 if zeros else 6):
+        tri += [[x, x + 1, x + 8], [x, x + 8, x + 7]]
+    p = {"attributes": {"POSITION": g.accessor(base)}, "indices": g.accessor(np.array(tri, np.uint16).ravel())}
+    index, values = g.accessor(np.array([8, 10, 12], np.uint16)), g.accessor(np.float32([[1, 2, 0], [3, 3, 0],
+                                                                                        [5, 4, 0]]))
+    acc = g.tree["accessors"][p["attributes"]["POSITION"]]
+    acc["sparse"] = {"count": 3, "indices": {"bufferView": g.tree["accessors"][index]["bufferView"],
+                                             "componentType": 5123},
+                     "values": {"bufferView": g.tree["accessors"][values]["bufferView"]}}
+    acc["max"] = [6, 4, 0]
+    if zeros:
+        del acc["bufferView"]
+    g.node(mesh=g.mesh(p))
+    return g.write(path)
+
+
+def sparse_colour(path):
+    """A quad whose COLOR_0 is zeros but for a sparse part setting vertices 1 and 3 to (0.2, 0.4, 0.8)."""
+    g = Gltf()
+    p = g.primitive()
+    index, values = g.accessor(np.array([1, 3], np.uint8)), g.accessor(np.float32([[0.2, 0.4, 0.8]] * 2))
+    g.tree["accessors"].append({"componentType": 5126, "count": 4, "type": "VEC3", "sparse": {
+        "count": 2, "indices": {"bufferView": g.tree["accessors"][index]["bufferView"], "componentType": 5121},
+        "values": {"bufferView": g.tree["accessors"][values]["bufferView"]}}})
+    p["attributes"]["COLOR_0"] = len(g.tree["accessors"]) - 1
+    g.node(mesh=g.mesh(p))
+    return g.write(path)
+
+
+def simple_morph(path, weights=(0.5, 0.25), node_weights=None):
+    """SimpleMorph/MorphPrimitivesTest-like: a quad with two morph targets, target 0 lifting vertex 2 by
+    (0, 0, 1) and turning its NORMAL, target 1 moving vertex 0 by (-1, 0, 0), at the mesh's default `weights`
+    (`node_weights`: the node's, which override them)."""
+    g = Gltf()
+    p = g.primitive()
+    p["attributes"]["NORMAL"] = g.accessor(np.float32([[0, 0, 1]] * 4))
+    lift = np.zeros((4, 3), np.float32)
+    lift[2] = [0, 0, 1]
+    turn = np.zeros((4, 3), np.float32)
+    turn[2] = [1, 0, -1]
+    left = np.zeros((4, 3), np.float32)
+    left[0] = [-1, 0, 0]
+    p["targets"] = [{"POSITION": g.accessor(lift), "NORMAL": g.accessor(turn)}, {"POSITION": g.accessor(left)}]
+    m = g.mesh(p)
+    g.tree["meshes"][m]["weights"] = list(weights)
+    node = {"mesh": m} if node_weights is None else {"mesh": m, "weights": list(node_weights)}
+    g.node(**node)
+    return g.write(path)
+
+
+HEXAGON = np.float32([[0, 0, 0]] + [[np.cos(a), np.sin(a), 0] for a in np.radians(np.arange(0, 360, 60))])
+
+
+def primitive_modes(path, modes=(6, 5, 0, 1)):
+    """MeshPrimitiveModes-like: one mesh with a primitive per mode, each on its own vertices (moved along x):
+    TRIANGLE_FAN (6) a hexagon around its centre, TRIANGLE_STRIP (5) a zig-zag band of 4 triangles, POINTS
+    (0), LINES (1), LINE_LOOP (2), LINE_STRIP (3) the hexagon's rim; every triangle faces +z."""
+    g = Gltf()
+    prims = []
+    for k, mode in enumerate(modes):
+        if mode == 6:
+            v, idx = HEXAGON, [0, 1, 2, 3, 4, 5, 6, 1]
+        elif mode == 5:   # bottom, top, bottom, top...: (0, 1, 2) then (1, 3, 2) counter-clockwise seen from +z
+            v = np.float32([[i // 2, 1 - i % 2, 0] for i in range(6)])
+            idx = list(range(6))
+        else:
+            v, idx = HEXAGON[1:], list(range(6))
+        p = {"attributes": {"POSITION": g.accessor(v + np.float32([3 * k, 0, 0]))},
+             "indices": g.accessor(np.array(idx, np.uint16)), "mode": mode}
+        prims.append(p)
+    g.node(mesh=g.mesh(*prims))
+    return g.write(path)
+
+
+def prism(path, sides=12, rings=4, hard=True):
+    """A closed prism of `sides` flat sides (radius 1, height 2, each side a grid of `rings` x 2 quads) and two
+    caps, every side and cap on its own vertices with NORMAL: the face's normal (`hard`), else the radial
+    direction on the sides. sides = 4 is a hard-edged Box."""
+    g = Gltf()
+    verts, norms, tris = [], [], []
+
+    def grid(corner, du, dv, n, nu, nv, normal_at=None):
+        base = len(verts)
+        for j in range(nv + 1):
+            for i in range(nu + 1):
+                p = corner + du * i / nu + dv * j / nv
+                verts.append(p)
+                norms.append(n if normal_at is None else normal_at(p))
+        for j in range(nv):
+            for i in range(nu):
+                a = base + j * (nu + 1) + i
+                tris.extend([[a, a + 1, a + nu + 2], [a, a + nu + 2, a + nu + 1]])
+
+    angles = np.radians(np.arange(sides) * 360 / sides + 180 / sides)
+    ring = np.c_[np.cos(angles), np.sin(angles), np.zeros(sides)]
+    for s in range(sides):
+        a, b = ring[s], ring[(s + 1) % sides]
+        n = np.cross(b - a, [0, 0, 1])
+        grid(np.r_[a[:2], -1], b - a, np.array([0, 0, 2.0]), n / np.linalg.norm(n), 2, rings,
+             None if hard else lambda p: np.r_[p[:2] / np.linalg.norm(p[:2]), 0])
+    for z, sign in ((1, 1), (-1, -1)):
+        base = len(verts)
+        verts += [np.array([0, 0, z])] + [np.r_[r[:2], z] for r in ring]
+        norms += [np.array([0, 0, sign])] * (sides + 1)
+        for s in range(sides):
+            t = [base, base + 1 + s, base + 1 + (s + 1) % sides]
+            tris.append(t if sign > 0 else t[::-1])
+    p = {"attributes": {"POSITION": g.accessor(np.float32(verts)), "NORMAL": g.accessor(np.float32(norms))},
+         "indices": g.accessor(np.array(tris, np.uint16).ravel())}
+    g.node(mesh=g.mesh(p))
+    return g.write(path)
+
+
+def box_vertex_colors(path):
+    """BoxVertexColors-like: a box (prism of 4 sides) with a COLOR_0 per vertex from its position (x, y, z mapped
+    from [-1, 1] to [0, 1]) as normalized unsigned shorts."""
+    out = prism(path, sides=4, rings=1)
+    import base64
+    import json
+
+    tree = json.loads(out.read_text())
+    blob = base64.b64decode(tree["buffers"][0]["uri"].partition(",")[2])
+    acc = tree["accessors"][0]
+    view = tree["bufferViews"][acc["bufferView"]]
+    pos = np.frombuffer(blob, "<f4", acc["count"] * 3, view["byteOffset"]).reshape(-1, 3)
+    colour = np.round((pos + 1) / 2 * 65535).astype("<u2")
+    blob += b"\0" * (-len(blob) % 4)
+    tree["bufferViews"].append({"buffer": 0, "byteOffset": len(blob), "byteLength": colour.nbytes})
+    blob += colour.tobytes()
+    tree["accessors"].append({"bufferView": len(tree["bufferViews"]) - 1, "componentType": 5123, "normalized": True,
+                              "count": len(colour), "type": "VEC3"})
+    tree["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = len(tree["accessors"]) - 1
+    tree["buffers"][0] = {"byteLength": len(blob),
+                          "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}
+    out.write_text(json.dumps(tree))
+    return out
