@@ -48,6 +48,12 @@ def cheapest(rows: list[dict]) -> dict:
     return min(tied, key=lambda r: (r["mean_dluv"] if r["mean_dluv"] is not None else float("inf"), r["label"]))
 
 
+def least_error(rows: list[dict]) -> dict:
+    """Where no variant is within the limits: the one of least mean ΔLuv (unmeasured last), then the cheaper, then
+    by label."""
+    return min(rows, key=lambda r: (r["mean_dluv"] is None, r["mean_dluv"] or 0, r["median_ms"], r["label"]))
+
+
 def contenders(rows: list[dict], lod_sets) -> set[str]:
     """The variants (labels) at one screen size that may be some chain's cheapest: for every set of limits
     (scene.Thresholds), those within them and within pricing.NEAR of the fastest of them by their own medians
@@ -76,7 +82,7 @@ def chain(rows: list[dict], limits: dict, height: int, pop=None, pop_dluv: float
         if ok and prev is not None and pop is not None and pop_dluv is not None:
             smooth = [r for r in ok if r["label"] == prev or pop(s, prev, r["label"]) <= pop_dluv]
             ok = smooth or ok
-        pick = cheapest(ok) if ok else min(here, key=lambda r: (r["mean_dluv"] is None, r["mean_dluv"] or 0, r["label"]))
+        pick = cheapest(ok) if ok else least_error(here)
         picks.append((s, pick, bool(ok)))
     entries = []
     for i, (s, r, ok) in enumerate(picks):
@@ -139,15 +145,14 @@ def priced_on_field(lod: dict, rows: list[dict]) -> None:
     cheapest of those within the chain's limits on the field (cheapest's rule) is what the field ships: where
     that is a single variant, the chain becomes that variant at every size (the sweep's chain kept as
     sweep_entries), so a chain is never slower than one representation meeting the same limits there. Where none
-    is within the limits on the field, the one of least mean ΔLuv is shipped (chain's rule for a size)."""
+    is within the limits on the field, the one of least error is shipped (least_error, as a chain's size)."""
     for c in lod["chains"]:
         for obj, ch in c["objects"].items():
             field = [r for r in rows if r["object"] == obj and (r["technique"] != "lod" or r["value"] == c["name"])]
             if not any(r["technique"] == "lod" for r in field):
                 continue
             ok = [r for r in field if meets(r, c["limits"])]
-            best = cheapest(ok) if ok else min(field, key=lambda r: (r["mean_dluv"] is None, r["mean_dluv"] or 0,
-                                                                     r["median_ms"], r["label"]))
+            best = cheapest(ok) if ok else least_error(field)
             ch["field"] = {"how": " ".join(priced_on_field.__doc__.split()), "chosen": best["label"],
                            "candidates": [{"variant": r["label"], "median_ms": r["median_ms"],
                                            "spread_ms": r["spread_ms"], "mean_dluv": r["mean_dluv"],
