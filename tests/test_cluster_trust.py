@@ -16,6 +16,7 @@ from click.testing import CliRunner
 
 from test_batch import SLOW, SMALL, _wait_for_staging, write
 from vdmbake.cli import main as bake_main
+from vdmbake.library import cluster
 
 pytest.importorskip("distributed")
 BIN = Path(sys.executable).parent
@@ -23,27 +24,39 @@ BIN = Path(sys.executable).parent
 
 def _bake(tmp_path, address):
     write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"))
-    t0 = time.monotonic()
-    r = CliRunner().invoke(bake_main, [str(tmp_path / "s"), "-o", str(tmp_path / "out"), "--scheduler", address],
-                           env={"VDM_CACHE": None})
-    return r, time.monotonic() - t0
+    return CliRunner().invoke(bake_main, [str(tmp_path / "s"), "-o", str(tmp_path / "out"), "--scheduler", address],
+                              env={"VDM_CACHE": None})
 
 
 def test_local_n_is_bounded_as_jobs(tmp_path):
     """Failed before the fix: local:100000 started worker processes until killed."""
-    r, _ = _bake(tmp_path, "local:100000")
+    r = _bake(tmp_path, "local:100000")
     assert r.exit_code == 2 and "local:N needs 1 to 1024 worker processes" in r.output, r.output
 
 
-def test_a_refused_connection_is_reported_within_seconds(tmp_path):
-    """Failed before the fix: 30 s (Dask's connect timeout) before the same exit 2."""
+def test_a_refused_connection_is_reported_within_seconds(tmp_path, monkeypatch):
+    """Failed before the fix: Dask's client made, waiting its 30 s connect timeout, before the same exit 2. Now one
+    plain TCP connect bounded by cluster.CONNECT_S refuses the address and Dask's client is never made (shown by
+    what is called, not by a wall time)."""
+    import dask.distributed
+
     s = socket.socket()
     s.bind(("127.0.0.1", 0))
     port = s.getsockname()[1]
     s.close()                                   # nothing listens there now
-    r, seconds = _bake(tmp_path, f"tcp://127.0.0.1:{port}")
+    connects, create_connection = [], socket.create_connection
+
+    def connect(address, timeout=None, *args, **kwargs):
+        connects.append((address, timeout))
+        return create_connection(address, timeout, *args, **kwargs)
+
+    def client(*args, **kwargs):
+        raise AssertionError("Dask's client was made (it waits up to its own connect timeout)")
+    monkeypatch.setattr(socket, "create_connection", connect)
+    monkeypatch.setattr(dask.distributed, "Client", client)
+    r = _bake(tmp_path, f"tcp://127.0.0.1:{port}")
     assert r.exit_code == 2 and "cannot reach the Dask scheduler" in r.output, r.output
-    assert seconds < 10, seconds
+    assert connects == [(("127.0.0.1", port), cluster.CONNECT_S)] and cluster.CONNECT_S <= 5
 
 
 def test_another_service_is_no_scheduler(tmp_path):
@@ -62,7 +75,7 @@ def test_another_service_is_no_scheduler(tmp_path):
             c.close()
     threading.Thread(target=answer, daemon=True).start()
     try:
-        r, seconds = _bake(tmp_path, f"tcp://127.0.0.1:{server.getsockname()[1]}")
+        r = _bake(tmp_path, f"tcp://127.0.0.1:{server.getsockname()[1]}")
     finally:
         server.close()
     assert r.exit_code == 2 and "Traceback" not in r.output, r.output
