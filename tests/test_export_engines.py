@@ -2,6 +2,7 @@
 several levels) valid for the Khronos validator without a warning, loaded by Babylon.js (MSFT_lod), three.js (level 0)
 and trimesh; colours that multiply once; levels finest first, named so Blender keeps the names, each in the scene's
 orientation on its own; impostor parts checked as they are copied. Bundles are baked, lod.json written by hand."""
+import functools
 import hashlib
 import json
 import os
@@ -67,8 +68,11 @@ def export(bundle: Bundle, lod: dict, out: Path):
 
 @pytest.fixture(scope="module")
 def exports(tmp_path_factory) -> dict[str, Path]:
-    """kind -> its exported .gltf (three levels each)."""
-    tmp = tmp_path_factory.mktemp("engines")
+    return build(tmp_path_factory.mktemp("engines"))
+
+
+def build(tmp: Path) -> dict[str, Path]:
+    """kind -> its exported .gltf (three levels each), baked and exported under `tmp`."""
     out = {}
     for kind, body in _assets(tmp).items():
         (tmp / f"{kind}.toml").write_text(RENDER + body)
@@ -81,7 +85,9 @@ def exports(tmp_path_factory) -> dict[str, Path]:
     return out
 
 
-def _node(script: str, files) -> dict:
+@functools.cache
+def _node(script: str, files: tuple) -> list[dict]:
+    """The engine's report on each file (tools/engine_*.cjs: one Node process for all of them)."""
     node = shutil.which("node")
     if node is None:
         pytest.skip("Node.js is missing (make test installs it): the engines run in Node")
@@ -105,7 +111,7 @@ def _levels(path: Path) -> list[dict]:
         prim = g["meshes"][g["nodes"][n]["mesh"]]["primitives"][0]
         mat = g["materials"][prim["material"]]
         tex = mat["pbrMetallicRoughness"].get("baseColorTexture")
-        out.append({"node": n, "vertices": g["accessors"][prim["attributes"]["POSITION"]]["count"],
+        out.append({"node": n, "mesh": g["meshes"][g["nodes"][n]["mesh"]]["name"], "vertices": g["accessors"][prim["attributes"]["POSITION"]]["count"],
                     "material": mat["name"], "image": None if tex is None else g["textures"][tex["index"]]["source"]})
     return out
 
@@ -161,8 +167,9 @@ def _babylon_levels(report: dict) -> list[int]:
 
 def test_babylon_loads_every_level(exports):
     """Babylon.js (NullEngine, MSFT_lod on): each level loaded in turn, coarsest first, with the file's vertex
-    count, material, texture and colour; every level turned as the scene is (the torus's up along +Y)."""
-    reports = _node("engine_babylon.cjs", exports.values())
+    count, material, texture and colour; every level turned as the scene is (the torus's up along +Y); the finest
+    level's mesh carries the switch coverages (its metadata.gltf.extras)."""
+    reports = _node("engine_babylon.cjs", tuple(exports.values()))
     for (kind, path), report in zip(exports.items(), reports):
         assert "error" not in report, (kind, report)
         levels = _levels(path)
@@ -171,13 +178,16 @@ def test_babylon_loads_every_level(exports):
             (mesh,) = stage
             assert mesh["material"] == level["material"] and mesh["texture"] == (kind == "textured"), (kind, stage)
             assert np.subtract(mesh["max"], mesh["min"]) == pytest.approx([2.7, 0.7, 2.7], abs=0.1), (kind, mesh)
+            if mesh is report["stages"][-1][0]:   # ExtrasAsMetadata: the switch coverages, for the application
+                first = json.loads(path.read_text())["nodes"][levels[0]["node"]]
+                assert mesh["extras"]["MSFT_screencoverage"] == first["extras"]["MSFT_screencoverage"]
             if kind == "colour":
                 assert [a * b for a, b in zip(mesh["albedo"], mesh["first_colour"])] == pytest.approx(COLOUR, abs=1e-6)
 
 
 def test_three_loads_level_zero(exports):
     """three.js's GLTFLoader has no MSFT_lod: it shows level 0, with its vertex count and material."""
-    reports = _node("engine_three.cjs", exports.values())
+    reports = _node("engine_three.cjs", tuple(exports.values()))
     for (kind, path), report in zip(exports.items(), reports):
         level = _levels(path)[0]
         assert "error" not in report, (kind, report)
@@ -189,13 +199,50 @@ def test_three_loads_level_zero(exports):
 
 
 def test_trimesh_reads_every_level(exports):
-    """A third importer, trimesh (the project's own mesh reader): every level's geometry with its vertex count."""
+    """A third importer, trimesh (the project's own mesh reader): every level's geometry with its vertex count and
+    material (its scene graph holds level 0 only, as three.js's)."""
+    for kind, path in exports.items():
+        levels = [(lv["vertices"], lv["material"], lv["image"] is not None) for lv in _levels(path)]
+        assert _trimesh(path) == levels, kind
+
+
+def _trimesh(path: Path) -> list[tuple[int, str, bool]]:
+    """trimesh's geometries of the file in the file's level order (vertices, material, textured)."""
     import trimesh
 
-    for kind, path in exports.items():
-        scene = trimesh.load(path, process=False)
-        counts = sorted(len(m.vertices) for m in scene.geometry.values())
-        assert counts == sorted(lv["vertices"] for lv in _levels(path)), (kind, counts)
+    scene = trimesh.load(path, process=False)
+    names = [lv["mesh"] for lv in _levels(path)]
+    return [(len(m.vertices), m.visual.material.name, m.visual.material.baseColorTexture is not None)
+            for _, m in sorted(scene.geometry.items(), key=lambda item: names.index(item[0]))]
+
+
+def engine_table(exports: dict[str, Path]) -> str:
+    """docs/export.md's table: each export as the file holds it and as each importer reports it (levels finest
+    first; Babylon.js loads them coarsest first)."""
+    import trimesh
+
+    version = lambda p: json.loads((MODULES / p / "package.json").read_text())["version"]   # noqa: E731
+    babylon = _node("engine_babylon.cjs", tuple(exports.values()))
+    three = _node("engine_three.cjs", tuple(exports.values()))
+    rows = ["| export | read by | levels | vertices per level | material per level | texture |", "|---|---|---|---|---|---|"]
+
+    def row(kind, who, items):   # items: (vertices, material, textured) finest first
+        rows.append(f"| {kind} | {who} | {len(items)} | {', '.join(str(v) for v, _, _ in items)} | "
+                    f"{', '.join(m for _, m, _ in items)} | {'yes' if all(t for *_, t in items) else 'no'} |")
+
+    for (kind, path), b, t in zip(exports.items(), babylon, three):
+        row(kind, "the file", [(lv["vertices"], lv["material"], lv["image"] is not None) for lv in _levels(path)])
+        row(kind, f"Babylon.js {version('babylonjs')} (MSFT_lod)",
+            [(m["vertices"], m["material"], m["texture"]) for stage in reversed(b["stages"]) for m in stage])
+        row(kind, f"three.js {version('three')}", [(m["vertices"], m["material"], m["texture"]) for m in t["meshes"]])
+        row(kind, f"trimesh {trimesh.__version__}", _trimesh(path))
+    return "\n".join(rows) + "\n"
+
+
+def test_the_engine_table_in_the_docs_is_what_the_engines_report(exports):
+    """docs/export.md's engine table is written by `python tests/test_export_engines.py` from these exports."""
+    assert engine_table(exports) in (ROOT / "docs" / "export.md").read_text(), \
+        "docs/export.md's engine table is not what the engines report now: paste `python tests/test_export_engines.py`"
 
 
 def test_a_chain_out_of_order_is_said_and_exported_finest_first(tmp_path, exports):
@@ -246,3 +293,10 @@ def test_a_damaged_impostor_part_is_refused_not_copied(tmp_path):
     r = export(bundle, lod, tmp_path / "bad")
     assert r.exit_code == 2 and Path(rel).name in r.output and "checksum" in r.output, r.output
     assert not (tmp_path / "bad").exists()
+
+
+if __name__ == "__main__":   # docs/export.md's engine table
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        print(engine_table(build(Path(tmp))), end="")

@@ -3,7 +3,7 @@
 // turn, disposing the one before; it does not switch on MSFT_screencoverage. Each level is caught by loading the
 // file again with the extension's maxLODsToLoad = 1, 2, ... (it keeps the k coarsest levels, showing the k-th).
 // Prints per file, as JSON, per stage (coarsest first) the meshes shown: vertex count, material, texture, albedo
-// colour, first vertex colour, world bounds; or the error the loader threw.
+// colour, first vertex colour, world bounds, the node's glTF extras; or the error the loader threw.
 //   NODE_PATH=.venv/node/node_modules node tools/engine_babylon.cjs FILE.gltf...
 global.BABYLON = require("babylonjs");
 require("babylonjs-loaders");
@@ -23,6 +23,7 @@ function shown(scene) {
       texture: Boolean(mat.albedoTexture), albedo: mat.albedoColor ? mat.albedoColor.asArray() : null,
       first_colour: colours ? Array.from(colours.slice(0, 3)) : null,
       min: box.minimumWorld.asArray(), max: box.maximumWorld.asArray(),
+      extras: (m.metadata && m.metadata.gltf && m.metadata.gltf.extras) || null,   // ExtrasAsMetadata
     };
   });
 }
