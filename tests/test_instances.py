@@ -267,10 +267,10 @@ def test_a_variant_holding_two_bands_draws_the_copies_of_both(ctx):
 
 @pytest.mark.gl
 def test_billboard_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_path):
-    """The overlap case for billboards: copy B, turned and scaled, between copy A and the light and partly in front
-    of it, against the merged reference. Measured at 96x96 (4 cameras): mean ΔLuv 2.57 (improved), 2.80
-    (hier+coarse), 2.98 (hier), IoU 0.967-0.971; with the normals left unturned 7.25-7.80: the copies are smaller
-    on screen than the torus framed alone (1.44, 0.62, 0.94 there), so their silhouette texels weigh more."""
+    """The overlap case for billboards: copy B, turned and scaled, between copy A and the light and partly in
+    front of it, against the merged reference: every billboard method within its bound in mean ΔLuv and IoU (the
+    copies are smaller on screen than the torus framed alone, so their silhouette texels weigh more than there;
+    with the normals left unturned the error is several times larger)."""
     boards = 'billboards = { resolution = 32, variants = ["greedy-improved", "greedy-hier+coarse", "greedy-hier"] }'
     pair = torus_pair("pair", f"techniques = {{ mesh = {{}}, {boards} }}")
     res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[96, 96]").replace("256", "1024") + pair)
@@ -299,12 +299,12 @@ def test_surface_copies_far_from_the_object_look_as_near_it(tmp_path):
 @pytest.mark.gl
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
 def test_copies_scaled_by_orders_of_magnitude_look_as_at_unit_scale(tmp_path, scale):
-    """Stress: the overlapping pair with both copies (and their offset) scaled by 1e-3 or 1e3, the cameras framing
-    them: a scene scaled as a whole looks the same, so the frames equal the unit pair's (rays taken into a copy's
-    frame divide by s^2; shadow offsets, the coarse mesh's push and the shadow map follow the copies' size).
-    Measured: identical frames but for hier+coarse (2 of 4096 pixels; mean ΔLuv 2.78 -> 2.84 at 1e-3, 2.77 at
-    1e3). It found two faults of the octahedral impostor: its shadow offset in atlas texels ignored the copy's scale,
-    and its shadow map was sized for copies of the object's size (16 texels at 1e-3): 1.67 -> 10.35 ΔLuv."""
+    """Stress: the overlapping pair with both copies (and their offset) scaled by 1e-3 or 1e3, the cameras
+    framing them: a scene scaled as a whole looks the same, so the frames equal the unit pair's up to a few
+    pixels and the same error (rays taken into a copy's frame divide by s^2; shadow offsets, the coarse mesh's
+    push and the shadow map follow the copies' size). It found two faults of the octahedral impostor: its shadow
+    offset in atlas texels ignored the copy's scale, and its shadow map was sized for copies of the object's
+    size."""
     text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "1024")
     text += torus_pair("unit", SURFACES) + torus_pair("scaled", SURFACES, s=scale)
     res, out = bake_and_render(tmp_path, text)
