@@ -232,3 +232,40 @@ def test_box_vertex_colors(tmp_path):
     m = load_mesh_file(G.box_vertex_colors(tmp_path / "b.gltf"))
     want = np.round((m.vertices + 1) / 2 * 65535) / 65535
     assert np.allclose(m.colors, want, rtol=0, atol=2 / 65535)   # float32 positions
+
+
+def test_gutters_follow_each_pictures_wrap_mode(tmp_path):
+    """Two pictures in one file, the first CLAMP_TO_EDGE: at s = 0 it reads its own edge texel, the second
+    (REPEAT) blends its two edge texels."""
+    g = G.Gltf()
+    for k, sampler in enumerate(({"wrapS": 33071, "wrapT": 33071}, None)):
+        g.node(mesh=g.mesh(g.primitive(material=g.material(picture=G.PICTURES[k], sampler=sampler), uv=G.UV)),
+               translation=[2 * k, 0, 0])
+    m = load_mesh_file(g.write(tmp_path / "clamp.gltf"))
+    lin = [srgb8_to_linear(p) for p in G.PICTURES[:2]]
+    got = albedo_at(m, [at_uv(0, 0.0, 0.25), at_uv(1, 0.0, 0.25)])
+    assert np.allclose(got, [lin[0][0, 0], 0.5 * (lin[1][0, 0] + lin[1][0, 1])], rtol=0, atol=1e-6), got
+
+
+def test_left_out_primitives_are_printed_by_default(tmp_path, capsys):
+    load_mesh_file(G.primitive_modes(tmp_path / "modes.gltf", modes=(6, 3)))
+    err = capsys.readouterr().err
+    assert err.startswith("warning:") and "mesh 0 primitive 1 draws line strip (mode 3)" in err, err
+
+
+@pytest.mark.parametrize("spoil, match", [
+    (lambda t: t.update(extensionsUsed=["KHR_draco_mesh_compression"]), "compressed \\(KHR_draco_mesh_compression\\)"),
+    (lambda t: t["nodes"][0].update(children=[0]), "node 0 is its own ancestor"),
+    (lambda t: t["meshes"][0]["primitives"][0].update(mode=7), "has mode 7; glTF 2.0 gives 0 to 6"),
+    (lambda t: t["meshes"][0]["primitives"][0].update(targets=[{"COLOR_0": 0}]) or t["meshes"][0].update(weights=[1]),
+     "morph target 0 moves COLOR_0 at weight 1"),
+])
+def test_what_is_not_read_is_refused_by_name(tmp_path, spoil, match):
+    import json
+
+    path = G.primitive_modes(tmp_path / "f.gltf", modes=(6,))
+    tree = json.loads(path.read_text())
+    spoil(tree)
+    path.write_text(json.dumps(tree))
+    with pytest.raises(InputError, match=match):
+        load_mesh_file(path)
