@@ -62,7 +62,8 @@ def test_lod_of_another_bundle_or_without_identity_is_refused(tmp_path, bundles,
 
 
 @pytest.mark.parametrize("entry, message", [
-    ({"min_px": 10**400, "max_px": 10**401}, "min_px <= max_px (pixels, 0 to 32768)"),   # OverflowError before
+    ({"min_px": 10**400, "max_px": 10**401}, "min_px' has value 1000"),   # OverflowError before
+    ({"min_px": 9, "max_px": 8}, "min_px' has value 9; allowed: at most max_px (8)"),
     ({"screen_coverage": [1e400, 0]}, "finite numbers"),
     ({"measured": [{"mean_dluv": float("nan")}]}, "finite numbers"),
     ({"measured": [{"size_px": 10**400}]}, "finite numbers")])           # found by test_fuzz_lod: OverflowError

@@ -267,7 +267,7 @@ def test_export_refuses_a_lod_of_another_bundle(tmp_path):
                                                               "measured": []}]}}}], "bundle": identity}),
                            "names object 'rabbit'"),
                           (json.dumps({"device": "d", "resolution": [4, 4], "chains": [{"name": "../up", "objects": {}}]}),
-                           "chains[0].name is not 1-64 characters")):   # a chain's name is part of file names
+                           "key 'chains[0].name' has value '../up'; allowed: 1-64 characters")):   # a chain's name is part of file names
         lod_path.write_text(text)
         r = CliRunner().invoke(export_main, [str(tmp_path / "b"), "--lod", str(lod_path), "-o", str(tmp_path / "x")])
         assert r.exit_code == 2 and message in r.output, r.output

@@ -7,7 +7,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import re
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ from ..common.colour import to_srgb8
 from ..errors import InputError, escaped
 from ..formats.safeio import read_regular
 from ..scene import MAX_SIDE
+from ..schema import REQUIRED, Boolean, Integer, Invalid, Reader, Text, Type, Vector
 from ..techniques import REGISTRY
 from .gltf import Writer
 
@@ -25,7 +25,6 @@ TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF carries as they are
 SIDECAR = "vdm-impostors"
 
 
-NAME = re.compile(r"[A-Za-z0-9_-]{1,64}")   # a chain's name becomes part of file names, as the scene reader spells it
 MAX_PX = 4 * MAX_SIDE                       # the largest screen size a sweep measures (scene.Sweep.sizes)
 MAX_NUMBER = 1e300                          # what a measured value or a share may be, finite: copied into JSON
 
@@ -60,9 +59,40 @@ def check_identity(lod: dict, bundle: Bundle, lod_path: Path) -> None:
                          "from, or render this bundle again.")
 
 
+class String(Type):
+    text = "a string"
+
+    def parse(self, raw):
+        if not isinstance(raw, str):
+            raise Invalid
+        return raw
+
+
+class Measured(Type):
+    """What lod.json measured, copied into the sidecar as it is."""
+    text = f"a list of finite numbers within {MAX_NUMBER:g}, strings, true, false or null (nested lists and tables)"
+
+    def parse(self, raw):
+        if not isinstance(raw, list) or not _finite(raw):
+            raise Invalid
+        return raw
+
+
+PX = Integer(0, MAX_PX)
+# The keys of lod.json this export reads (schema.Reader, as vdmrender.baseline reads a report): (type, default).
+TOP = {"device": (String(), REQUIRED), "resolution": (Vector(2, 1, MAX_SIDE, integer=True), REQUIRED),
+       "band": (String(), "")}
+CHAIN = {"name": (Text("1-64 characters from A-Z a-z 0-9 _ - (it becomes part of file names)", r"[A-Za-z0-9_-]{1,64}"),
+                  REQUIRED)}
+ENTRY = {"variant": (String(), REQUIRED), "technique": (String(), REQUIRED), "min_px": (PX, REQUIRED),
+         "max_px": (PX, REQUIRED), "meets": (Boolean(), REQUIRED), "screen_coverage": (Measured(), REQUIRED),
+         "measured": (Measured(), REQUIRED)}
+
+
 def read_lod(path: Path) -> dict:
-    """lod.json as vdmrender wrote it, every key this export reads checked for its type before anything is
-    written: a damaged or hand-edited file ends the run with one message naming the key."""
+    """lod.json as vdmrender wrote it, every key this export reads checked for its type (TOP, CHAIN, ENTRY) before
+    anything is written: a damaged or hand-edited file ends the run with one message naming the key. Returns just
+    those keys (and `bundle`, which check_identity reads)."""
     shown = escaped(str(path))
     try:
         lod = json.loads(read_regular(path, "lod.json", limit=64 << 20))
@@ -72,43 +102,39 @@ def read_lod(path: Path) -> dict:
     except (OSError, ValueError, RecursionError) as e:
         raise InputError(f"{shown}: not a lod.json written by vdmrender ({type(e).__name__}: "
                          f"{escaped(str(e))[:200]}).") from None
+    top = Reader(lod, "", f"{shown}: not a lod.json written by vdmrender, or edited (render again)")
 
-    def need(ok: bool, where: str, want: str) -> None:
-        if not ok:
-            raise InputError(f"{shown}: {where} is not {want}; it is not a lod.json written by vdmrender, or was "
-                             "edited: render again.")
+    def keys(r: Reader, declared: dict) -> dict:
+        return {key: r.value(key, type_, default) for key, (type_, default) in declared.items()}
 
-    def count(x, most: int = MAX_PX) -> bool:
-        return type(x) is int and 0 <= x <= most
+    def entries(r: Reader, key: str) -> list[dict]:
+        raw = r.data.get(key)
+        if not isinstance(raw, list) or not raw:
+            r.fail(key, raw, "a non-empty list of entries")
+        out = []
+        for k, e in enumerate(raw):
+            er = Reader(e, f"{r.key(key)}[{k}]", r.origin)
+            out.append(keys(er, ENTRY))
+            if out[-1]["min_px"] > out[-1]["max_px"]:
+                er.fail("min_px", out[-1]["min_px"], f"at most max_px ({out[-1]['max_px']})")
+        return out
 
-    need(isinstance(lod, dict), "the top level", "an object")
-    need(isinstance(lod.get("device"), str), "'device'", "a string")
-    res = lod.get("resolution")
-    need(isinstance(res, list) and len(res) == 2 and all(count(x, MAX_SIDE) and x > 0 for x in res), "'resolution'",
-         f"[width, height] in pixels, each 1 to {MAX_SIDE}")
-    need(isinstance(lod.get("band", ""), str), "'band'", "a string")
-    need(isinstance(lod.get("chains"), list), "'chains'", "a list")
-    for i, c in enumerate(lod["chains"]):
-        where = f"chains[{i}]"
-        need(isinstance(c, dict) and isinstance(c.get("name"), str) and NAME.fullmatch(c["name"]) is not None,
-             f"{where}.name", "1-64 characters from A-Z a-z 0-9 _ -")
-        need(isinstance(c.get("objects"), dict), f"{where}.objects", "an object")
-        for o, ch in c["objects"].items():
-            need(isinstance(ch, dict), f"{where}.objects.{escaped(o)}", "an object")
-            for part in ("entries", "meshes_only") if "meshes_only" in ch else ("entries",):
-                entries = ch.get(part) if part == "entries" else ch[part].get("entries") if isinstance(ch[part], dict) \
-                    else None
-                at = f"{where}.objects.{escaped(o)}.{part}"
-                need(isinstance(entries, list) and len(entries) > 0, at, "a non-empty list of entries")
-                for k, e in enumerate(entries):
-                    need(isinstance(e, dict) and isinstance(e.get("variant"), str) and isinstance(e.get("technique"), str)
-                         and count(e.get("min_px")) and count(e.get("max_px")) and e["min_px"] <= e["max_px"]
-                         and isinstance(e.get("meets"), bool) and isinstance(e.get("screen_coverage"), list)
-                         and isinstance(e.get("measured"), list) and _finite(e["screen_coverage"])
-                         and _finite(e["measured"]), f"{at}[{k}]",
-                         f"an entry {{variant, technique, min_px <= max_px (pixels, 0 to {MAX_PX}), meets, "
-                         f"screen_coverage, measured (finite numbers within {MAX_NUMBER:g})}}")
-    return lod
+    def chain(r: Reader) -> dict:
+        if not r.has("objects"):
+            r.fail("objects", None, "a table of object names to their chains")
+        objects, out = r.table("objects"), {}
+        for name in objects.data:
+            o = objects.table(name)
+            out[name] = {"entries": entries(o, "entries")}
+            if "meshes_only" in o.data:
+                out[name]["meshes_only"] = {"entries": entries(o.table("meshes_only"), "entries")}
+        return {**keys(r, CHAIN), "objects": out}
+
+    if not isinstance(top.data.get("chains"), list):
+        top.fail("chains", top.data.get("chains"), "a list of chains")
+    out = keys(top, TOP)
+    return {**out, "resolution": list(out["resolution"]), "bundle": lod.get("bundle"),
+            "chains": [chain(Reader(c, f"chains[{i}]", top.origin)) for i, c in enumerate(lod["chains"])]}
 
 
 def variant_value(obj, label: str):
