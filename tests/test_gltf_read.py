@@ -224,9 +224,8 @@ def test_texture_read_as_the_renderer_reads_it_loads(tmp_path, info, sampler, uv
 
 def test_node_transforms_and_colours_follow_each_instance(tmp_path):
     """A mesh drawn by two nodes (translation, rotation, scale; identity) and another by a child node (matrix,
-    under the first): every vertex where its node chain puts it, with its own primitive's colour. trimesh's
-    to_mesh applied the transforms before this change too; the colours are new. The points primitive, which
-    trimesh makes a geometry of but to_mesh drops, checks that colours match primitives in file order."""
+    under the first): every vertex where its node chain puts it, with its own primitive's colour. The points
+    primitive, left out (with a warning), checks that colours stay with their primitives."""
     g = Gltf()
     dim, bright = g.material([0.25, 0.25, 0.25, 1]), g.material([0.75, 0.5, 0.25, 1])
     a = g.mesh(g.primitive(material=bright, mode=0), g.primitive(material=dim))
