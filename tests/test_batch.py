@@ -24,7 +24,7 @@ name = "{name}"
 primitive = "{prim}"
 techniques = {{ mesh = {{}}, coarse = {{ ratios = [0.5] }} }}
 """
-# A few seconds of billboard bake: long enough to be caught mid-bake.
+# A billboard bake (visibility over 648 directions): long enough to be caught mid-bake.
 SLOW = """
 [[objects]]
 name = "slow"
