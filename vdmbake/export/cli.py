@@ -23,17 +23,19 @@ def main(bundle, lod_path, out, chain, debug):
     """Export BUNDLE's objects by the LOD chains in lod.json, for engines.
 
     Per chain and object: the chain's triangle-mesh levels (the full mesh, coarse meshes)
-    as glTF 2.0, one node per level under MSFT_lod with MSFT_screencoverage from the
-    measured bands (the bounding sphere's diameter on screen over the frame height), with
-    the asset's base-colour texture and UVs; and where the chain chose impostors
-    (octahedral atlases, enhanced billboards), their bundle parts copied unchanged (EXR,
-    PLY) with a JSON sidecar giving each one's band, measured error and cost, and layout.
-    docs/export.md says how a shader reads them.
+    as glTF 2.0, finest first, one node per level under MSFT_lod with MSFT_screencoverage
+    from the measured bands (the bounding sphere's diameter on screen over the frame
+    height), with the asset's base-colour texture and UVs or its vertex colours (a chain
+    out of order is written finest first, each level once, with a warning); and where the
+    chain chose impostors (octahedral atlases, enhanced billboards), their bundle parts
+    copied unchanged (EXR, PLY), each checked against the bundle's manifest as it is
+    copied, with a JSON sidecar giving each one's band, measured error and cost, and
+    layout. docs/export.md says how a shader reads them and what engines do with the glTF.
 
     \b
     OUTPUT/OBJECT-CHAIN.gltf, .bin     the mesh levels (MSFT_lod), OBJECT-albedo.png their texture
     OUTPUT/OBJECT-CHAIN.impostors.json the chain's impostors, beside OBJECT-PART files
-    OUTPUT/export.json                 what was written
+    OUTPUT/export.json                 what was written, and any warnings
 
     Exit codes: 0 done; 2 bad usage or bad input (also under --debug, which adds the traceback);
     128 + N stopped by signal N.
