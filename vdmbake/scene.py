@@ -239,7 +239,7 @@ _PATH = Text("a file path (relative to the scene) or pkg:PACKAGE/PATH")
 class Object:
     """One object; exactly one source: mesh, primitive, molecule, or spheres/cylinders."""
     name: str = setting(REQUIRED, _NAME, "unique name (output folders, report rows)")
-    mesh: str | None = setting(None, _PATH, "a mesh file trimesh reads (OBJ, PLY, STL, glTF, ...)")
+    mesh: str | None = setting(None, _PATH, "a mesh file (glTF/GLB read here; OBJ, PLY, STL, ... through trimesh)")
     textures: str = setting("use", Choice("use", "ignore"),
                             "the mesh file's own texture (OBJ `map_Kd` through its `mtllib`, glTF base colour, PLY "
                             "`TextureFile`): `use` it as the albedo (a texture that cannot be read is an error, exit "
