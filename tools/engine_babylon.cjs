@@ -4,7 +4,8 @@
 // file again with the extension's maxLODsToLoad = 1, 2, ... (it keeps the k coarsest levels, showing the k-th).
 // Prints per file, as JSON, per stage (coarsest first) the meshes shown: vertex count, material, texture, albedo
 // colour, first vertex colour, world bounds, the node's glTF extras; or the error the loader threw.
-//   NODE_PATH=.venv/node/node_modules node tools/engine_babylon.cjs FILE.gltf...
+//   node tools/engine_babylon.cjs FILE.gltf...   (modules from NODE_PATH, else .venv/node/node_modules)
+module.paths.push(require("path").join(__dirname, "..", ".venv", "node", "node_modules"));   // make test's npm line
 global.BABYLON = require("babylonjs");
 require("babylonjs-loaders");
 const inline = require("./gltf_inline.cjs");

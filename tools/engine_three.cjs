@@ -3,7 +3,7 @@
 // image decoder, so createImageBitmap is stood in for by one that reads a PNG's size (the texture is then present,
 // with its size, but not decoded). Prints per file, as JSON, the meshes in the scene: vertex count, material,
 // texture (width x height), base colour, vertex colours, world bounds; or the error the loader gave.
-//   NODE_PATH=.venv/node/node_modules node tools/engine_three.cjs FILE.gltf...
+//   node tools/engine_three.cjs FILE.gltf...   (modules from NODE_PATH, else .venv/node/node_modules)
 const path = require("path");
 const { pathToFileURL } = require("url");
 const inline = require("./gltf_inline.cjs");
@@ -18,7 +18,8 @@ globalThis.createImageBitmap = async (blob) => {
 };
 
 (async () => {
-  const modules = process.env.NODE_PATH.split(path.delimiter)[0];
+  const modules = process.env.NODE_PATH ? process.env.NODE_PATH.split(path.delimiter)[0]
+    : path.join(__dirname, "..", ".venv", "node", "node_modules");   // make test's npm line
   const at = (p) => pathToFileURL(path.join(modules, p)).href;
   const THREE = await import(at("three/build/three.module.js"));
   const { GLTFLoader } = await import(at("three/examples/jsm/loaders/GLTFLoader.js"));
