@@ -41,7 +41,8 @@ def test_worker_killed_mid_task_is_retried(tmp_path):
     out, cache = tmp_path / "out", tmp_path / "cache"
     p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--scheduler", "local:2",
                           "--cache", str(cache), "--json", "--verbose"], stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, env={k: v for k, v in os.environ.items() if k != "VDM_CACHE"})
+                         stderr=subprocess.PIPE, text=True,
+                         env={k: v for k, v in os.environ.items() if k != "VDM_CACHE"})
     killed, staging = kill_the_baker(out, "slow", p)   # a Dask worker process (its nanny starts another)
     stdout, stderr = p.communicate(timeout=400)
     assert p.returncode == 0, stderr

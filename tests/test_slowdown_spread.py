@@ -31,8 +31,13 @@ def test_too_few_repeats_are_refused_before_rendering(tmp_path):
     """Failed before the fix: exit 0 or 1 by chance, with rows flagged slower under noise alone."""
     r, out = bake_and_render(tmp_path, RENDER + BALL, "--no-flip", "--repeats", "4")
     assert r.exit_code == 0, r.output
-    assert json.loads((out / "report.json").read_text())["budget"]["repeats"] == 4
-    args = [str(tmp_path / "b.bundle"), "--no-flip", "--baseline", str(out / "report.json"), "--max-slowdown", "1000"]
+    doc = json.loads((out / "report.json").read_text())
+    assert doc["budget"]["repeats"] == 4
+    for row in doc["rows"]:
+        row["median_ms"] = 1e9                         # a baseline no run is slower than, whatever the load
+    base = tmp_path / "base.json"
+    base.write_text(json.dumps(doc))
+    args = [str(tmp_path / "b.bundle"), "--no-flip", "--baseline", str(base), "--max-slowdown", "1.5"]
     r = CliRunner().invoke(render_main, [*args, "-o", str(tmp_path / "one"), "--repeats", "1"])
     assert r.exit_code == 2 and "this run times 1; give --repeats 4" in r.stderr, r.output
     assert not (tmp_path / "one").exists()
@@ -42,9 +47,8 @@ def test_too_few_repeats_are_refused_before_rendering(tmp_path):
                                          "1", "-o", str(tmp_path / "error-only"), "--repeats", "1"])
     assert r.exit_code == 0, r.output                  # errors are compared whatever the repeats
     old = tmp_path / "old.json"
-    doc = json.loads((out / "report.json").read_text())
     doc["budget"]["repeats"] = 1
     old.write_text(json.dumps(doc))
-    args[args.index(str(out / "report.json"))] = str(old)
+    args[args.index(str(base))] = str(old)
     r = CliRunner().invoke(render_main, [*args, "-o", str(tmp_path / "old1"), "--repeats", "4"])
     assert r.exit_code == 2 and f"the baseline {old} times 1" in r.stderr, r.output

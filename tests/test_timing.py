@@ -212,12 +212,19 @@ def test_a_doubled_pass_doubles_its_counters_exactly(tmp_path, monkeypatch):
 
 
 def test_max_slowdown_refuses_another_device(tmp_path):
+    """--max-slowdown against another device's report: exit 2 naming --compare-devices; with it, the times are
+    compared (against a baseline whose every time is 10^9 ms, which no run exceeds whatever the machine's load)."""
     r, out = bake_and_render(tmp_path, SCENE, "--no-flip")
     report = json.loads((out / "report.json").read_text())
     report["device"] = "another GPU"
+    for row in report["rows"]:
+        row["median_ms"] = 1e9
     (tmp_path / "other.json").write_text(json.dumps(report))
-    args = [str(tmp_path / "b.bundle"), "--no-flip", "--baseline", str(tmp_path / "other.json"), "-o", str(tmp_path / "n")]
-    r = CliRunner().invoke(render_main, [*args, "--max-slowdown", "1.5"])
+    args = [str(tmp_path / "b.bundle"), "--no-flip", "--baseline", str(tmp_path / "other.json"),
+            "-o", str(tmp_path / "n"), "--max-slowdown", "1.5"]
+    r = CliRunner().invoke(render_main, args)
     assert r.exit_code == 2 and "--compare-devices" in r.stderr
-    r = CliRunner().invoke(render_main, [*args, "--max-slowdown", "1000", "--compare-devices"])
+    r = CliRunner().invoke(render_main, [*args, "--compare-devices"])
     assert r.exit_code == 0, r.output
+    block = json.loads((tmp_path / "n" / "report.json").read_text())["baseline"]
+    assert all(c["time_ratio"] is not None and c["time_ratio"] < 1 and not c["exceeds"] for c in block["rows"]), block
