@@ -215,8 +215,7 @@ def finest_first(levels: list[dict], faces: list[int]) -> tuple[list[tuple[dict,
         if min(switch, low) < switch:
             switch = min(switch, low)
             out.append((e, switch))
-    if [e["variant"] for e, _ in out] == [e["variant"] for e in levels] and all(
-            a > b for a, b in zip(faces, faces[1:])):
+    if [e["variant"] for e, _ in out] == [e["variant"] for e in levels]:   # as it was (equal counts keep their order)
         return out, None
     was = " -> ".join(f"{e['variant']} ({f} triangles, from {e['min_px']} px)" for e, f in zip(levels, faces))
     now = " -> ".join(f"{e['variant']} down to {px} px" for e, px in out)
