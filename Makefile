@@ -40,7 +40,7 @@ sysdeps:
 	    libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 >/dev/null; \
 	fi
 
-$(STAMP): pyproject.toml | sysdeps
+$(STAMP): pyproject.toml Makefile | sysdeps
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e '.[test]'
