@@ -167,6 +167,30 @@ def redone_elsewhere(rows: dict, stem: str, killed: int, staging: Path, proc) ->
     assert not staging.exists() and hidden(staging.parent) == []
 
 
+def test_the_bake_names_what_a_dead_bake_left(tmp_path):
+    """The next bake of a target names in its log each staging folder of a process no longer running that it
+    removed, or put back as the bundle (a complete one, the target lost); a running process's is left, unnamed."""
+    from vdmbake.bake import bake as bake_scene
+
+    scene = write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"))[0]
+    out = tmp_path / "a.bundle"
+    bake_scene(scene, out)
+    q = subprocess.Popen(["true"])
+    q.wait()
+    dead, running = q.pid, os.getppid()
+    out.rename(tmp_path / f".a.bundle.tmp-{dead}")             # killed between its manifest and the swap
+    lines = []
+    assert bake_scene(scene, out, log=lines.append)["up_to_date"]
+    said = f"left by a bake that did not finish (process {dead} no longer runs)"
+    assert f"{out}: put back .a.bundle.tmp-{dead}, {said}" in lines, lines
+    (tmp_path / f".a.bundle.tmp-{dead}" / "objects").mkdir(parents=True)       # killed mid-bake
+    (tmp_path / f".a.bundle.tmp-{running}").mkdir()
+    lines = []
+    bake_scene(scene, out, log=lines.append)
+    assert f"{out}: removed .a.bundle.tmp-{dead}, {said}" in lines, lines
+    assert (tmp_path / f".a.bundle.tmp-{running}").is_dir() and not [m for m in lines if str(running) in m]
+
+
 def test_worker_killed_mid_bake_is_retried(tmp_path):
     """Fault test: the worker process holding scene `slow` (its bake's staging folder names it) is killed
     (SIGKILL) mid-bake; `slow` is baked again by another worker process, whose log shows it found the killed

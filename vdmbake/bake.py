@@ -171,15 +171,24 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
 
 def _recover(out: Path, log) -> None:
     """What an interrupted run left at `out` put right (vdmbake.bundle.staging.recover); each staging folder of a
-    bake whose process no longer runs, which that removes, is named in the log with the process."""
+    bake whose process no longer runs that this removed, or put back as the bundle, is named in the log."""
     out = Path(out)
-    pattern = re.compile(rf"\.{re.escape(out.name)}\.tmp-(\d+)")
-    left = [p for p in out.parent.iterdir() if pattern.fullmatch(p.name)] if out.parent.is_dir() else []
+    if out.name in ("", ".", "..") or not out.parent.is_dir():
+        return staging.recover(out, MANIFEST)
+    pattern, left = re.compile(rf"\.{re.escape(out.name)}\.tmp-(\d+)"), {}
+    for p in out.parent.iterdir():
+        if m := pattern.fullmatch(p.name):
+            try:
+                left[p] = (int(m[1]), p.stat().st_ino)
+            except FileNotFoundError:
+                pass
+    missing = not out.exists() and not out.is_symlink()
     staging.recover(out, MANIFEST)
-    for p in left:
-        pid = int(pattern.fullmatch(p.name)[1])
+    back = out.stat().st_ino if missing and out.is_dir() else None       # a rename keeps the folder's inode
+    for p, (pid, inode) in left.items():
         if not p.exists() and pid != os.getpid() and not _running(pid):
-            log(f"{out}: removed {p.name}, left by a bake that did not finish (process {pid} no longer runs)")
+            log(f"{out}: {'put back' if inode == back else 'removed'} {p.name}, left by a bake that did not finish "
+                f"(process {pid} no longer runs)")
 
 
 def _running(pid: int) -> bool:
