@@ -148,15 +148,17 @@ def test_truncated_and_foreign_entries_are_misses(tmp_path):
 
 
 def test_lru_eviction_keeps_the_recently_used(tmp_path):
-    c = PartCache(tmp_path / "c", max_bytes=3500)   # three entries of about 1.1 kB
+    c = PartCache(tmp_path / "c")
     keys = [f"{i:02x}" * 32 for i in range(4)]
     for i, k in enumerate(keys[:3]):
         c.put(k, {"m": "@part:p"}, [], [("p", "mesh", {}, bytes(800))])
         os.utime(c.path(k), (1000 + i, 1000 + i))                     # k0 oldest
+    size = c.path(keys[0]).stat().st_size                             # the four entries are alike
+    c.max_bytes = 3 * size + size // 2                                # room for three entries, not four
     assert c.get(keys[0]) is not None                                 # a hit: now the most recent
     c.put(keys[3], {"m": "@part:p"}, [], [("p", "mesh", {}, bytes(800))])          # over the bound: the oldest (k1) goes
     assert c.path(keys[0]).exists() and not c.path(keys[1]).exists() and c.path(keys[3]).exists()
-    assert c.counters.evicted == 1 and c.stats()["bytes"] <= 3500
+    assert c.counters.evicted == 1 and c.stats()["bytes"] == 3 * size
 
 
 WRITER = """
@@ -233,3 +235,4 @@ def test_step_code_follows_the_step_modules():
     obj = imported_closure(["vdmbake.bake"], OBJECT_STEP_STOP)
     assert {"vdmbake.bake", "vdmbake.assets.primitives", "vdmbake.kernels.curvature"} <= set(obj)
     assert not [m for m in obj if m.startswith("vdmbake.techniques")]
+
