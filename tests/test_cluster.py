@@ -49,7 +49,8 @@ def test_worker_killed_mid_task_is_retried(tmp_path):
     report = json.loads(stdout)
     assert "Dask scheduler tcp://127.0.0.1:" in report["workers"]
     rows = {Path(r["scene"]).stem: r for r in report["scenes"]}
-    assert [r["status"] for r in rows.values()] == ["baked"] * 3, rows
+    # a scene the killed worker had finished, its result not yet fetched, is run again: its bundle is up to date
+    assert rows["slow"]["status"] == "baked" and {rows[s]["status"] for s in "ab"} <= {"baked", "up to date"}, rows
     redone_elsewhere(rows, "slow", killed, staging, p)
     for stem in "ab":
         whole(out / f"{stem}.bundle")
