@@ -236,3 +236,26 @@ def test_step_code_follows_the_step_modules():
     assert {"vdmbake.bake", "vdmbake.assets.primitives", "vdmbake.kernels.curvature"} <= set(obj)
     assert not [m for m in obj if m.startswith("vdmbake.techniques")]
 
+
+def test_the_cache_is_an_argument_from_the_bake_to_each_step(tmp_path, monkeypatch):
+    """The part cache reaches every step as an argument (issue 34): the cache given to bake() is the one each
+    run_step call gets, no cache gives None, and no module of vdmbake hands state on through a ContextVar."""
+    import vdmbake
+    from vdmbake import bake as bake_module
+    from vdmbake.library import cache as cache_module
+
+    seen, run_step = [], cache_module.run_step
+
+    def spy(cache, *args, **kwargs):
+        seen.append(cache)
+        return run_step(cache, *args, **kwargs)
+    monkeypatch.setattr(cache_module, "run_step", spy)
+    s = tmp_path / "s.toml"
+    s.write_text('[[objects]]\nname = "a"\nprimitive = "sphere"\ntechniques = { mesh = {}, coarse = { ratios = [0.5] } }\n')
+    cache = PartCache(tmp_path / "cache")
+    bake_module.bake(s, tmp_path / "a.bundle", cache=cache)
+    assert len(seen) == 2 and all(c is cache for c in seen)           # the object step, the coarse step
+    seen.clear()
+    bake_module.bake(s, tmp_path / "b.bundle")
+    assert len(seen) == 2 and all(c is None for c in seen)
+    assert not [p.name for p in Path(vdmbake.__file__).parent.rglob("*.py") if "ContextVar" in p.read_text()]

@@ -13,7 +13,6 @@ import json
 import os
 import re
 import time
-from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -34,8 +33,6 @@ from .assets.references import reached_files
 from .scene import Object, Scene, load_scene
 from .schema import dump
 from .techniques import REGISTRY
-
-_CACHE: ContextVar = ContextVar("vdmbake_part_cache", default=None)   # the bake's PartCache, if it has one
 
 
 def object_mesh(obj: Object, base: Path) -> TriMesh:
@@ -153,7 +150,6 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
         log(f"{out}: up to date (inputs, settings and bake code unchanged); use --force to bake again")
         return {"up_to_date": True, "bundle": str(out)}
     log(f"{out}: baking ({reason})")
-    token = _CACHE.set(cache)
     try:
         try:
             return _write(scene, scene_path, out, digest, code, inputs, log, cache)
@@ -164,7 +160,6 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
             log(f"{out}: {e}; the {n} cache entries it took removed, baking without them")
             return _write(scene, scene_path, out, digest, code, inputs, log, cache)
     finally:
-        _CACHE.reset(token)
         if cache is not None:
             cache.record(scene=str(scene_path))
 
@@ -210,7 +205,7 @@ def _write(scene: Scene, scene_path: Path, out: Path, digest: str, code: str, in
         objects, timing, steps, t_all = {}, {}, {}, time.perf_counter()
         for obj in scene.objects:
             t0 = time.perf_counter()
-            objects[obj.name] = entry = _bake_object(writer, obj, base, log, steps.setdefault(obj.name, {}))
+            objects[obj.name] = entry = _bake_object(writer, obj, base, log, steps.setdefault(obj.name, {}), cache)
             if obj.instances is not None:    # copies the reference cannot hold are refused as the object would be
                 instances.check(instances.matrices(obj.instances, scene.camera.up, entry["centre"]), entry["centre"],
                                 entry["radius"], f"object {obj.name!r}")
@@ -234,11 +229,12 @@ def _write(scene: Scene, scene_path: Path, out: Path, digest: str, code: str, in
     return {"up_to_date": False, "bundle": str(out), **stats, **took, "bake_s": round(time.perf_counter() - t_all, 3)}
 
 
-def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict) -> dict:
+def _bake_object(writer: BundleWriter, obj: Object, base: Path, log, steps: dict,
+                 cache: part_cache.PartCache | None) -> dict:
     """The object's manifest entry: what its reference needs, then each technique's own parts; each of these
-    steps through the part cache when the bake has one (vdmbake.library.cache.run_step)."""
+    steps through `cache` when the bake has one (vdmbake.library.cache.run_step), else is baked."""
     say = lambda m: log(f"{obj.name}: {m}")  # noqa: E731
-    cache, prefix = _CACHE.get(), f"objects/{obj.name}/"
+    prefix = f"objects/{obj.name}/"
     obj_dict = dump(obj)
     okey = part_cache.object_key(obj_dict, object_inputs(obj, base)) if cache is not None else None
     made = {}     # what the object step gives the technique steps: (mesh, stored mesh, maps), once it ran here
