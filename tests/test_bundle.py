@@ -224,12 +224,12 @@ def _interrupt(monkeypatch, where: str, exc: type[BaseException]) -> dict:
     if where == "bake_object":
         original = bake_mod._bake_object
 
-        def failing(writer, obj, base, log, steps):
+        def failing(writer, *args):
             if writer.parts:                              # the second object: the first one's parts exist
                 seen["tmp"] = writer.stage.tmp
                 seen["tmp_files"] = sorted(files(writer.stage.tmp))
                 raise exc("interrupted")
-            return original(writer, obj, base, log, steps)
+            return original(writer, *args)
         monkeypatch.setattr(bake_mod, "_bake_object", failing)
     else:
         original = coarse_mod.simplify
