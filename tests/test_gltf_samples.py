@@ -269,3 +269,18 @@ def test_what_is_not_read_is_refused_by_name(tmp_path, spoil, match):
     path.write_text(json.dumps(tree))
     with pytest.raises(InputError, match=match):
         load_mesh_file(path)
+
+
+def test_the_bake_log_names_what_it_left_out(tmp_path):
+    """vdmbake says in its own log (the object's lines) which primitives of the file it left out."""
+    from click.testing import CliRunner
+
+    from vdmbake.cli import main as bake_main
+
+    G.primitive_modes(tmp_path / "modes.gltf", modes=(6, 3))
+    (tmp_path / "s.toml").write_text('[render]\nresolution = [16, 16]\n[[objects]]\nname = "m"\nmesh = "modes.gltf"\n'
+                                     'techniques = { mesh = {} }\n')
+    r = CliRunner().invoke(bake_main, [str(tmp_path / "s.toml"), "-o", str(tmp_path / "b.bundle"), "--verbose"])
+    assert r.exit_code == 0, r.output
+    line = next(x for x in r.output.splitlines() if "warning:" in x)
+    assert line.startswith("m: warning: ") and "mesh 0 primitive 1 draws line strip (mode 3)" in line, r.output

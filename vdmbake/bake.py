@@ -35,12 +35,13 @@ from .schema import dump
 from .techniques import REGISTRY
 
 
-def object_mesh(obj: Object, base: Path) -> TriMesh:
-    """The object's full-resolution mesh in world space."""
+def object_mesh(obj: Object, base: Path, warn=None) -> TriMesh:
+    """The object's full-resolution mesh in world space; `warn` hears what of the file was left out (printed to
+    stderr if None)."""
     if obj.primitive:
         mesh = primitives.build(obj.primitive, obj.params)
     else:
-        mesh = load_mesh_file(resolve_path(obj.mesh, base), obj.textures == "use")
+        mesh = load_mesh_file(resolve_path(obj.mesh, base), obj.textures == "use", warn)
     world = transformed(mesh, obj.transform)
     return validate(world, f"object {obj.name!r}")
 
@@ -279,7 +280,7 @@ def _object_parts(writer: BundleWriter, obj: Object, base: Path, say) -> tuple[d
             entry["viewer_mesh"] = writer.add(f"objects/{obj.name}/viewer-mesh", parts.VIEWER_MESH,
                                               quadric_mesh.tessellate(q, obj.viewer_mesh))
     else:
-        mesh = object_mesh(obj, base)
+        mesh = object_mesh(obj, base, lambda m: say(f"warning: {m}"))
         if mesh.uvs is not None and not np.isfinite(mesh.uvs).all():
             if obj.mesostructure:
                 raise InputError(f"object {obj.name!r}: {int((~np.isfinite(mesh.uvs)).any(1).sum())} vertices have NaN "
