@@ -266,15 +266,21 @@ def test_render_shows_the_glTF_albedo(tmp_path, ctx, materials, colour, want):
     stored.texture = m.texture
     expected = images.encode(reference.MeshReference(TriMesh(m.vertices, m.faces, m.normals), light,
                                                      Material(albedo=want)).render(cam), BG)
-    target = gl.Target(ctx, 32, 32)
-    r = RasterMesh(ctx, stored, light, material, 256)
-    try:
-        r.render(cam, target)
-        drawn = metrics.compare(images.encode(target.read(), BG), expected)
-    finally:
-        r.release()
-        target.release()
-    traced = metrics.compare(images.encode(reference.MeshReference(m, light, material).render(cam), BG), expected)
+    drawn, traced = drawn_and_traced(ctx, m, stored, cam, light, material, expected)
     assert drawn["iou"] > 0.99 and traced["iou"] > 0.99
     # measured: 0.0 for both (at 32 px, on llvmpipe)
     assert traced["mean"] < 1e-6 and drawn["mean"] < 0.1, (traced["mean"], drawn["mean"])
+
+
+def drawn_and_traced(ctx, m, stored, cam, light, material, truth) -> tuple[dict, dict]:
+    """The mesh read from a file drawn (its stored part) and traced (the reference) from `cam`, each compared
+    with `truth`, the frame its file's own numbers give (metrics.compare)."""
+    target = gl.Target(ctx, cam.width, cam.height)
+    r = RasterMesh(ctx, stored, light, material, 256)
+    try:
+        r.render(cam, target)
+        drawn = metrics.compare(images.encode(target.read(), BG), truth)
+    finally:
+        r.release()
+        target.release()
+    return drawn, metrics.compare(images.encode(reference.MeshReference(m, light, material).render(cam), BG), truth)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from tests import gltf_files as G
-from tests.test_gltf_read import BG
+from tests.test_gltf_read import BG, drawn_and_traced
 from vdmbake.assets.meshes import TriMesh, load_mesh_file
 from vdmbake.bundle import parts
 from vdmbake.common import texture
@@ -77,9 +77,8 @@ def test_render_of_several_textures_shows_the_file_colours(tmp_path, ctx):
     """Uniform pictures and a factor-only quad: the `mesh` technique's frame against the reference of the same quads
     coloured per vertex with the colours the file gives (no texture), and our reference likewise."""
     from vdmbake.scene import Light, Material
-    from vdmrender import gl, images, metrics, reference
+    from vdmrender import images, reference
     from vdmrender.camera import orbit
-    from vdmrender.passes.raster import RasterMesh
 
     colours = np.array([[200, 30, 30], [30, 200, 60], [40, 60, 220]], np.uint8)
     m = load_mesh_file(G.texture_coordinate_test(tmp_path / "u.gltf", [np.tile(c, (2, 2, 1)) for c in colours]))
@@ -92,15 +91,7 @@ def test_render_of_several_textures_shows_the_file_colours(tmp_path, ctx):
     stored = parts.stored(parts.MESH, m)
     stored.texture = m.texture
     truth = images.encode(reference.MeshReference(expected, light, material).render(cam), BG)
-    target = gl.Target(ctx, 64, 32)
-    r = RasterMesh(ctx, stored, light, material, 256)
-    try:
-        r.render(cam, target)
-        drawn = metrics.compare(images.encode(target.read(), BG), truth)
-    finally:
-        r.release()
-        target.release()
-    traced = metrics.compare(images.encode(reference.MeshReference(m, light, material).render(cam), BG), truth)
+    drawn, traced = drawn_and_traced(ctx, m, stored, cam, light, material, truth)
     assert drawn["iou"] > 0.99 and traced["iou"] > 0.99
     assert traced["mean"] < 0.05 and drawn["mean"] < 0.2, (traced["mean"], drawn["mean"])
 

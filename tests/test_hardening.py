@@ -405,12 +405,12 @@ def test_swallowed_interrupt_still_stops_the_commit(tmp_path, monkeypatch):
 
     real = bake_module.object_mesh
 
-    def swallow(obj, base):
+    def swallow(*args):
         try:
             signals._handler(signal.SIGINT, None)
         except BaseException:   # what trimesh does
             pass
-        return real(obj, base)
+        return real(*args)
 
     monkeypatch.setattr(bake_module, "object_mesh", swallow)
     out = tmp_path / "x.bundle"

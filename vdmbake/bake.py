@@ -182,19 +182,9 @@ def _recover(out: Path, log) -> None:
     staging.recover(out, MANIFEST)
     back = out.stat().st_ino if missing and out.is_dir() else None       # a rename keeps the folder's inode
     for p, (pid, inode) in left.items():
-        if not p.exists() and pid != os.getpid() and not _running(pid):
+        if not p.exists() and pid != os.getpid() and not staging.alive(pid):
             log(f"{out}: {'put back' if inode == back else 'removed'} {p.name}, left by a bake that did not finish "
                 f"(process {pid} no longer runs)")
-
-
-def _running(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:           # another user's process
-        return True
-    return True
 
 
 def _write(scene: Scene, scene_path: Path, out: Path, digest: str, code: str, inputs: dict, log,

@@ -20,7 +20,8 @@ from .. import signals
 from ..errors import InputError
 
 
-def _alive(pid: int) -> bool:
+def alive(pid: int) -> bool:
+    """Whether process `pid` runs (another user's counts)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -61,7 +62,7 @@ def recover(path: Path, marker: str) -> None:
     path = Path(path)
     if path.name in ("", ".", ".."):
         return
-    dead = [(k, pid, p) for k, pid, p in _siblings(path) if pid != os.getpid() and not _alive(pid)]
+    dead = [(k, pid, p) for k, pid, p in _siblings(path) if pid != os.getpid() and not alive(pid)]
     if not path.exists() and not path.is_symlink():
         complete = [p for k, _, p in dead if k == "tmp" and (p / marker).is_file()]
         old = [p for k, _, p in dead if k == "old" and (p / marker).is_file()]
