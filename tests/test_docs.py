@@ -109,11 +109,9 @@ def test_every_measured_table_is_generated():
     """Every table of README.md and docs/*.md whose header names a measured quantity (ΔLuv, IoU, ms, MB, CPU,
     GPU or wall time, RSS), and every table under README's Measured results, lies between table markers; every
     marker names a result file that exists and every result file is used; a transcribed one says which
-    command measured it, when and on what device. (docs/export.md and docs/assets.md are not covered yet.)"""
+    command measured it, when and on what device."""
     docs = make_docs()
     for path in docs.documents():
-        if path.name in ("export.md", "assets.md"):
-            continue
         text = re.sub(r"<!-- table:.*?<!-- /table -->", "", path.read_text(), flags=re.S)
         for header in re.findall(r"^(\|.*\|)\n\|[-:| ]+\|$", text, re.M):
             assert not MEASURED.search(header), f"{path.name}: a measured table typed in ({header}): move it to docs/results/"
