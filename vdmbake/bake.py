@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -168,23 +166,9 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
 def _recover(out: Path, log) -> None:
     """What an interrupted run left at `out` put right (vdmbake.bundle.staging.recover); each staging folder of a
     bake whose process no longer runs that this removed, or put back as the bundle, is named in the log."""
-    out = Path(out)
-    if out.name in ("", ".", "..") or not out.parent.is_dir():
-        return staging.recover(out, MANIFEST)
-    pattern, left = re.compile(rf"\.{re.escape(out.name)}\.tmp-(\d+)"), {}
-    for p in out.parent.iterdir():
-        if m := pattern.fullmatch(p.name):
-            try:
-                left[p] = (int(m[1]), p.stat().st_ino)
-            except FileNotFoundError:
-                pass
-    missing = not out.exists() and not out.is_symlink()
-    staging.recover(out, MANIFEST)
-    back = out.stat().st_ino if missing and out.is_dir() else None       # a rename keeps the folder's inode
-    for p, (pid, inode) in left.items():
-        if not p.exists() and pid != os.getpid() and not staging.alive(pid):
-            log(f"{out}: {'put back' if inode == back else 'removed'} {p.name}, left by a bake that did not finish "
-                f"(process {pid} no longer runs)")
+    for did, kind, pid, name in staging.recover(out, MANIFEST):
+        if kind == "tmp":
+            log(f"{out}: {did} {name}, left by a bake that did not finish (process {pid} no longer runs)")
 
 
 def _write(scene: Scene, scene_path: Path, out: Path, digest: str, code: str, inputs: dict, log,

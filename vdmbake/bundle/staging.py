@@ -56,24 +56,29 @@ def _siblings(path: Path) -> list[tuple[str, int, Path]]:
     return [(m[1], int(m[2]), p) for p in path.parent.iterdir() if (m := pattern.fullmatch(p.name))]
 
 
-def recover(path: Path, marker: str) -> None:
+def recover(path: Path, marker: str) -> list[tuple[str, str, int, str]]:
     """Hidden siblings of dead processes at `path`: a target lost between the two renames of a swap comes
-    back (the complete new folder if there is one, else the old one); the rest is removed."""
+    back (the complete new folder if there is one, else the old one); the rest is removed. Returns what it did,
+    per sibling: ("put back" or "removed", "tmp" or "old", the dead process's pid, the sibling's name)."""
     path = Path(path)
     if path.name in ("", ".", ".."):
-        return
+        return []
     dead = [(k, pid, p) for k, pid, p in _siblings(path) if pid != os.getpid() and not alive(pid)]
+    restored = None
     if not path.exists() and not path.is_symlink():
         complete = [p for k, _, p in dead if k == "tmp" and (p / marker).is_file()]
         old = [p for k, _, p in dead if k == "old" and (p / marker).is_file()]
         for p in complete + old:
             try:
                 p.rename(path)
+                restored = p
                 break
             except OSError:
                 pass
     for _, _, p in dead:
         shutil.rmtree(p, ignore_errors=True)
+    return [("put back" if p == restored else "removed", k, pid, p.name) for k, pid, p in dead
+            if p == restored or not p.exists()]
 
 
 class StagedDir:
