@@ -213,9 +213,12 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
 def _log_chains(chains: dict, log, how: str) -> None:
     for c in chains["chains"]:
         for obj, ch in c["objects"].items():
-            log(f"LOD chain {c['name']} of {obj} ({how}): " + ", ".join(
-                f"{e['variant']} {e['min_px']}-{e['max_px']} px{'' if e['meets'] else ' (over the limits)'}"
-                for e in ch["entries"]))
+            _log_chain(c["name"], obj, ch["entries"], log, how)
+
+
+def _log_chain(name: str, obj: str, entries: list[dict], log, how: str) -> None:
+    log(f"LOD chain {name} of {obj} ({how}): " + ", ".join(
+        f"{e['variant']} {e['min_px']}-{e['max_px']} px{'' if e['meets'] else ' (over the limits)'}" for e in entries))
 
 
 def filtering_note(opts: Options) -> dict:
@@ -289,9 +292,7 @@ def render_views(harness, out, bundle, scene, obj, only, opts, device, log, size
     chains = lod.object_chains(sweep_rows, lod_sets, harness.target.size[1], scoring.pops(frames)) \
         if lod_sets else {}
     for name, c in chains.items():
-        log(f"LOD chain {name} of {obj.name} (from the sweep): " + ", ".join(
-            f"{e['variant']} {e['min_px']}-{e['max_px']} px{'' if e['meets'] else ' (over the limits)'}"
-            for e in c["entries"]))
+        _log_chain(name, obj.name, c["entries"], log, "from the sweep")
     cams = cameras_for(scene.camera, *framed(obj, entry, scene), *harness.target.size)
     world = instances.matrices(obj.instances, scene.camera.up, entry["centre"]) if obj.instances else None
     mixes = {name: c["entries"] for name, c in chains.items()} if world is not None else {}
