@@ -55,10 +55,10 @@ def _with_file_normals(mesh: TriMesh, v, f, colors, lineage) -> TriMesh:
     would round a hard edge of less than CREASE_DEG or crease a smooth one): each corner takes the normal (and,
     textured, the UV) of the nearest point of the full mesh's piece its face descends from (`transferred_uvs`), and
     a vertex whose corners disagree is split, so the coarse level shades like the full mesh."""
-    corners = v[f]
-    n = transferred_uvs(mesh, lineage, corners, mesh.normals).reshape(-1, 3)
+    carried = mesh.normals if mesh.texture is None else np.column_stack([mesh.normals, mesh.uvs])
+    both = transferred_uvs(mesh, lineage, v[f], carried).reshape(-1, carried.shape[1])   # one nearest-point search
+    n, uv = both[:, :3], both[:, 3:]
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    uv = transferred_uvs(mesh, lineage, corners).reshape(-1, 2) if mesh.texture is not None else np.zeros((len(n), 0))
     _, first, inv = np.unique(np.column_stack([f.ravel(), np.round(n * 1e6), uv]), axis=0, return_index=True,
                               return_inverse=True)
     keep = f.ravel()[first]
