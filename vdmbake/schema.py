@@ -300,6 +300,10 @@ class Reader:
         except Invalid:
             self.fail(key, raw, type_.text)
 
+    def values(self, declared: dict) -> dict:
+        """Every key of `declared` ({key: (type, default)}: a file's declared keys) read as `value` reads it."""
+        return {key: self.value(key, type_, default) for key, (type_, default) in declared.items()}
+
     def table(self, key: str) -> "Reader":
         return Reader(self.data.get(key) if self.has(key) else {}, self.key(key), self.origin)
 

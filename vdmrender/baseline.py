@@ -90,9 +90,8 @@ def load(path: Path) -> dict:
     rows = top.data.get("rows")
     if not isinstance(rows, list):
         top.fail("rows", rows, "a list of tables, one per object and variant")
-    old = {key: top.value(key, type_, default) for key, (type_, default) in TOP.items()}
-    old["rows"] = [{key: row.value(key, type_, default) for key, (type_, default) in ROW.items()}
-                   for row in (Reader(r, f"rows[{i}]", top.origin) for i, r in enumerate(rows))]
+    old = top.values(TOP)
+    old["rows"] = [Reader(r, f"rows[{i}]", top.origin).values(ROW) for i, r in enumerate(rows)]
     budget = top.data.get("budget")                      # absent in a report of another tool: not judged
     old["repeats"] = Reader(budget, "budget", top.origin).value("repeats", COUNT, None) \
         if isinstance(budget, dict) else None

@@ -34,7 +34,7 @@ MAX_ELEMENTS = 1 << 26     # the most elements of an accessor, or node instances
 
 def check_accessors(files: dict, origin: str) -> None:
     """Every accessor a mesh primitive reads (its attributes and indices) checked against its bufferView and buffer
-    and against the primitive's other attributes (glTF 2.0 §3.6.2, §3.7.2.1), before trimesh or colour_0 reads a
+    and against the primitive's other attributes (glTF 2.0 §3.6.2, §3.7.2.1), before read_gltf reads a
     byte: a component type and type of a vertex attribute, a count shared by every attribute, a byteStride no
     smaller than the element (else elements overlap), offsets aligned to the component, and every element within
     the view and the view within the buffer. InputError names the file, the accessor and what is wrong."""

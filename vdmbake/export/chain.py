@@ -104,9 +104,6 @@ def read_lod(path: Path) -> dict:
                          f"{escaped(str(e))[:200]}).") from None
     top = Reader(lod, "", f"{shown}: not a lod.json written by vdmrender, or edited (render again)")
 
-    def keys(r: Reader, declared: dict) -> dict:
-        return {key: r.value(key, type_, default) for key, (type_, default) in declared.items()}
-
     def entries(r: Reader, key: str) -> list[dict]:
         raw = r.data.get(key)
         if not isinstance(raw, list) or not raw:
@@ -114,7 +111,7 @@ def read_lod(path: Path) -> dict:
         out = []
         for k, e in enumerate(raw):
             er = Reader(e, f"{r.key(key)}[{k}]", r.origin)
-            out.append(keys(er, ENTRY))
+            out.append(er.values(ENTRY))
             if out[-1]["min_px"] > out[-1]["max_px"]:
                 er.fail("min_px", out[-1]["min_px"], f"at most max_px ({out[-1]['max_px']})")
         return out
@@ -128,11 +125,11 @@ def read_lod(path: Path) -> dict:
             out[name] = {"entries": entries(o, "entries")}
             if "meshes_only" in o.data:
                 out[name]["meshes_only"] = {"entries": entries(o.table("meshes_only"), "entries")}
-        return {**keys(r, CHAIN), "objects": out}
+        return {**r.values(CHAIN), "objects": out}
 
     if not isinstance(top.data.get("chains"), list):
         top.fail("chains", top.data.get("chains"), "a list of chains")
-    out = keys(top, TOP)
+    out = top.values(TOP)
     return {**out, "resolution": list(out["resolution"]), "bundle": lod.get("bundle"),
             "chains": [chain(Reader(c, f"chains[{i}]", top.origin)) for i, c in enumerate(lod["chains"])]}
 
