@@ -401,6 +401,9 @@ def _picture(tree, files, buffer, source: int, origin: str) -> np.ndarray:
     from PIL import Image
 
     image, shown = tree["images"][source], f"{origin}: image {source}"
+    if ("uri" in image) == ("bufferView" in image):   # a reader would have to guess which picture is meant
+        raise InputError(f"{shown} has {'both a uri and' if 'uri' in image else 'neither a uri nor'} a bufferView; "
+                         "glTF 2.0 gives exactly one (§5.17, image.bufferView); fix the file.")
     if "uri" in image:
         uri = image["uri"]
         if uri.startswith("data:"):
