@@ -409,7 +409,7 @@ def gltf_case(draw):
     for _ in range(draw(st.integers(1, 3))):
         op = draw(st.sampled_from(["image_uri", "image_uri", "indices", "factor", "image_view", "images",
                                    "buffer_uri", "byte_length", "view", "accessor", "accessor", "attributes",
-                                   "tree", "tree", "bin", "json_text", "png", "png"]))
+                                   "primitive", "node", "tree", "tree", "bin", "json_text", "png", "png"]))
         touched |= ({"png"} if op == "png" else {"gltf-texture"} if op in GLTF_TEXTURE_OPS else {"gltf"}
                     | ({"gltf-texture"} if op == "image_view" else set()))
         try:   # an op on what an earlier op removed or retyped: skipped
@@ -505,6 +505,32 @@ def gltf_case(draw):
                 else:
                     attrs[key] = draw(st.integers(0, 2) | IDX)
                 touched.add("gltf")
+            elif op == "primitive":   # what read_gltf reads beyond a triangle list: modes, morph targets, weights
+                prim, mesh = tree["meshes"][0]["primitives"][0], tree["meshes"][0]
+                key = draw(st.sampled_from(["mode", "targets", "weights", "second"]))
+                if key == "mode":
+                    prim["mode"] = draw(st.sampled_from([0, 1, 2, 3, 4, 5, 6, 7, -1, 2**63]) | IDX)
+                elif key == "targets":
+                    prim["targets"] = draw(st.sampled_from([[{"POSITION": 0}], [{"NORMAL": 0}], [{"COLOR_0": 1}],
+                                                            [{"POSITION": 1}], [{}], [], {}]) | IDX)
+                elif key == "weights":
+                    mesh["weights"] = draw(st.sampled_from([[0.5], [float("nan")], [1e308], [], [1, 2], "x"]) | IDX)
+                else:   # points or lines beside the triangles (left out, named)
+                    mesh["primitives"].append({**copy.deepcopy(prim), "mode": draw(st.sampled_from([0, 1, 3]))})
+                touched.add("gltf")
+            elif op == "node":        # the node tree: transforms, children, cycles, node weights
+                node = tree["nodes"][0]
+                key = draw(st.sampled_from(["matrix", "rotation", "scale", "translation", "children", "weights"]))
+                node[key] = draw({
+                    "matrix": st.sampled_from([[0.0] * 16, [1e308] * 16, [float("nan")] * 16, [1] * 15,
+                                               [-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]]),
+                    "rotation": st.sampled_from([[0, 0, 0, 0], [0, 0, 0, 1], [1, 1, 1, 1], [float("nan")] * 4, [1]]),
+                    "scale": st.sampled_from([[0, 0, 0], [-1, 1, 1], [1e308] * 3, [1, 1]]),
+                    "translation": st.sampled_from([[1e308, 0, 0], [float("inf")] * 3, [0, 0]]),
+                    "children": st.sampled_from([[0], [1], [-1], [0, 0], "x"]),
+                    "weights": st.sampled_from([[0.25], [float("nan")], []]),
+                }[key] | IDX)
+                touched.add("gltf")
             elif op == "tree":
                 tree = draw(mutated(tree))
                 touched.add("gltf")
@@ -576,7 +602,7 @@ def check_textured_bake(folder: Path, mesh: str, files: dict, touched: set, text
     if _names_a_used_texture(mesh, files, touched):
         assert albedo is not None, ("the asset's material names a texture, and the bake made no albedo map of it "
                                     "nor refused it (a texture that cannot be used is an error)")
-    oracle = _trimesh_albedo(folder / mesh)
+    oracle = _gltf_albedo(folder / mesh) if mesh.endswith(".gltf") else _trimesh_albedo(folder / mesh)
     if oracle is not False:
         assert (albedo is None) == (oracle is None), (
             f"trimesh reading {mesh} from disk finds {'no' if oracle is None else 'a'} texture, the bake "
@@ -643,6 +669,35 @@ def _decoded(data: bytes) -> np.ndarray:
 
     with Image.open(io.BytesIO(data)) as im:
         return texture.from_image(im)
+
+
+def _gltf_albedo(path: Path):
+    """The picture a glTF's primitive names as its base colour, decoded from the bytes its image's URI gives (a file
+    beside it, the URI percent-decoded as RFC 3986 says; or a data: URI), read without the bake's reader or trimesh
+    (which reads neither percent-encoded URIs nor every node tree as glTF 2.0 does): None where the primitive names
+    no texture or has no UVs to read one at, False where this oracle cannot tell (an image in a bufferView, anything
+    unreadable)."""
+    import urllib.parse
+
+    try:
+        tree = json.loads(path.read_text())
+        prim = tree["meshes"][0]["primitives"][0]
+        if "material" not in prim:
+            return None
+        info = tree["materials"][prim["material"]].get("pbrMetallicRoughness", {}).get("baseColorTexture")
+        if info is None:
+            return None
+        image = tree["images"][tree["textures"][info["index"]]["source"]]
+        if "TEXCOORD_0" not in prim["attributes"]:
+            return None
+        if "bufferView" in image:
+            return False
+        uri = image["uri"]
+        data = base64.b64decode(uri.partition(",")[2]) if uri.startswith("data:") else \
+            (path.parent / urllib.parse.unquote(uri)).read_bytes()
+        return _decoded(data)
+    except Exception:
+        return False
 
 
 def _trimesh_albedo(path: Path):
