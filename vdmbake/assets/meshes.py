@@ -224,19 +224,20 @@ def file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def load_mesh_file(path: Path, textures: bool = True, warn=None) -> TriMesh:
+def load_mesh_file(path: Path, textures: bool = True, warn=None, root: Path | None = None) -> TriMesh:
     """Any format trimesh reads, merged to one triangle mesh with area-weighted vertex normals, and with its
     texture as an albedo map if `textures` and it has one. trimesh reads only the bytes of
     `references.reached_files`, through a resolver, and each texture file is checked first
     (`references.check_picture`); an embedded picture (a GLB's) over texture.MAX_PIXELS is left out undecoded.
     glTF is read here (gltf.read_gltf), not by trimesh: each primitive with its own material, and its NORMALs kept
-    where it has them. `warn` hears what of the file was left out (default: printed to stderr)."""
+    where it has them. `warn` hears what of the file was left out (default: printed to stderr). `root`: the folder
+    besides the mesh file's own that the files it names may lie in (references.confined; the scene's folder)."""
     import trimesh  # imported here: only scenes with mesh files pay for it
     from PIL import Image
 
     warn = warn or (lambda m: print(f"warning: {m}", file=sys.stderr))
     shown = escaped(str(path))
-    files = reached_files(path, str(path), textures)
+    files = reached_files(path, str(path), textures, root)
     for chain, f in files.items():
         if f.what == "texture":
             check_picture(f.data, f"{escaped(str(f.path))} (the {described(chain, f.what)})")

@@ -3,7 +3,13 @@ buffers and images by URI, a PLY its texture (`comment TextureFile`). They are i
 file: `reached_files` reads each once with the checks of the scene's own files (a regular file of bounded
 size, so a FIFO is refused instead of waited on), for the input hash and for loading (meshes.load_mesh_file
 hands trimesh only these bytes). A texture that cannot be used is an error naming it and the file that
-named it, not a mesh silently baked without it."""
+named it, not a mesh silently baked without it.
+
+Mesh files are untrusted input (asset libraries, CI jobs and farms bake files nobody here wrote), so every name
+one gives goes through one rule, `confined`, whatever the format: it must resolve, symbolic links followed, inside
+the allowed root (the scene's folder, as bake.py passes it) or the mesh file's own folder, as a browser's glTF
+loader reads nothing outside the asset's origin. Each file so resolved is read once however it is spelt, and
+together they hold at most MAX_FILE_BYTES."""
 from __future__ import annotations
 
 import base64
@@ -42,16 +48,39 @@ def references(kind: str, data: bytes, textures: bool, origin: str) -> list[tupl
         return [(names[-1], "texture")] if names and names[-1] else []
     if kind in ("gltf", "glb"):
         try:
-            return _gltf_references(_gltf_json(kind, data), textures, origin)
+            return _gltf_references(_gltf_json(kind, data, origin), textures, origin)
         except (ValueError, RecursionError, AttributeError, TypeError, KeyError):
             return []
     return []
 
 
-def _gltf_json(kind: str, data: bytes):
-    if kind == "glb":   # the JSON chunk: after the 12-byte header, its length and type
-        data = data[20:20 + int.from_bytes(data[12:16], "little")] if data[16:20] == b"JSON" else b""
-    return json.loads(data)
+def glb_chunks(data: bytes, origin: str) -> tuple[bytes, bytes | None]:
+    """A GLB's JSON chunk and its BIN chunk (None without one), after checking its header as glTF 2.0 §4.4 gives
+    it: magic "glTF", version 2, the length the file has, then a JSON chunk and at most a BIN chunk, each within
+    that length. InputError names `origin` and what is wrong."""
+    head = [int.from_bytes(data[i:i + 4], "little") for i in (4, 8)] if len(data) >= 12 else []
+    if data[:4] != b"glTF" or head[:1] != [2] or head[1] != len(data):
+        raise InputError(f"{origin}: not a GLB file of glTF 2.0 (magic {escaped(repr(data[:4]))}, version "
+                         f"{head[0] if head else None}, a length of {head[1] if head else None} bytes where the file "
+                         f"has {len(data)}); glTF 2.0 §4.4 gives 'glTF', 2 and the file's length; fix the file.")
+    chunks, at = [], 12
+    while at < len(data):
+        length = int.from_bytes(data[at:at + 4], "little")
+        kind, end = data[at + 4:at + 8], at + 8 + length
+        if end > len(data) or len(data) - at < 8:
+            raise InputError(f"{origin}: GLB chunk {len(chunks)} of {length} bytes at byte {at} reaches past the "
+                             f"file's {len(data)} bytes (glTF 2.0 §4.4); fix the file.")
+        chunks.append((kind, data[at + 8:end]))
+        at = end
+    kinds = [k for k, _ in chunks]
+    if kinds not in ([b"JSON"], [b"JSON", b"BIN\0"]):
+        raise InputError(f"{origin}: GLB chunks {escaped(repr(kinds))[:200]}; glTF 2.0 §4.4 gives a JSON chunk "
+                         "first, then at most one BIN chunk; fix the file.")
+    return chunks[0][1], chunks[1][1] if len(chunks) > 1 else None
+
+
+def _gltf_json(kind: str, data: bytes, origin: str = "the glTF"):
+    return json.loads(glb_chunks(data, origin)[0] if kind == "glb" else data)
 
 
 def gltf_tree(files: dict) -> dict:
@@ -66,12 +95,11 @@ def gltf_buffer(files: dict, tree: dict, index: int, origin: str) -> bytes:
     spec, mesh = next((chain, f) for chain, f in files.items() if len(chain) == 1)
     uri = tree["buffers"][index].get("uri")
     if uri is None:
-        data = mesh.data
-        at = 20 + int.from_bytes(data[12:16], "little")    # past the header and the JSON chunk
-        if data[16:20] != b"JSON" or data[at + 4:at + 8] != b"BIN\0":
+        binary = glb_chunks(mesh.data, origin)[1] if mesh.path.suffix.lower() == ".glb" else None
+        if binary is None:
             raise InputError(f"{origin}: buffer {index} has no uri and the file has no GLB binary chunk; glTF 2.0 "
                              "gives every buffer of a .gltf a uri.")
-        return data[at + 8:at + 8 + int.from_bytes(data[at:at + 4], "little")]
+        return binary
     if not uri.startswith("data:"):
         return files[spec + (uri,)].data
     head, _, body = uri.partition(",")
@@ -134,26 +162,52 @@ def described(chain: tuple[str, ...], what: str) -> str:
     return f"{what} named by {escaped(' > '.join(chain[:-1]))}" if len(chain) > 1 else what
 
 
-def reached_files(path: Path, spec: str, textures: bool = True) -> dict[tuple[str, ...], Reached]:
-    """The mesh file at `path` (named `spec` in the scene) and every file it reaches (`references`), each read
-    once through safeio (a regular file of at most MAX_FILE_BYTES), keyed by the chain of names that reaches
-    it: (spec,), (spec, "m.mtl"), (spec, "m.mtl", "tex.png"). Names are relative to the mesh file's folder,
-    as trimesh resolves them (a glTF URI percent-decoded); a missing file is an InputError naming it and the
-    file that named it."""
-    found, todo = {}, [((spec,), path, "mesh file")]
+def confined(name: str, folder: Path, roots: tuple[Path, ...], shown: str) -> Path:
+    """The file a mesh file names: `name` (as written; a glTF URI already percent-decoded, RFC 3986) relative to
+    `folder`, the mesh file's, with every symbolic link resolved; refused unless it lies inside one of `roots`
+    (resolved folders). `shown` says which reference it is, for the message. The one rule for every format."""
+    try:
+        target = (folder / name).resolve()
+    except (OSError, ValueError, RuntimeError) as e:   # a NUL in the name, a loop of links
+        raise InputError(f"{shown} '{escaped(name)}' names no file ({type(e).__name__}: {escaped(str(e))}).") from None
+    if not any(target.is_relative_to(root) for root in roots):
+        raise InputError(f"{shown} '{escaped(name)}' resolves to {escaped(str(target))}, outside "
+                         f"{' and '.join(escaped(str(r)) for r in dict.fromkeys(roots))}; a mesh file may name only "
+                         "files inside the scene's folder or its own (no absolute path, no '..' or link leading out); "
+                         "copy the file there.")
+    return target
+
+
+def reached_files(path: Path, spec: str, textures: bool = True, root: Path | None = None) \
+        -> dict[tuple[str, ...], Reached]:
+    """The mesh file at `path` (named `spec` in the scene) and every file it reaches (`references`), keyed by the
+    chain of names that reaches it: (spec,), (spec, "m.mtl"), (spec, "m.mtl", "tex.png"). Names are relative to
+    the mesh file's folder, as trimesh resolves them (a glTF URI percent-decoded), and `confined` to `root` (the
+    scene's folder; None: the mesh file's folder) or the mesh file's folder. Each resolved file is read once
+    through safeio (a regular file; all of them together at most MAX_FILE_BYTES, so one buffer named in several
+    spellings is one read). A missing file is an InputError naming it and the file that named it."""
+    roots = tuple(dict.fromkeys(r.resolve() for r in (path.parent, root or path.parent)))
+    found, read, todo = {}, {}, [((spec,), path, "mesh file")]
     while todo:
         chain, file, what = todo.pop(0)
         if chain in found:
             continue
-        try:
-            data = read_regular(file, described(chain, what), limit=MAX_FILE_BYTES)
-        except FileNotFoundError:
-            raise InputError(f"{escaped(str(file))}: the {described(chain, what)} is not found (a name in a mesh "
-                             "file is relative to the mesh file's folder).") from None
-        found[chain] = Reached(what, file, data)
+        real, total = file.resolve(), sum(len(d) for d in read.values())
+        if real not in read:
+            try:
+                read[real] = read_regular(file, described(chain, what) + (
+                    f" (the files a mesh file reaches hold at most {MAX_FILE_BYTES} bytes together, {total} read "
+                    "before it)" if total else ""), limit=MAX_FILE_BYTES - total,
+                                          follow=len(chain) == 1)   # a named file resolved: a link now was swapped in
+            except FileNotFoundError:
+                raise InputError(f"{escaped(str(file))}: the {described(chain, what)} is not found (a name in a mesh "
+                                 "file is relative to the mesh file's folder).") from None
+        found[chain] = Reached(what, file, read[real])
         kind = path.suffix[1:].lower() if len(chain) == 1 else "mtl" if what == "material library" else ""
-        for name, named in references(kind, data, textures, escaped(" > ".join(chain))):
-            todo.append((chain + (name,), path.parent / (unquote(name) if kind in ("gltf", "glb") else name), named))
+        for name, named in references(kind, read[real], textures, escaped(" > ".join(chain))):
+            shown = f"{escaped(' > '.join(chain))}: the {named}"
+            todo.append((chain + (name,), confined(unquote(name) if kind in ("gltf", "glb") else name, file.parent,
+                                                   roots, shown), named))
     return found
 
 
