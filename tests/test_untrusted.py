@@ -136,7 +136,121 @@ def test_the_files_reached_are_bounded_together(tmp_path, monkeypatch):
         references.reached_files(tmp_path / "quad.gltf", "quad.gltf")
 
 
-# --- GLB headers -----------------------------------------------------------------------------------------------
+# --- bounded work per file ---------------------------------------------------------------------------------------
+
+def test_an_accessor_without_bytes_is_bounded_by_the_file(tmp_path):
+    """Failed before: a 1 KB glTF whose 2^26-count accessor has no bufferView reached 5.2 GB (here 2^20: 25 MB of
+    zeros, refused before as 'no area' only after they were made)."""
+    gltf_asset(tmp_path)
+
+    def edit(tree):
+        tree["accessors"][0] = {"componentType": 5126, "count": 1 << 20, "type": "VEC3"}
+        del tree["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"]
+    _with(tmp_path / "quad.gltf", edit)
+    with pytest.raises(InputError, match=r"quad.gltf: accessor 0 has 1048576 elements and no bufferView, more than "
+                                         r"the \d+ bytes of the file and its buffers"):
+        load_mesh_file(tmp_path / "quad.gltf")
+
+
+def _chain(tmp_path: Path, depth: int, twice: bool = False) -> Path:
+    """The quad under a chain of `depth` nodes, each naming the next (twice: a node of two parents)."""
+    gltf_asset(tmp_path)
+
+    def edit(tree):
+        tree["nodes"] = [{"children": [k + 1] * (2 if twice else 1), "translation": [0, 0, 1e-3]}
+                         for k in range(depth)] + [{"mesh": 0}]
+    return _with(tmp_path / "quad.gltf", edit)
+
+
+def test_a_deep_node_chain_is_read_in_linear_work(tmp_path):
+    """Failed before at 100,000 nodes (the ancestors' tuple copied per node: never finished); read here at 20,000."""
+    m = load_mesh_file(_chain(tmp_path, 20_000), textures=False)
+    assert np.allclose(m.vertices[:, 2].min(), 20.0)
+
+
+def test_nodes_naming_the_next_twice_are_refused(tmp_path):
+    """Failed before: 23 such nodes placed 2^22 copies of the mesh."""
+    with pytest.raises(InputError, match=r"node 23 is reached twice \(its own ancestor, or a child of two parents\); "
+                                         r"glTF 2.0 node hierarchies are disjoint trees \(§3.5.1\)"):
+        load_mesh_file(_chain(tmp_path, 23, twice=True), textures=False)
+
+
+def test_the_node_tree_is_held_to_the_memory_budget(tmp_path, monkeypatch):
+    from vdmbake.bundle import budget
+
+    monkeypatch.setattr(budget, "BUDGET", 3 * 4 * 1024 - 1)   # three copies of the quad's 4 vertices, less a byte
+    with pytest.raises(InputError, match="quad.gltf: its node tree places 3 meshes of 12 vertices in all, which needs "
+                                         "about .* GiB of memory"):
+        load_mesh_file(_instanced(tmp_path), textures=False)
+
+
+# --- extensions and GLB headers ----------------------------------------------------------------------------------
+
+def _instanced(tmp_path: Path, required: bool = True, count: int = 3) -> Path:
+    """The quad drawn by one node with EXT_mesh_gpu_instancing: three copies at x = 0, 10, 20 (the third turned
+    half a turn about z)."""
+    gltf_asset(tmp_path)
+    extra = (np.array([[0, 0, 0], [10, 0, 0], [20, 0, 0]], "<f4").tobytes()
+             + np.array([[0, 0, 0, 1], [0, 0, 0, 1], [0, 0, 1, 0]], "<f4").tobytes())
+    with open(tmp_path / "quad.bin", "ab") as f:
+        f.write(extra)
+
+    def edit(tree):
+        tree["buffers"][0]["byteLength"] += len(extra)
+        tree["bufferViews"] += [{"buffer": 0, "byteOffset": 92, "byteLength": 36},
+                                {"buffer": 0, "byteOffset": 128, "byteLength": 48}]
+        tree["accessors"] += [{"bufferView": 3, "componentType": 5126, "count": count, "type": "VEC3"},
+                              {"bufferView": 4, "componentType": 5126, "count": 3, "type": "VEC4"}]
+        tree["nodes"][0]["extensions"] = {"EXT_mesh_gpu_instancing": {"attributes": {"TRANSLATION": 3,
+                                                                                      "ROTATION": 4}}}
+        tree["extensionsUsed"] = ["EXT_mesh_gpu_instancing"]
+        if required:
+            tree["extensionsRequired"] = ["EXT_mesh_gpu_instancing"]
+    return _with(tmp_path / "quad.gltf", edit)
+
+
+def test_gpu_instancing_places_every_copy(tmp_path):
+    """Failed before: EXT_mesh_gpu_instancing required, 1 copy baked instead of 3, exit 0."""
+    m = load_mesh_file(_instanced(tmp_path), textures=False)
+    quad = np.asarray(QUAD_V, float)
+    turned = quad * [-1, -1, 1]
+    want = np.r_[quad, quad + [10, 0, 0], turned + [20, 0, 0]]
+    got = np.round(m.vertices, 6)
+    assert len(got) == 12 and {tuple(v) for v in got} == {tuple(v) for v in np.round(want, 6)}
+
+
+def test_gpu_instancing_copies_are_bounded_before_they_are_made(tmp_path, monkeypatch):
+    from vdmbake.assets import gltf
+
+    monkeypatch.setattr(gltf, "MAX_COPIES", 2)
+    with pytest.raises(InputError, match="node 0: EXT_mesh_gpu_instancing places 3 copies where 2 more fit the 2 a "
+                                         "file may place"):
+        load_mesh_file(_instanced(tmp_path), textures=False)
+
+
+@pytest.mark.parametrize("required, match", [
+    (["KHR_materials_pbrSpecularGlossiness"], r"it requires the extension KHR_materials_pbrSpecularGlossiness "
+                                              r"\(extensionsRequired\), which this reader does not apply; glTF 2.0 "
+                                              r"§3.12 says to refuse such a file"),
+    (["KHR_draco_mesh_compression"], r"its geometry is compressed \(KHR_draco_mesh_compression\)"),
+    ("x", r"extensionsRequired is 'x'"),
+])
+def test_required_extensions_are_honoured_or_refused(tmp_path, required, match):
+    """Failed before: an unknown required extension baked without a word; Draco listed only in extensionsRequired
+    gave 'the mesh has no area'."""
+    gltf_asset(tmp_path)
+    _with(tmp_path / "quad.gltf", lambda tree: tree.update(extensionsRequired=required))
+    with pytest.raises(InputError, match=match):
+        load_mesh_file(tmp_path / "quad.gltf")
+
+
+def test_compression_on_a_primitive_is_named(tmp_path):
+    gltf_asset(tmp_path)
+    _with(tmp_path / "quad.gltf", lambda tree: tree["meshes"][0]["primitives"][0].update(
+        extensions={"EXT_meshopt_compression": {}}))
+    with pytest.raises(InputError, match=r"compressed \(EXT_meshopt_compression\)"):
+        load_mesh_file(tmp_path / "quad.gltf")
+
 
 def _glb(tmp_path: Path) -> bytes:
     """The quad as a GLB: its JSON chunk (padded with spaces) and its BIN chunk."""

@@ -2,11 +2,16 @@
 base-colour pictures and the materials' factors into one atlas whose UVs point at other regions, and multiplies a
 factor in twice): the default scene's node tree with each node's transform (§3.5.2), each triangle primitive with
 its POSITION, NORMAL, TEXCOORD_0 and COLOR_0 in any legal encoding, sparse accessors (§3.6.2.3), morph targets at
-the default weights (§3.7.2.2), strips and fans (§3.7.2.1), and its material: baseColorFactor x COLOR_0 as one
-linear colour per vertex, applied once (§3.9.2), and the base-colour picture kept as the file's own sRGB texels.
+the default weights (§3.7.2.2), strips and fans (§3.7.2.1), EXT_mesh_gpu_instancing's copies, and its material:
+baseColorFactor x COLOR_0 as one linear colour per vertex, applied once (§3.9.2), and the base-colour picture kept
+as the file's own sRGB texels.
 Several pictures (or pictured and unpictured primitives) in one file go into an atlas built here, each picture in
 its own tile with a one-texel gutter that repeats what the file's wrap mode reads past its edge, so the renderer's
-and the reference's bilinear read (vdmbake.common.texture.sample) reads every texel as the file means it."""
+and the reference's bilinear read (vdmbake.common.texture.sample) reads every texel as the file means it.
+
+The file is untrusted: an extension it requires and this reader does not apply is refused (§3.12), and its work is
+bounded before anything is allocated: elements no byte stores by the file's size, each node visited once, the copies
+placed by MAX_COPIES and their vertices by the bake's memory budget (vdmbake.bundle.budget)."""
 from __future__ import annotations
 
 import base64
@@ -17,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..bundle import budget
 from ..common import texture
 from ..errors import InputError, escaped
 from .references import check_picture, gltf_buffer, gltf_tree
@@ -29,7 +35,16 @@ _DTYPES = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: 
 _WRAPS = (33071, 33648, _REPEAT)                                   # CLAMP_TO_EDGE, MIRRORED_REPEAT, REPEAT (§5.26)
 _MODES = {0: "points", 1: "lines", 2: "line loop", 3: "line strip", 4: "triangles", 5: "triangle strip",
           6: "triangle fan"}                                       # §3.7.2.1
-MAX_ELEMENTS = 1 << 26     # the most elements of an accessor, or node instances, one file may make (our bound)
+MAX_ELEMENTS = 1 << 26     # the most elements of an accessor one file may make (our bound)
+MAX_COPIES = 1_000_000     # the most meshes one file may place (nodes and their EXT_mesh_gpu_instancing copies), as
+                           # many as a scene's instances.scatter makes
+BYTES_PER_VERTEX = 1024    # peak memory per vertex placed, through the read, the merge and the normals: 757 bytes
+                           # (tracemalloc, a 90,000-vertex grid with NORMAL and TEXCOORD_0), rounded up
+_COMPRESSION = ("KHR_draco_mesh_compression", "EXT_meshopt_compression")   # geometry not read here: refused by name
+# The extensions a file may require (glTF 2.0 §3.12: a loader refuses a file requiring any other): what this reader
+# honours. KHR_texture_transform: an identity transform read, any other refused by _material; KHR_mesh_quantization:
+# the integer attributes values() reads; EXT_mesh_gpu_instancing: its copies placed (_gpu_instances).
+REQUIRED_READ = ("KHR_texture_transform", "KHR_mesh_quantization", "EXT_mesh_gpu_instancing")
 
 
 def check_accessors(files: dict, origin: str) -> None:
@@ -44,7 +59,14 @@ def check_accessors(files: dict, origin: str) -> None:
         raise InputError(f"{origin}: not readable glTF JSON ({type(e).__name__}: {escaped(str(e))[:200]}); fix the "
                          "file.") from None
     buffer = functools.cache(lambda i: gltf_buffer(files, tree, i, origin))
+    check_extensions(tree, origin)
+    stored = sum(len(f.data) for f in files.values())
     try:
+        for k, a in enumerate(tree.get("accessors", [])):   # zeros or sparse: elements no byte of the file stores
+            if "bufferView" not in a and type(a.get("count")) is int and a["count"] > stored:
+                raise InputError(f"{origin}: accessor {k} has {a['count']} elements and no bufferView, more than the "
+                                 f"{stored} bytes of the file and its buffers; an accessor without bytes holds at "
+                                 "most one element per byte of the file (our bound: it would be zeros); fix the file.")
         for m, mesh in enumerate(tree.get("meshes", [])):
             for p, prim in enumerate(mesh["primitives"]):
                 where = f"{origin}: mesh {m} primitive {p}"
@@ -59,6 +81,29 @@ def check_accessors(files: dict, origin: str) -> None:
     except (KeyError, IndexError, TypeError, AttributeError, ValueError) as e:
         raise InputError(f"{origin}: cannot read its meshes' accessors ({type(e).__name__}: "
                          f"{escaped(str(e))}); fix the file.") from None
+
+
+def check_extensions(tree: dict, origin: str) -> None:
+    """Refuse what the file requires and this reader does not do (glTF 2.0 §3.12: a loader that does not support an
+    extension in extensionsRequired refuses the file), and compressed geometry wherever it is named (listed in
+    extensionsUsed or extensionsRequired, or on a primitive: its accessors have no bytes and would read as zeros)."""
+    required = tree.get("extensionsRequired", [])
+    if not isinstance(required, list) or not all(isinstance(e, str) for e in required):
+        raise InputError(f"{origin}: extensionsRequired is {escaped(repr(required))[:200]}; glTF 2.0 gives a list of "
+                         "names; fix the file.")
+    on_primitives = [e for mesh in tree.get("meshes", []) if isinstance(mesh, dict)
+                     for prim in mesh.get("primitives", []) if isinstance(prim, dict)
+                     for e in (prim.get("extensions") or {}) if isinstance(prim.get("extensions"), dict)]
+    packed = [e for e in _COMPRESSION if e in required or e in tree.get("extensionsUsed", []) or e in on_primitives]
+    if packed:
+        raise InputError(f"{origin}: its geometry is compressed ({escaped(', '.join(packed))}), which is not read "
+                         "here; export it uncompressed (e.g. gltf-transform copy without compression).")
+    unread = [e for e in required if e not in REQUIRED_READ]
+    if unread:
+        raise InputError(f"{origin}: it requires the extension{'s' if len(unread) > 1 else ''} "
+                         f"{escaped(', '.join(unread))[:300]} (extensionsRequired), which this reader does not apply; "
+                         f"glTF 2.0 §3.12 says to refuse such a file. Read here: {', '.join(REQUIRED_READ)}; export "
+                         "the file without it.")
 
 
 def _accessor(tree: dict, index, buffer, shown: str) -> int:
@@ -135,13 +180,14 @@ def _at(tree: dict, key: str, index, origin: str):
 
 
 def _read(tree, files, buffer, textures, origin, warn) -> Read:
-    packed = [e for e in tree.get("extensionsUsed", [])
-              if e in ("KHR_draco_mesh_compression", "EXT_meshopt_compression")]
-    if packed:   # their accessors have no bufferView: read as zeros they would draw nothing, silently
-        raise InputError(f"{origin}: its geometry is compressed ({escaped(', '.join(packed))}), which is not read "
-                         "here; export it uncompressed (e.g. gltf-transform copy without compression).")
+    check_extensions(tree, origin)
     parts, skipped, geometry = [], {}, {}
-    for mesh_index, matrix, weights in _instances(tree, origin):
+    placed = _instances(tree, buffer, origin)
+    vertices = sum(_position_count(tree, _at(tree, "meshes", m, origin)) for m, _, _ in placed)
+    budget.check(vertices * BYTES_PER_VERTEX, f"{origin}: its node tree places {len(placed)} meshes of {vertices} "
+                 "vertices in all, which", "place fewer copies in the file, or give the copies as the object's "
+                 "instances in the scene (drawn instanced, not merged)")
+    for mesh_index, matrix, weights in placed:
         mesh = _at(tree, "meshes", mesh_index, origin)
         weights = mesh.get("weights") if weights is None else weights   # a node's weights override (§3.7.2.2)
         for p, prim in enumerate(mesh["primitives"]):
@@ -188,10 +234,13 @@ def _read(tree, files, buffer, textures, origin, warn) -> Read:
                 albedo_map)
 
 
-def _instances(tree: dict, origin: str):
-    """(mesh, 4x4 transform, node weights or None) for every node of the default scene that draws a mesh, its
-    transform the product of its ancestors' (§3.5.2); without scenes, the nodes no node names as a child; without
-    nodes, every mesh in place."""
+def _instances(tree: dict, buffer, origin: str) -> list:
+    """(mesh, 4x4 transform, node weights or None) for every mesh the default scene places: each node's transform
+    the product of its ancestors' (§3.5.2), once per copy of EXT_mesh_gpu_instancing where the node has it; without
+    scenes, the nodes no node names as a child are the roots; without nodes, every mesh in place. Each node is
+    visited once: a node reached twice (its own ancestor, or a child of two parents) is refused, as node
+    hierarchies are disjoint trees (§3.5.1), so the work is linear in the file (23 nodes each naming the next twice
+    would place 2^22 copies)."""
     nodes = tree.get("nodes", [])
     if tree.get("scenes"):
         roots = _at(tree, "scenes", tree.get("scene", 0), origin).get("nodes", [])
@@ -200,36 +249,77 @@ def _instances(tree: dict, origin: str):
         roots = [i for i in range(len(nodes)) if i not in children]
     else:
         return [(m, np.eye(4), None) for m in range(len(tree.get("meshes", [])))]
-    out, stack, visits = [], [(r, np.eye(4), ()) for r in reversed(roots)], 0
+    out, stack, seen = [], [(r, np.eye(4)) for r in reversed(roots)], set()
     while stack:
-        i, parent, path = stack.pop()
-        visits += 1
-        if i in path or visits > MAX_ELEMENTS:
-            raise InputError(f"{origin}: node {escaped(repr(i))} is its own ancestor (or the node tree makes more than "
-                             f"{MAX_ELEMENTS} instances); glTF 2.0 node hierarchies are trees (§3.5.1); fix the file.")
+        i, parent = stack.pop()
         node = _at(tree, "nodes", i, origin)
+        if i in seen:
+            raise InputError(f"{origin}: node {i} is reached twice (its own ancestor, or a child of two parents); "
+                             "glTF 2.0 node hierarchies are disjoint trees (§3.5.1); fix the file.")
+        seen.add(i)
         matrix = parent @ _local(node, f"{origin}: node {i}")
         if "mesh" in node:
-            out.append((node["mesh"], matrix, node.get("weights")))
-        stack += [(c, matrix, path + (i,)) for c in reversed(node.get("children", []))]
+            out += [(node["mesh"], matrix @ copy, node.get("weights"))
+                    for copy in _gpu_instances(tree, node, buffer, f"{origin}: node {i}", MAX_COPIES - len(out))]
+        stack += [(c, matrix) for c in reversed(node.get("children", []))]
     return out
 
 
+def _gpu_instances(tree: dict, node: dict, buffer, shown: str, room: int) -> np.ndarray:
+    """(N, 4, 4) the copies a node's EXT_mesh_gpu_instancing places in the node's space (each T x R x S from its
+    TRANSLATION, ROTATION and SCALE accessors, a missing one the identity), or the identity alone without it; at most
+    `room` copies."""
+    ext = (node.get("extensions") or {}).get("EXT_mesh_gpu_instancing")
+    if ext is None:
+        return np.eye(4)[None]
+    attrs = ext["attributes"]
+    if not attrs or set(attrs) - {"TRANSLATION", "ROTATION", "SCALE"}:
+        raise InputError(f"{shown}: EXT_mesh_gpu_instancing attributes {escaped(repr(sorted(attrs)))[:200]}; "
+                         "applied here: TRANSLATION, ROTATION and SCALE, at least one; fix the file.")
+    count = max(_at(tree, "accessors", index, shown).get("count", 0) for index in attrs.values())
+    if type(count) is not int or count > room:   # checked before a matrix is made
+        raise InputError(f"{shown}: EXT_mesh_gpu_instancing places {escaped(repr(count))} copies where {room} more "
+                         f"fit the {MAX_COPIES} a file may place (each merged into the one mesh baked); give the "
+                         "copies as the object's instances in the scene instead, or place fewer.")
+    read = {name: values(tree, index, buffer, f"{shown} EXT_mesh_gpu_instancing {name}",
+                         ("VEC4",) if name == "ROTATION" else ("VEC3",),
+                         (5126, 5120, 5122) if name == "ROTATION" else (5126,)) for name, index in attrs.items()}
+    counts = {len(v) for v in read.values()}
+    if len(counts) > 1:
+        raise InputError(f"{shown}: its EXT_mesh_gpu_instancing attributes have different counts "
+                         f"({escaped(repr({k: len(v) for k, v in read.items()}))}); fix the file.")
+    n = counts.pop()
+    return _trs(read.get("TRANSLATION", np.zeros((n, 3))), read.get("ROTATION", np.tile([0.0, 0, 0, 1], (n, 1))),
+                read.get("SCALE", np.ones((n, 3))))
+
+
+def _position_count(tree: dict, mesh: dict) -> int:
+    """The vertices of a mesh's primitives (their POSITION accessors' counts, checked by check_accessors)."""
+    return sum(tree["accessors"][p["attributes"]["POSITION"]]["count"] for p in mesh["primitives"])
+
+
 def _local(node: dict, shown: str) -> np.ndarray:
-    """A node's 4x4 local transform: its column-major `matrix`, or T x R x S (rotation a unit quaternion x, y, z, w)."""
+    """A node's 4x4 local transform: its column-major `matrix`, or T x R x S."""
     if "matrix" in node:
         m = np.array(node["matrix"], np.float64).reshape(4, 4).T
     else:
-        t = np.array(node.get("translation", [0, 0, 0]), np.float64).reshape(3)
-        x, y, z, w = np.array(node.get("rotation", [0, 0, 0, 1]), np.float64).reshape(4)
-        scale = np.array(node.get("scale", [1, 1, 1]), np.float64).reshape(3)
-        r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-        m = np.eye(4)
-        m[:3, :3], m[:3, 3] = r * scale, t
+        m = _trs(*(np.array(node.get(key, default), np.float64).reshape(1, n) for key, default, n in
+                   (("translation", [0, 0, 0], 3), ("rotation", [0, 0, 0, 1], 4), ("scale", [1, 1, 1], 3))))[0]
     if not np.isfinite(m).all():
         raise InputError(f"{shown}: its transform has a non-finite number; fix the file.")
+    return m
+
+
+def _trs(t: np.ndarray, q: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) T x R x S from (N, 3) translations, (N, 4) rotations (unit quaternions x, y, z, w) and (N, 3)
+    scales (§3.5.2, and EXT_mesh_gpu_instancing's copies)."""
+    x, y, z, w = q.T
+    m = np.tile(np.eye(4), (len(t), 1, 1))
+    m[:, :3, :3] = np.stack([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                             [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                             [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]).transpose(2, 0, 1) \
+        * scale[:, None, :]
+    m[:, :3, 3] = t
     return m
 
 
