@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from test_asset_references import QUAD_UV, QUAD_V, _png, gltf_asset, obj_asset, scene
-from test_bad_input import assert_input_error, bake, write_scene
+from test_bad_input import assert_input_error, bake, gl_context_ok, write_scene  # noqa: F401 (a fixture)
 from vdmbake.assets import references
 from vdmbake.assets.meshes import load_mesh_file
 from vdmbake.errors import InputError
@@ -283,3 +283,71 @@ def test_glb_headers_are_checked(tmp_path, spoil, match):
     (tmp_path / "q.glb").write_bytes(spoil(good))
     with pytest.raises(InputError, match=match):
         load_mesh_file(tmp_path / "q.glb")
+
+
+# --- GL limits ----------------------------------------------------------------------------------------------------
+
+def test_a_picture_wider_than_gl_reads_is_refused_at_bake(tmp_path):
+    """Failed before: a 16385-wide albedo map baked, and rendered black with exit 0 (mean ΔLuv 115-121)."""
+    from PIL import Image
+
+    obj_asset(tmp_path)
+    Image.new("RGB", (16385, 1), (200, 40, 40)).save(tmp_path / "tex.png")
+    with pytest.raises(InputError, match=r"tex.png \(the texture named by .*m.mtl\) is a picture of 16385 x 1 pixels; "
+                                         r"accepted: at least 1 and at most \d+ pixels, 16384 a side"):
+        load_mesh_file(tmp_path / "quad.obj")
+
+
+def test_an_atlas_is_built_within_the_side_gl_reads(tmp_path):
+    """Failed before: two 16384-wide pictures made an atlas 16386 wide, which rendered black."""
+    import gltf_files as G
+
+    wide = [np.full((1, 16384, 3), c, np.uint8) for c in (50, 200)]
+    with pytest.raises(InputError, match=r"its 3 base-colour pictures make an atlas of 16386 x \d+ texels \(each "
+                                         r"picture with a one-texel gutter\), over the \d+ texels and 16384 a side"):
+        load_mesh_file(G.texture_coordinate_test(tmp_path / "wide.gltf", wide))
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    from vdmrender import gl
+
+    try:
+        context = gl.create_context(None)
+    except InputError as e:
+        pytest.skip(f"no OpenGL 4.3 context through EGL here: {e}")
+    yield context
+    context.release()
+
+
+def test_a_supersampled_target_over_the_device_limit_is_refused(ctx):
+    """Failed before: --antialias ssaa4 --resolution 8192x16 gave a moderngl traceback (a target 32768 wide)."""
+    from vdmrender import antialias
+
+    most = ctx.info["GL_MAX_TEXTURE_SIZE"]
+    with pytest.raises(InputError, match=rf"--antialias ssaa4 at {most // 2} x 16: the supersampled target of "
+                                         rf"{2 * most} x 64 is over .*'s GL_MAX_RENDERBUFFER_SIZE of \d+; choose a "
+                                         r"smaller K or resolution"):
+        antialias.target(ctx, most // 2, 16, "ssaa4")
+    antialias.target(ctx, most // 4, 4, "ssaa4").release()   # at the limit: made
+
+
+def test_an_albedo_texture_over_the_device_limit_is_refused(ctx):
+    """A bundle baked elsewhere (or edited) can hold a map wider than this device reads: refused, not drawn black."""
+    from vdmrender import gl
+
+    most = ctx.info["GL_MAX_TEXTURE_SIZE"]
+    with pytest.raises(InputError, match=rf"the albedo map of {most + 1} x 1 is over .*'s GL_MAX_TEXTURE_SIZE of "
+                                         rf"{most}; re-bake it with a smaller picture"):
+        gl.albedo_texture(ctx, np.zeros((1, most + 1, 3), np.uint8))
+
+
+def test_vdmrender_refuses_the_supersampled_target_cleanly(tmp_path, gl_context_ok):
+    """The finding's command: vdmrender --antialias ssaa4 --resolution 8192x16 (a moderngl traceback before)."""
+    from scenes import bake_and_render
+
+    gltf_asset(tmp_path)
+    result, out = bake_and_render(tmp_path, scene("quad.gltf"), "--antialias", "ssaa4", "--resolution", "8192x16")
+    assert_input_error(result, ["--antialias ssaa4 at 8192 x 16: the supersampled target of 32768 x 64 is over",
+                                "choose a smaller K or resolution"])
+

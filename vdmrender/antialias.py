@@ -22,6 +22,10 @@ from vdmbake.errors import InputError
 from . import gl
 
 
+# The device's limits a target's size is checked against (besides a texture's GL_MAX_TEXTURE_SIZE), before it is made.
+LIMITS = ("GL_MAX_RENDERBUFFER_SIZE", "GL_MAX_VIEWPORT_DIMS")
+
+
 class Multisampled:
     """An RGBA32F + depth framebuffer with N samples per pixel, resolved into a gl.Target of the same size."""
 
@@ -30,6 +34,8 @@ class Multisampled:
             raise InputError(f"--antialias msaa{samples}: {gl.renderer_name(ctx)} allows at most {ctx.max_samples} "
                              f"samples per pixel; choose msaa{ctx.max_samples} or fewer, or ssaaK.")
         self.ctx, self.size = ctx, (width, height)
+        gl.check_size(ctx, self.size, f"--antialias msaa{samples}: the multisampled target", "choose a smaller "
+                      "resolution", *LIMITS)
         self.color = ctx.renderbuffer((width, height), 4, samples=samples, dtype="f4")
         self.depth = ctx.depth_renderbuffer((width, height), samples=samples)
         self.fbo = ctx.framebuffer([self.color], self.depth)
@@ -49,6 +55,9 @@ class Supersampled:
 
     def __init__(self, ctx, width: int, height: int, k: int):
         self.ctx, self.k, self.size = ctx, k, (k * width, k * height)
+        gl.check_size(ctx, self.size, f"--antialias ssaa{k} at {width} x {height}: the supersampled target",
+                      f"choose a smaller K or resolution (K x each side at most {ctx.info['GL_MAX_TEXTURE_SIZE']})",
+                      *LIMITS, "GL_MAX_TEXTURE_SIZE")
         self.color = ctx.texture(self.size, 4, dtype="f4")
         self.color.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.depth = ctx.depth_renderbuffer(self.size)

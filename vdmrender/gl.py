@@ -230,6 +230,16 @@ def set_shading(prog, light, material, albedo: bool = True) -> None:
                  u_shininess=material.shininess, **({"u_albedo": tuple(material.albedo)} if albedo else {}))
 
 
+def check_size(ctx, size: tuple[int, int], what: str, fix: str, *limits: str) -> None:
+    """Refuse a texture or target of `size` (width, height) over the device's own `limits` (names in ctx.info,
+    e.g. GL_MAX_TEXTURE_SIZE) before it is made: beyond them moderngl raises, or a texture samples as black."""
+    for name in limits:
+        most = min(np.atleast_1d(ctx.info[name]))   # GL_MAX_VIEWPORT_DIMS is a pair
+        if max(size) > most:
+            raise InputError(f"{what} of {size[0]} x {size[1]} is over {renderer_name(ctx)}'s {name} of {most}; "
+                             f"{fix}.")
+
+
 def albedo_texture(ctx, albedo_map: np.ndarray, mipmaps: bool = False):
     """An albedo map (vdmbake.common.texture: uint8 sRGB, row 0 at v = 0) as a texture read as its numpy twin reads
     it: the texels decoded to linear (half floats), linear filtering, wrap-around, no mipmaps. mipmaps (the scene's
@@ -239,6 +249,8 @@ def albedo_texture(ctx, albedo_map: np.ndarray, mipmaps: bool = False):
     (Mesa 22.3) offers 16x, but its anisotropic path filters magnified texels too (a checker magnified 2.6x came
     out up to 0.34 off the bilinear frame: tests/test_mipmaps.py), which would blur every close-up."""
     h, w = albedo_map.shape[:2]
+    check_size(ctx, (w, h), "the albedo map", "re-bake it with a smaller picture (vdmbake keeps a side within 16384, "
+               "the least GL 4.5 allows)", "GL_MAX_TEXTURE_SIZE")
     tex = ctx.texture((w, h), 3, np.ascontiguousarray(texture.linear(albedo_map), np.float16).tobytes(),
                       dtype="f2", alignment=1)
     tex.filter = (moderngl.LINEAR, moderngl.LINEAR)

@@ -25,7 +25,7 @@ import numpy as np
 from ..bundle import budget
 from ..common import texture
 from ..errors import InputError, escaped
-from .references import check_picture, gltf_buffer, gltf_tree
+from .references import MAX_TEXTURE_SIDE, check_picture, gltf_buffer, gltf_tree
 
 _REPEAT = 10497          # glTF 2.0 §5.26: the sampler's default wrapS/wrapT, as the renderer and the reference wrap
 _COLOUR_TYPES = {5121: np.dtype("u1"), 5123: np.dtype("<u2"), 5126: np.dtype("<f4")}   # COLOR_0's (§3.7.2.1)
@@ -562,8 +562,8 @@ def _atlas(tiles, origin):
         wrap_s, wrap_t = (_REPEAT, _REPEAT) if key is None else key[1:]
         m = np.pad(m, ((1, 1), (0, 0), (0, 0)), mode="wrap" if wrap_t == _REPEAT else "edge")
         framed.append((key, np.pad(m, ((0, 0), (1, 1), (0, 0)), mode="wrap" if wrap_s == _REPEAT else "edge")))
-    width = max(max(m.shape[1] for _, m in framed), int(np.ceil(np.sqrt(sum(m.shape[0] * m.shape[1]
-                                                                             for _, m in framed)))))
+    widest = max(m.shape[1] for _, m in framed)
+    width = min(max(widest, int(np.ceil(np.sqrt(sum(m.shape[0] * m.shape[1] for _, m in framed))))), MAX_TEXTURE_SIDE)
     x = y = shelf = 0
     spots = []
     for key, m in sorted(framed, key=lambda t: -t[1].shape[0]):
@@ -572,9 +572,11 @@ def _atlas(tiles, origin):
         spots.append((key, m, x, y))
         x, shelf = x + m.shape[1], max(shelf, m.shape[0])
     height = y + shelf
-    if width * height > texture.MAX_PIXELS:
-        raise InputError(f"{origin}: its {len(tiles)} base-colour pictures make an atlas of {width} x {height} texels,"
-                         f" over the {texture.MAX_PIXELS} accepted; scale them down, or set textures = \"ignore\".")
+    if width * height > texture.MAX_PIXELS or max(widest, height) > MAX_TEXTURE_SIDE:
+        raise InputError(f"{origin}: its {len(tiles)} base-colour pictures make an atlas of {max(widest, width)} x "
+                         f"{height} texels (each picture with a one-texel gutter), over the {texture.MAX_PIXELS} "
+                         f"texels and {MAX_TEXTURE_SIDE} a side accepted; scale them down, or set textures = "
+                         '"ignore".')
     atlas = np.zeros((height, width, 3), np.uint8)
     place = {}
     for key, m, x, y in spots:

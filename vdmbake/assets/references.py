@@ -25,6 +25,8 @@ from ..errors import InputError, escaped
 from ..formats.safeio import read_regular
 
 MAX_FILE_BYTES = 2 << 30   # the largest mesh file or file it names (an OBJ of 16 M faces is about 1 GB)
+MAX_TEXTURE_SIDE = 16384   # an albedo map's longest side: GL 4.5's least GL_MAX_TEXTURE_SIZE, so every device reads
+                           # it (a wider texture samples as black: vdmrender.gl.albedo_texture refuses it)
 
 
 def references(kind: str, data: bytes, textures: bool, origin: str) -> list[tuple[str, str]]:
@@ -213,16 +215,18 @@ def reached_files(path: Path, spec: str, textures: bool = True, root: Path | Non
 
 def check_picture(data: bytes, shown: str) -> None:
     """Refuse a texture no albedo map can come from: one PIL cannot read, one without pixels, or one of more
-    than texture.MAX_PIXELS (checked from its header, before a pixel is decoded). `shown` names it."""
+    than texture.MAX_PIXELS or a side over MAX_TEXTURE_SIDE (checked from its header, before a pixel is decoded).
+    `shown` names it."""
     from PIL import Image
 
     limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None   # the bound below, with a message that helps
     try:
         with Image.open(io.BytesIO(data)) as im:
             width, height = im.size
-            if not 0 < width * height <= texture.MAX_PIXELS:
+            if not 0 < width * height <= texture.MAX_PIXELS or max(width, height) > MAX_TEXTURE_SIDE:
                 raise InputError(f"{shown} is a picture of {width} x {height} pixels; accepted: at least 1 and at most "
-                                 f"{texture.MAX_PIXELS} pixels; scale it down, or set textures = \"ignore\" on the object.")
+                                 f"{texture.MAX_PIXELS} pixels, {MAX_TEXTURE_SIDE} a side; scale it down, or set "
+                                 'textures = "ignore" on the object.')
             im.load()
     except InputError:
         raise
