@@ -32,7 +32,8 @@ def test_paired_frames_decide_under_a_moving_load():
 
 
 def row(label, ms, dluv, times=None):
-    return {"label": label, "median_ms": ms, "spread_ms": 0.1, "mean_dluv": dluv,
+    """A row whose change against the full asset and error against the reference are both `dluv`."""
+    return {"label": label, "median_ms": ms, "spread_ms": 0.1, "mean_dluv": dluv, "change_dluv": dluv,
             **({"interleaved_ms": list(times)} if times is not None else {})}
 
 

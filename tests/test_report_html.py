@@ -101,8 +101,9 @@ def test_the_page_holds_the_render(swept):
     page = check_self_contained(out)
     assert page.rows == len(report["rows"]) == 3
     text = (out / "report.html").read_text()
-    # per object: the error-against-time plot, error and cost against size, the chain's bands
-    assert page.svgs == 4 and text.count("class='pt'") == 3 + 2 * len(report["sweep"]["rows"])
+    # per object: the error-against-time plot, change, error and cost against size, the chain's bands
+    assert page.svgs == 5 and text.count("class='pt'") == 3 + 3 * len(report["sweep"]["rows"])
+    assert "the floor: what no variant changes" in text
     assert "chain loose" in text and "Pareto front" in text
     for raw in ("report.json", "report.csv", "sweep.csv", "lod.json", "lod.md"):
         assert f"href='{raw}'" in text
@@ -196,7 +197,7 @@ def test_the_page_in_a_browser(swept):
     root = re.search(r"<html[^>]*>", dom)[0]
     assert 'data-ready="1"' in root and "data-errors" not in root, root   # the script ran; every image loaded
     assert not [line for line in run.stderr.splitlines() if ":CONSOLE(" in line], run.stderr
-    assert dom.count("<svg class=\"plot\"") == 4 and len(re.findall(r"<tr data-object=", dom)) == len(report["rows"])
+    assert dom.count("<svg class=\"plot\"") == 5 and len(re.findall(r"<tr data-object=", dom)) == len(report["rows"])
     # the viewer filled its frame list from the page's data: one option per camera
     assert len(re.findall(r"<option value=\"\d\">", dom)) >= 2
     page = Page(dom)

@@ -24,7 +24,7 @@ from .assets import heightfields, meso_albedo, primitives
 from .bundle import parts, staging
 from .common import instances
 from .bundle.parts.mesostructure import check_reference
-from .bundle.directory import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter, RefusedBundle
+from .bundle.directory import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter, RefusedBundle, update_scene
 from .errors import InputError
 from .assets.meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
 from .assets.references import reached_files
@@ -62,8 +62,12 @@ def bake_code() -> str:
     return code_fingerprint(package_modules(__name__.partition(".")[0]))
 
 
+RENDER_ONLY = "render"   # the scene's table the bake never reads: how vdmrender renders, measures and decides
+
+
 def input_hash(scene: Scene, base: Path, code: str | None = None) -> tuple[str, dict]:
-    """One hash over the resolved scene, the input files' contents, the format/tool versions and
+    """One hash over the resolved scene but for its render settings (RENDER_ONLY: changing the anti-aliasing, the
+    reference's samples or the sweep re-bakes nothing), the input files' contents, the format/tool versions and
     the bake code's fingerprint (`code`, bake_code() by default). The input files include what each mesh file
     reaches (its MTL, textures, glTF buffers), keyed by the chain of names that reaches them
     (`bunny.obj > bunny.mtl > bunny.png`)."""
@@ -75,8 +79,9 @@ def input_hash(scene: Scene, base: Path, code: str | None = None) -> tuple[str, 
     for o in (o for o in scene.objects if o.mesh):
         for chain, f in reached_files(resolve_path(o.mesh, base), o.mesh, o.textures == "use").items():
             inputs[" > ".join(chain)] = hashlib.sha256(f.data).hexdigest()
+    baked = {k: v for k, v in scene.to_dict().items() if k != RENDER_ONLY}
     key = json.dumps({"format_version": FORMAT_VERSION, "tool_version": __version__, "code": code or bake_code(),
-                      "scene": scene.to_dict(), "inputs": inputs}, sort_keys=True)
+                      "scene": baked, "inputs": inputs}, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest(), inputs
 
 
@@ -146,7 +151,11 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
     _recover(out, log)
     reason = "--force" if force else stale(out, digest, code)
     if reason is None:
-        log(f"{out}: up to date (inputs, settings and bake code unchanged); use --force to bake again")
+        if update_scene(out, scene.to_dict()):
+            log(f"{out}: up to date (inputs, settings and bake code unchanged); its render settings rewritten in "
+                "the manifest, no part baked again")
+        else:
+            log(f"{out}: up to date (inputs, settings and bake code unchanged); use --force to bake again")
         return {"up_to_date": True, "bundle": str(out)}
     log(f"{out}: baking ({reason})")
     try:

@@ -44,10 +44,17 @@ class VariantSets(Type):
         return [dict(s) for s in value]
 
 
+# What a LOD chain's limits bound (Thresholds.limit_on): each limit's report field, against the full asset or the
+# reference (vdmrender.change).
+LIMIT_ON = {"change": {"mean_dluv": "change_dluv", "p95_dluv": "change_p95_dluv", "flip": "change_flip",
+                       "iou": "change_iou"},
+            "reference": {"mean_dluv": "mean_dluv", "p95_dluv": "p95_dluv", "flip": "flip_mean", "iou": "iou"}}
+
+
 @dataclass(frozen=True)
 class Thresholds:
-    """One LOD chain's limits (vdmrender.lod): a variant may be chosen at a screen size only if its error there
-    stays under every limit given, over all the views together."""
+    """One LOD chain's limits (vdmrender.lod): a variant may be chosen at a screen size only if what the limits are
+    on (`limit_on`) stays under every limit given there, over all the views together."""
     name: str = setting(REQUIRED, Text("1-64 characters from A-Z a-z 0-9 _ -", r"[A-Za-z0-9_-]{1,64}"),
                         "the chain's name (lod.json, the report)")
     mean_dluv: float | None = setting(None, Number(0.0, 1e3), "largest mean ΔLuv (eq. 2.2's average)")
@@ -60,11 +67,15 @@ class Thresholds:
     hysteresis: float = setting(0.1, Number(0.0, 0.5), "around each switch size s, an engine switches to the coarser "
                                 "level below s (1 - h) and back above s (1 + h), so a size hovering at s does not "
                                 "flicker between levels (lod.json's switch_px)")
+    limit_on: str = setting("change", Choice(*LIMIT_ON), "what the limits bound: `change`, each variant's frames "
+                            "against the object's full asset drawn the same way (what a viewer sees change at a "
+                            "switch; the full asset's own error is the floor no variant beats), or `reference`, the "
+                            "error against the reference")
 
     def limits(self) -> dict:
-        """The limits given, by report field (`iou` a lower bound, the others upper bounds)."""
-        fields = {"mean_dluv": "mean_dluv", "p95_dluv": "p95_dluv", "flip": "flip_mean", "iou": "iou"}
-        return {fields[k]: getattr(self, k) for k in fields if getattr(self, k) is not None}
+        """The limits given, by the report field they bound (`iou` a lower bound, the others upper bounds)."""
+        return {LIMIT_ON[self.limit_on][k]: getattr(self, k) for k in LIMIT_ON[self.limit_on]
+                if getattr(self, k) is not None}
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from dataclasses import asdict
 import moderngl
 import numpy as np
 
-from . import images, refcache, reference, scoring
+from . import change, images, refcache, reference, scoring
 from .camera import cameras_for, enclosing_sphere
 from .metrics import summarise
 from .techniques import variants
@@ -111,8 +111,8 @@ def reference_frames(out, bundle, scene, cams, log, spp: int = 1, folder: str = 
     def trace(cams):
         ref = reference.CompositeReference(refcache.object_reference(o, entries[o.name], bundle, scene)[0]
                                            for o in scene.objects)
-        frames = [reference.filtered(ref.render, c, spp) for c in cams]
-        return frames, [None] * len(frames), ref.rays_cast
+        frames, halves = zip(*(reference.filtered(ref.render, c, spp) for c in cams))
+        return list(frames), list(halves), [None] * len(frames), ref.rays_cast
 
     return refcache.load_or_trace(out, folder, key, cams, trace, scene.render.background,
                                   "composite" + (f" ({spp} spp)" if spp > 1 else ""), log)
@@ -130,18 +130,23 @@ def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[di
     cams = cameras_for(scene.camera, centre, radius, *harness.target.size)
     refs = scoring.References.traced(lambda spp, folder: reference_frames(out, bundle, scene, cams, log, spp, folder),
                                      f"{FOLDER}/reference", opts.reference_spp, scene.render.background)
-    sheet, rows = [("reference", refs.filtered)], []
+    sheet, rows, drawn = [("reference", refs.filtered)], [], {}
     entries = bundle.manifest["objects"]
-    for k, chosen in enumerate(sets, start=1):
-        def build(chosen=chosen):
+    full = {o.name: change.full_asset(o, entries[o.name], bundle, scene) for o in scene.objects}
+
+    def composed(chosen: dict):
+        def build():
             builds = {}
             for obj in scene.objects:
-                v = next(v for v in variants(obj, entries[obj.name], bundle, scene) if v.label == chosen[obj.name])
+                v = full[obj.name] if chosen[obj.name] == full[obj.name].label else next(
+                    v for v in variants(obj, entries[obj.name], bundle, scene) if v.label == chosen[obj.name])
                 builds[obj.name] = v.build(ctx)
             return Composite(ctx, builds, centre, radius, scene.light, scene.render.shadow_map)
+        return build
 
+    for k, chosen in enumerate(sets, start=1):
         label = set_label(chosen)
-        cost, frames, aliased = harness.measure(build, cams, f"composite {k}")
+        cost, frames, aliased = harness.measure(composed(chosen), cams, f"composite {k}")
         scores, heats, enc = scoring.score_frames(frames, refs.filtered, refs.classes, out, f"{FOLDER}/frames/{k}",
                                           f"{FOLDER}/heatmaps/{k}", opts.heat_max, scene.render.background, opts.flip,
                                           f"composite {k} scoring")
@@ -150,7 +155,13 @@ def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[di
                **summarise(scores), **refs.aliased(aliased, frames, scene.render.background, scores), "device": device,
                "reference_cached": refs.cached}
         rows.append(row)
+        drawn[label] = enc
         sheet += [(f"{k}: {label}", enc), (f"{k}: error", heats)]
         log(f"composite {k} ({label}): {scoring.row_line(row)}")
+    whole = {o: v.label for o, v in full.items()}   # every object by its full asset (vdmrender.change)
+    if set_label(whole) not in drawn:
+        drawn[set_label(whole)] = [images.encode(f, scene.render.background)
+                                   for f in harness.frames(composed(whole), cams)]
+    change.attach(rows, drawn, set_label(whole), drawn[set_label(whole)], refs, opts.flip)
     images.overview(sheet, out.file(f"{FOLDER}/overview.png"))
     return rows

@@ -25,7 +25,9 @@ RAW = ("report.json", "report.csv", "error_vs_time.png", "sweep.csv", "error_vs_
 COLUMNS = [("object", "object", None), ("label", "variant", None), ("median_ms", "median GPU [ms/frame]", 3),
            ("q1_ms", "q1 [ms]", 3), ("q3_ms", "q3 [ms]", 3), ("spread_ms", "spread [ms]", 3),
            ("wall_ms", "wall [ms]", 3), ("ratio_to_baseline", "time / baseline [×]", 2),
-           ("mean_dluv", "mean ΔLuv", 3), ("p95_dluv", "p95 ΔLuv", 2), ("max_dluv", "max ΔLuv", 2),
+           ("change_dluv", "change ΔLuv (against the full asset)", 3), ("change_iou", "IoU with the full asset", 4),
+           ("mean_dluv", "mean ΔLuv", 3), ("floor_dluv", "floor ΔLuv (the full asset's)", 3),
+           ("reference_noise_dluv", "reference noise ΔLuv", 3), ("p95_dluv", "p95 ΔLuv", 2), ("max_dluv", "max ΔLuv", 2),
            ("aliased_mean_dluv", "aliased mean ΔLuv", 3), ("aliased_p95_dluv", "aliased p95 ΔLuv", 2),
            ("iou", "IoU", 4), ("aliased_iou", "aliased IoU", 4), ("flip_mean", "FLIP", 4),
            ("fragments_px", "fragments [/px]", 2), ("fetches_px", "fetches [/px]", 1), ("steps_px", "steps [/px]", 1),
@@ -466,30 +468,43 @@ def size_plot(obj: str, rows: list[dict], field: str, ylabel: str, log_y: bool, 
 
 
 def lod_section(obj: str, lod: dict, colour: dict) -> str:
-    """Each chain of the object: its bands of screen sizes as coloured spans on a log size axis, each switch's
-    hysteresis band hatched and its pop (ΔLuv between the two variants there) written at it; the field's pricing."""
+    """The object's floor (its full asset against the reference, the reference's noise, per size); each chain of the
+    object: its bands of screen sizes as coloured spans on a log size axis, each switch's hysteresis band hatched
+    and its pop (ΔLuv between the two variants there) written at it; the field's pricing."""
     out = []
+    floor = lod.get("floors", {}).get(obj)
+    if floor:
+        rows = "".join(f"<tr><td class='n'>{f['size_px']}</td><td>{esc(f['full_asset'])}</td>"
+                       f"<td class='n'>{num(f['floor_dluv'], 3)}</td><td class='n'>{num(f['reference_noise_dluv'], 3)}"
+                       f"</td><td class='n'>{f['ties']} of {f['pairs']}</td></tr>" for f in floor)
+        out.append("<details open><summary>the floor: what no variant changes</summary><p class='muted'>The full "
+                   "asset's own error against the reference (no variant's is below it) and the reference's sampling "
+                   "noise (no difference below it can be told from noise); chains decide on the change against the "
+                   "full asset unless a chain says limit_on = \"reference\".</p><table><thead><tr><th>size [px]</th>"
+                   "<th>full asset</th><th>its mean ΔLuv</th><th>reference noise ΔLuv</th><th>variant pairs within "
+                   f"noise</th></tr></thead><tbody>{rows}</tbody></table></details>")
     for c in lod["chains"]:
         ch = c["objects"].get(obj)
         if not ch:
             continue
-        limits = ", ".join(f"{k} {'≥' if k == 'iou' else '≤'} {v}" for k, v in c["limits"].items())
+        limits = ", ".join(f"{k} {'≥' if k.endswith('iou') else '≤'} {v}" for k, v in c["limits"].items())
         out.append(f"<h4>chain {esc(c['name'])}: {esc(limits)}"
                    + (f", pop ≤ {c['pop_dluv']} ΔLuv" if c.get("pop_dluv") is not None else "") + "</h4>")
         out.append(bands(obj, c["name"], ch["entries"], lod["sizes_px"], colour))
         if ch.get("unmet_px"):
             out.append(f"<p class='worse'>no variant within the limits at {', '.join(map(str, ch['unmet_px']))} px "
-                       "(the least error taken, hatched)</p>")
+                       "(the least change against the full asset taken, hatched)</p>")
         if "field" in ch:
             f = ch["field"]
             chosen = {k["variant"]: " class='better'" if k["variant"] == f["chosen"] else "" for k in f["candidates"]}
             rows = "".join(f"<tr{chosen[k['variant']]}><td>{esc(k['variant'])}"
                            f"</td><td class='n'>{num(k['median_ms'], 3)}</td><td class='n'>{num(k['spread_ms'], 3)}</td>"
-                           f"<td class='n'>{num(k['mean_dluv'], 3)}</td><td>{'yes' if k['meets'] else 'no'}</td></tr>"
-                           for k in f["candidates"])
+                           f"<td class='n'>{num(k.get('change_dluv'), 3)}</td><td class='n'>{num(k['mean_dluv'], 3)}"
+                           f"</td><td>{'yes' if k['meets'] else 'no'}</td></tr>" for k in f["candidates"])
             out.append(f"<details open><summary>priced on the field of copies: {esc(f['chosen'])} ships</summary>"
                        f"<p class='muted'>{esc(f['how'])}</p><table><thead><tr><th>on the field</th><th>median GPU "
-                       f"[ms]</th><th>spread [ms]</th><th>mean ΔLuv</th><th>within limits</th></tr></thead>"
+                       f"[ms]</th><th>spread [ms]</th><th>change ΔLuv</th><th>mean ΔLuv</th><th>within limits</th>"
+                       "</tr></thead>"
                        f"<tbody>{rows}</tbody></table></details>")
     return "".join(out)
 
@@ -503,7 +518,8 @@ def bands(obj: str, name: str, entries: list[dict], sizes: list[int], colour: di
     for e in entries:
         x0, x1 = at(e["min_px"]), at(e["max_px"])
         m = e["measured"][0]
-        what = (f"{e['variant']}: {e['min_px']}–{e['max_px']} px, mean ΔLuv {num(m.get('mean_dluv'), 3)}, "
+        what = (f"{e['variant']}: {e['min_px']}–{e['max_px']} px, change ΔLuv {num(m.get('change_dluv'), 3)}, "
+                f"mean ΔLuv {num(m.get('mean_dluv'), 3)}, "
                 f"{num(m.get('median_ms'), 3)} ms" + ("" if e["meets"] else " (over the limits)"))
         hatch = "" if e["meets"] else " stroke='#000' stroke-dasharray='3 2'"
         parts.append(f"<rect x='{x0:.1f}' y='8' width='{max(x1 - x0, 1):.1f}' height='{bar}' fill='{colour.get(e['variant'], PALETTE[-1])}'"
@@ -579,7 +595,9 @@ def object_section(report: dict, obj: str, frames: dict) -> str:
     colour = colours(r["label"] for r in rows + sweep)   # a variant's colour the same in the size plots and bands
     if sweep:
         parts += ["<h3>against screen size</h3><div class='plots'><div>",
-                  size_plot(obj, sweep, "mean_dluv", "mean ΔL*u*v*", False, colour), "</div><div>",
+                  size_plot(obj, sweep, "change_dluv", "mean ΔL*u*v* against the full asset", False, colour),
+                  "</div><div>",
+                  size_plot(obj, sweep, "mean_dluv", "mean ΔL*u*v* against the reference", False, colour), "</div><div>",
                   size_plot(obj, sweep, "median_ms", "median GPU time [ms] (log)", True, colour), "</div></div>",
                   "<p class='muted'>dashed: the point-sampled (aliased) error, where it differs.</p>"]
     if report.get("lod"):

@@ -2,56 +2,103 @@
 limits (scene.Thresholds), the cheapest variant within the limits at each measured size, merged into bands of
 screen sizes; written as lod.json and lod.md.
 
-A variant measured at size s is chosen for the band of sizes from s down to the next smaller measured size
+The limits bound what a switch changes (issue 39): each variant's frames against the object's full asset drawn the
+same way (vdmrender.change), or, where a chain says limit_on = "reference", the error against the reference. A
+variant measured at size s is chosen for the band of sizes from s down to the next smaller measured size
 (exclusive): the band is judged at its largest size, where a fixed-resolution impostor's error is largest and a
 mesh's cost is about the same, so the choice is conservative within its band. Cheapest is decided on the variants'
 interleaved frames where the sweep timed them so (vdmrender.pricing: every variant within the limits and within
 4x of the fastest's median, frame beside frame under the same load; a variant costs the same as the fastest
 unless the 95% confidence interval of their paired log-ratios lies wholly above 10%), else on separately timed
 medians (the same within their interquartile spreads together or 10% of the cheaper); of the variants that cost
-the same, the one with the smaller mean ΔLuv is taken, so that two runs pick the same chain. With pop_dluv, a
-switch that would pop more is avoided where a variant within the limits pops less."""
+the same, the one of least mean change (or error) is taken, where errors against the reference closer than the
+reference's noise are ties decided by cost, so that two runs pick the same chain. A chain never switches to a
+finer level of detail (more triangles; the full asset finest of all) at a smaller size unless it is cheaper there,
+so a chain of triangle meshes is the order MSFT_lod and engines express. Where no variant is within the limits,
+the one of least mean change is taken (the error against the reference cannot rank there: the full asset's own
+error is the floor). With pop_dluv, a switch that would pop more is avoided where a variant within the limits pops
+less."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
+
+from vdmbake.scene import LIMIT_ON
 
 from . import pricing
 from .baseline import POINT
 
 NOISE = 0.1   # separately timed medians (no interleaved times): a difference below this share is not one in cost
 TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
-MEASURED = ("mean_dluv", "p95_dluv", "flip_mean", "iou", "aliased_mean_dluv", "median_ms", "spread_ms", "empty_frames")
+BY_FACES = ("mesh", "coarse", "displaced", "tessellated")   # levels of detail ranked by their triangles
+CHANGE = LIMIT_ON["change"]["mean_dluv"]   # the mean change against the full asset (vdmrender.change)
+MEASURED = ("mean_dluv", "p95_dluv", "flip_mean", "iou", "aliased_mean_dluv", *LIMIT_ON["change"].values(),
+            "floor_dluv", "reference_noise_dluv", "median_ms", "spread_ms", "empty_frames")
 
 
 def meets(row: dict, limits: dict) -> bool:
-    """Every limit holds (IoU at least its limit, the errors at most theirs); a value that was not measured
+    """Every limit holds (an IoU at least its limit, the others at most theirs); a value that was not measured
     (every frame empty) holds none."""
-    return all(row.get(k) is not None and (row[k] >= v if k == "iou" else row[k] <= v) for k, v in limits.items())
+    return all(row.get(k) is not None and (row[k] >= v if k.endswith("iou") else row[k] <= v)
+               for k, v in limits.items())
 
 
-def cheapest(rows: list[dict]) -> dict:
-    """The cheapest row, ties broken by the smaller error, then by label. Where every row within pricing.NEAR of
-    the fastest median carries its interleaved frame times (`interleaved_ms`, aligned), a tie is pricing's
-    "same" (or a difference it could not show); otherwise medians within the noise tie."""
+def noise(row: dict, error: str) -> float:
+    """The noise of a row's `error`: the reference's own sampling noise for the error against it, none for the change
+    against the full asset (two GL frames of one device)."""
+    return (row.get("reference_noise_dluv") or 0.0) if error == LIMIT_ON["reference"]["mean_dluv"] else 0.0
+
+
+def least(rows: list[dict], error: str) -> dict:
+    """The row of least `error` (unmeasured last), where errors closer than their noises together (noise) tie and
+    the cheaper of those is taken, then by label."""
+    measured = [r for r in rows if r.get(error) is not None]
+    if not measured:
+        return min(rows, key=lambda r: (r["median_ms"], r["label"]))
+    best = min(measured, key=lambda r: r[error])
+    tied = [r for r in measured if r[error] - best[error] <= math.hypot(noise(r, error), noise(best, error))]
+    return min(tied, key=lambda r: (r["median_ms"], r["label"]))
+
+
+def _cost_ties(rows: list[dict]) -> list[dict]:
+    """The rows that cost the same as the cheapest: where every row within pricing.NEAR of the fastest median
+    carries its interleaved frame times (`interleaved_ms`, aligned), pricing's "same" (or a difference it could not
+    show); otherwise medians within the noise."""
     best = min(rows, key=lambda r: r["median_ms"])
     near = [r for r in rows if r["median_ms"] <= pricing.NEAR * best["median_ms"]]
     paired = len(near) > 1 and all(r.get("interleaved_ms") for r in near) and len({len(r["interleaved_ms"]) for r in near}) == 1
     if paired:
         verdict = pricing.verdicts({r["label"]: np.array(r["interleaved_ms"]) for r in near})
-        tied = [r for r in near if verdict[r["label"]] != "slower"]
-    else:
-        tied = [r for r in rows if r["median_ms"] - best["median_ms"]
-                <= max((r["spread_ms"] or 0) + (best["spread_ms"] or 0), NOISE * best["median_ms"])]
-    return min(tied, key=lambda r: (r["mean_dluv"] if r["mean_dluv"] is not None else float("inf"), r["label"]))
+        return [r for r in near if verdict[r["label"]] != "slower"]
+    return [r for r in rows if r["median_ms"] - best["median_ms"]
+            <= max((r["spread_ms"] or 0) + (best["spread_ms"] or 0), NOISE * best["median_ms"])]
 
 
-def least_error(rows: list[dict]) -> dict:
-    """Where no variant is within the limits: the one of least mean ΔLuv (unmeasured last), then the cheaper, then
-    by label."""
-    return min(rows, key=lambda r: (r["mean_dluv"] is None, r["mean_dluv"] or 0, r["median_ms"], r["label"]))
+def cheapest(rows: list[dict], error: str = CHANGE) -> dict:
+    """The cheapest row; of those that cost the same (_cost_ties), the one of least `error` (least)."""
+    return least(_cost_ties(rows), error)
+
+
+def cheaper(a: dict, b: dict) -> bool:
+    """Row a costs less than row b: b is slower by pricing's verdict on their interleaved frames, or by their
+    separately timed medians beyond the noise (as _cost_ties)."""
+    return a["median_ms"] < b["median_ms"] and b not in _cost_ties([a, b])
+
+
+def detail(row: dict) -> float | None:
+    """A row's level of detail where levels compare: the full asset's the finest, a triangle mesh's its triangles;
+    None for the others (impostors: no rank among meshes)."""
+    if row["label"] == row.get("change_against"):
+        return math.inf
+    return row.get("faces") if row["technique"] in BY_FACES else None
+
+
+def finer(a: dict, b: dict) -> bool:
+    da, db = detail(a), detail(b)
+    return da is not None and db is not None and da > db
 
 
 def contenders(rows: list[dict], lod_sets) -> set[str]:
@@ -68,22 +115,39 @@ def contenders(rows: list[dict], lod_sets) -> set[str]:
 
 
 def chain(rows: list[dict], limits: dict, height: int, pop=None, pop_dluv: float | None = None,
-          hysteresis: float = 0.0) -> dict:
-    """One object's chain: entries from the largest screen size down, each {variant, band, measured}. pop(size, a,
-    b): the mean ΔLuv between variants a's and b's frames at that size (None: not measured); with pop_dluv, a
-    switch that would pop more is avoided where another variant within the limits pops less (the previous one
-    itself pops 0). Each switch records its pop and its hysteresis band (switch_px)."""
+          hysteresis: float = 0.0, error: str = CHANGE) -> dict:
+    """One object's chain: entries from the largest screen size down, each {variant, band, measured}. `error`: the
+    mean the limits are on, which ranks variants of equal cost (cheapest). Monotone in detail: a variant finer than
+    the level above is taken at a smaller size only where it is cheaper than that level there, or where that level
+    is over the limits there and it is not; then it takes the sizes above, down from the coarser level, too (where it
+    is within the limits there). pop(size, a, b): the mean ΔLuv between variants a's and b's frames at that size
+    (None: not measured); with pop_dluv, a switch that would pop more is avoided where another variant within the
+    limits pops less (the previous one itself pops 0). Each switch records its pop and its hysteresis band
+    (switch_px)."""
     sizes = sorted({r["size_px"] for r in rows}, reverse=True)
-    picks = []
+    at = {(r["size_px"], r["label"]): r for r in rows}
+    picks, needed = [], []   # needed: the picks finer than the level above because that one was over the limits
     for s in sizes:
         here = [r for r in rows if r["size_px"] == s]
+        above = at.get((s, picks[-1][1]["label"])) if picks else None
+        held = above is not None and meets(above, limits)
+        if held:
+            here = [r for r in here if not finer(r, above) or cheaper(r, above)]
         ok = [r for r in here if meets(r, limits)]
-        prev = picks[-1][1]["label"] if picks else None
-        if ok and prev is not None and pop is not None and pop_dluv is not None:
-            smooth = [r for r in ok if r["label"] == prev or pop(s, prev, r["label"]) <= pop_dluv]
+        if ok and above is not None and pop is not None and pop_dluv is not None:
+            smooth = [r for r in ok if r is above or pop(s, above["label"], r["label"]) <= pop_dluv]
             ok = smooth or ok
-        pick = cheapest(ok) if ok else least_error(here)
+        pick = cheapest(ok, error) if ok else least(here, CHANGE)
         picks.append((s, pick, bool(ok)))
+        if above is not None and not held and finer(pick, above):
+            needed.append(len(picks) - 1)
+    for i in reversed(needed):   # the finer level needed here also takes the coarser bands above it
+        for j in range(i - 1, -1, -1):
+            s, r, _ = picks[j]
+            up = at.get((s, picks[i][1]["label"]))
+            if up is None or not finer(up, r) or not meets(up, limits):
+                break
+            picks[j] = (s, up, True)
     entries = []
     for i, (s, r, ok) in enumerate(picks):
         low = sizes[i + 1] if i + 1 < len(sizes) else 0
@@ -105,11 +169,29 @@ def chain(rows: list[dict], limits: dict, height: int, pop=None, pop_dluv: float
             "pops_dluv": pops, "pops_meet": None if pop_dluv is None or None in pops else max(pops, default=0) <= pop_dluv}
 
 
+def floor(rows: list[dict]) -> list[dict]:
+    """Per size, from the largest, what no variant of the object can change (vdmrender.change): the full asset's
+    mean and p95 ΔLuv against the reference and the reference's own noise, and of the pairs of variants measured
+    there, how many differ in mean ΔLuv against the reference by less than the noise of both (ties by that error)."""
+    out = []
+    for s in sorted({r["size_px"] for r in rows}, reverse=True):
+        here = [r for r in rows if r["size_px"] == s]
+        errs = [r for r in here if r["mean_dluv"] is not None]
+        pairs = [(a, b) for i, a in enumerate(errs) for b in errs[i + 1:]]
+        ties = [1 for a, b in pairs if abs(a["mean_dluv"] - b["mean_dluv"]) <= math.hypot(
+            noise(a, "mean_dluv"), noise(b, "mean_dluv"))]
+        out.append({"size_px": s, "full_asset": here[0].get("change_against"), "floor_dluv": here[0].get("floor_dluv"),
+                    "floor_p95_dluv": here[0].get("floor_p95_dluv"),
+                    "reference_noise_dluv": here[0].get("reference_noise_dluv"), "pairs": len(pairs), "ties": len(ties)})
+    return out
+
+
 def _object_chains(rows: list[dict], t, height: int, pop=None) -> dict:
     """The chain over every variant, and where the object has triangle-mesh variants, the chain over those
     alone (`meshes_only`: what a glTF with MSFT_lod carries). t: the chain's scene.Thresholds."""
     meshes = [r for r in rows if r["technique"] in TRIANGLE_MESHES]
-    one = lambda rs: chain(rs, t.limits(), height, pop, t.pop_dluv, t.hysteresis)   # noqa: E731
+    error = LIMIT_ON[t.limit_on]["mean_dluv"]
+    one = lambda rs: chain(rs, t.limits(), height, pop, t.pop_dluv, t.hysteresis, error)   # noqa: E731
     return {**one(rows), **({"meshes_only": one(meshes)} if meshes else {})}
 
 
@@ -134,8 +216,9 @@ def chains(per_object: dict[str, dict], sweep_rows: list[dict], lod_sets, device
                     "pop_dluv: at the size an entry takes over, the mean ΔLuv between its frames and the previous "
                     "entry's (what a viewer sees change at the switch)",
             "rule": __doc__.split("\n\n", 1)[1].replace("\n", " "),
-            "chains": [{"name": t.name, "limits": t.limits(), "pop_dluv": t.pop_dluv, "hysteresis": t.hysteresis,
-                        "objects": {o: by_name[t.name] for o, by_name in per_object.items()}}
+            "floors": {o: floor([r for r in sweep_rows if r["object"] == o]) for o in per_object},
+            "chains": [{"name": t.name, "limit_on": t.limit_on, "limits": t.limits(), "pop_dluv": t.pop_dluv,
+                        "hysteresis": t.hysteresis, "objects": {o: by_name[t.name] for o, by_name in per_object.items()}}
                        for t in lod_sets]}
 
 
@@ -145,17 +228,19 @@ def priced_on_field(lod: dict, rows: list[dict]) -> None:
     cheapest of those within the chain's limits on the field (cheapest's rule) is what the field ships: where
     that is a single variant, the chain becomes that variant at every size (the sweep's chain kept as
     sweep_entries), so a chain is never slower than one representation meeting the same limits there. Where none
-    is within the limits on the field, the one of least error is shipped (least_error, as a chain's size)."""
+    is within the limits on the field, the one of least change is shipped (as at a chain's size)."""
     for c in lod["chains"]:
         for obj, ch in c["objects"].items():
             field = [r for r in rows if r["object"] == obj and (r["technique"] != "lod" or r["value"] == c["name"])]
             if not any(r["technique"] == "lod" for r in field):
                 continue
             ok = [r for r in field if meets(r, c["limits"])]
-            best = cheapest(ok) if ok else least_error(field)
+            best = cheapest(ok, LIMIT_ON[c["limit_on"]]["mean_dluv"]) if ok else least(field, CHANGE)
             ch["field"] = {"how": " ".join(priced_on_field.__doc__.split()), "chosen": best["label"],
                            "candidates": [{"variant": r["label"], "median_ms": r["median_ms"],
-                                           "spread_ms": r["spread_ms"], "mean_dluv": r["mean_dluv"],
+                                           "spread_ms": r["spread_ms"], "change_dluv": r.get(CHANGE),
+                                           "mean_dluv": r["mean_dluv"], "floor_dluv": r.get("floor_dluv"),
+                                           "reference_noise_dluv": r.get("reference_noise_dluv"),
                                            "meets": meets(r, c["limits"])} for r in field]}
             if best["technique"] != "lod":
                 point = {"size_px": None, **{k: best.get(k) for k in MEASURED}, "per_pixel": best.get("per_pixel")}
@@ -166,44 +251,59 @@ def priced_on_field(lod: dict, rows: list[dict]) -> None:
 
 
 def table(lod: dict) -> str:
-    """lod.md: every chain as bands of screen sizes, its variant, what it measured at the band's top, the pop where
-    it takes over and the hysteresis of the switch; for a field of copies, how the chain was priced there."""
+    """lod.md: per object the floor (what no variant changes: the full asset's error against the reference and the
+    reference's noise, per size); every chain as bands of screen sizes, its variant, its change against the full
+    asset and its error against the reference at the band's top, the pop where it takes over and the hysteresis of
+    the switch; for a field of copies, how the chain was priced there."""
     def num(x, digits):
         return "-" if x is None else f"{x:.{digits}f}"
 
     seen = lod.get("error") or POINT
     lines = [f"LOD chains on {lod['device']}, frame {lod['resolution'][0]}x{lod['resolution'][1]}, sizes measured "
-             f"{', '.join(map(str, lod['sizes_px']))} px; errors against the reference at {seen['reference_spp']} "
-             f"samples per pixel, frames anti-aliased {seen['antialias']}. {lod['rule']}", ""]
+             f"{', '.join(map(str, lod['sizes_px']))} px; frames anti-aliased {seen['antialias']}, the reference at "
+             f"{seen['reference_spp']} samples per pixel. {lod['rule']}", ""]
+    for obj, rows in lod.get("floors", {}).items():
+        lines += [f"## The floor of {obj}: its full asset against the reference", "",
+                  "No variant's error against the reference is below its full asset's (drawn the same way), and no "
+                  "difference below the reference's noise can be told from noise.", "",
+                  "| size [px] | full asset | mean ΔLuv | p95 ΔLuv | reference noise ΔLuv | variant pairs within noise |",
+                  "|---:|---|---:|---:|---:|---:|"]
+        lines += [f"| {f['size_px']} | {f['full_asset']} | {num(f['floor_dluv'], 3)} | {num(f['floor_p95_dluv'], 2)} | "
+                  f"{num(f['reference_noise_dluv'], 3)} | {f['ties']} of {f['pairs']} |" for f in rows]
+        lines.append("")
     for c in lod["chains"]:
-        limits = ", ".join(f"{k} {'>=' if k == 'iou' else '<='} {v:g}" for k, v in c["limits"].items())
+        limits = ", ".join(f"{k} {'>=' if k.endswith('iou') else '<='} {v:g}" for k, v in c["limits"].items())
         limits += f", pop <= {c['pop_dluv']:g}" if c.get("pop_dluv") is not None else ""
         for obj, ch in c["objects"].items():
             lines += [f"## {c['name']} ({limits}): {obj}", "",
-                      "| band [px]: over, up to | variant | within limits | mean ΔLuv | p95 ΔLuv | FLIP | IoU | median GPU ms "
-                      "| pop ΔLuv taking over | switch down, up [px] |",
-                      "|---|---|---|---:|---:|---:|---:|---:|---:|---|"]
+                      "| band [px]: over, up to | variant | within limits | change ΔLuv | change p95 | IoU with the "
+                      "full asset | ΔLuv against the reference | floor ΔLuv | median GPU ms | pop ΔLuv taking over | "
+                      "switch down, up [px] |",
+                      "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|"]
             for e in ch["entries"]:
                 top = e["measured"][0]
                 switch = e.get("switch_px")
                 lines.append(f"| ({e['min_px']}, {e['max_px']}] | {e['variant']} | {'yes' if e['meets'] else '**no**'} | "
-                             f"{num(top['mean_dluv'], 3)} | {num(top['p95_dluv'], 2)} | {num(top['flip_mean'], 4)} | "
-                             f"{num(top['iou'], 4)} | {num(top['median_ms'], 3)} | {num(top.get('pop_dluv'), 2)} | "
-                             f"{f'{switch[0]:g}, {switch[1]:g}' if switch else '-'} |")
+                             f"{num(top.get(CHANGE), 3)} | {num(top.get('change_p95_dluv'), 2)} | "
+                             f"{num(top.get('change_iou'), 4)} | {num(top['mean_dluv'], 3)} | "
+                             f"{num(top.get('floor_dluv'), 3)} | {num(top['median_ms'], 3)} | "
+                             f"{num(top.get('pop_dluv'), 2)} | {f'{switch[0]:g}, {switch[1]:g}' if switch else '-'} |")
             lines.append("")
             if ch["unmet_px"]:
-                lines += [f"No variant is within the limits at {', '.join(map(str, ch['unmet_px']))} px: the chain "
-                          "uses the variant of least mean ΔLuv there.", ""]
+                lines += [f"**No variant is within the limits at {', '.join(map(str, ch['unmet_px']))} px**: the chain "
+                          "takes the variant of least mean change against the full asset there.", ""]
             if ch.get("pops_meet") is False:
                 lines += [f"A switch pops more than {c['pop_dluv']:g} ΔLuv where no variant within the limits pops "
                           "less.", ""]
             if "field" in ch:
                 f = ch["field"]
                 lines += [f"Priced on the field of copies: {f['how']}", "",
-                          "| on the field | median GPU ms | spread ms | mean ΔLuv | within limits |", "|---|---:|---:|---:|---|"]
+                          "| on the field | median GPU ms | spread ms | change ΔLuv | ΔLuv against the reference | "
+                          "floor ΔLuv | within limits |", "|---|---:|---:|---:|---:|---:|---|"]
                 lines += [f"| {'**' + r['variant'] + '**' if r['variant'] == f['chosen'] else r['variant']} | "
-                          f"{num(r['median_ms'], 2)} | {num(r['spread_ms'], 2)} | {num(r['mean_dluv'], 3)} | "
-                          f"{'yes' if r['meets'] else 'no'} |" for r in f["candidates"]]
+                          f"{num(r['median_ms'], 2)} | {num(r['spread_ms'], 2)} | {num(r.get('change_dluv'), 3)} | "
+                          f"{num(r['mean_dluv'], 3)} | {num(r.get('floor_dluv'), 3)} | {'yes' if r['meets'] else 'no'} |"
+                          for r in f["candidates"]]
                 lines.append("")
             lines += [f"Above {ch['above_px']} px nothing was measured.", ""]
     return "\n".join(lines)
@@ -216,9 +316,10 @@ def write(folder: Path, lod: dict, sweep_rows: list[dict]) -> None:
 
 
 def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
-    """lod.png, one panel per chain and object: every variant's mean ΔLuv against screen size (thin), the chain's
-    bands shaded and named (hatched: over the limits), its error through them (thick), the limit (dashed) and the
-    pop at each switch (a red bar as tall as the pop, at the switch size)."""
+    """lod.png, one panel per chain and object: every variant's mean change (or error, as the chain's limit_on)
+    against screen size (thin), the chain's bands shaded and named (hatched: over the limits), its value through
+    them (thick), the limit (dashed), the floor (the full asset against the reference, dotted) and the pop at each
+    switch (a red bar as tall as the pop, at the switch size)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -228,10 +329,11 @@ def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
     fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.6 * len(panels)), squeeze=False)
     shades = plt.get_cmap("tab10")
     for ax, (c, obj, ch) in zip(axes[:, 0], panels):
-        mine = [r for r in sweep_rows if r["object"] == obj and r["mean_dluv"] is not None]
+        error = LIMIT_ON[c.get("limit_on", "reference")]["mean_dluv"]
+        mine = [r for r in sweep_rows if r["object"] == obj and r.get(error) is not None]
         labels = list(dict.fromkeys(r["label"] for r in mine))
         for label in labels:
-            pts = sorted((r["size_px"], r["mean_dluv"]) for r in mine if r["label"] == label)
+            pts = sorted((r["size_px"], r[error]) for r in mine if r["label"] == label)
             ax.plot(*zip(*pts), "-", color=shades(labels.index(label) % 10), linewidth=0.8, alpha=0.6, label=label)
         path_pts = []
         for e in ch["entries"]:
@@ -241,21 +343,26 @@ def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
             ax.text((lo * e["max_px"]) ** 0.5, 0.97, e["variant"] + ("" if e["meets"] else " (over)"),
                     transform=ax.get_xaxis_transform(), ha="center",
                     va="top", fontsize=7, rotation=90 if len(ch["entries"]) > 2 else 0)
-            path_pts += [(m["size_px"], m["mean_dluv"]) for m in e["measured"] if m["size_px"] is not None]
+            path_pts += [(m["size_px"], m.get(error)) for m in e["measured"]
+                         if m["size_px"] is not None and m.get(error) is not None]
             top = e["measured"][0]
             if top.get("pop_dluv") is not None:
                 ax.bar(top["size_px"], top["pop_dluv"], width=0.08 * top["size_px"], color="red", alpha=0.8,
                        label="pop at the switch" if e is ch["entries"][1] else None)
         if path_pts:
             ax.plot(*zip(*sorted(path_pts)), "o-", color="black", linewidth=2, markersize=4, label="the chain")
-        if "mean_dluv" in c["limits"]:
-            ax.axhline(c["limits"]["mean_dluv"], color="black", linestyle="--", linewidth=0.8, label="limit")
+        if error in c["limits"]:
+            ax.axhline(c["limits"][error], color="black", linestyle="--", linewidth=0.8, label="limit")
+        base = [(f["size_px"], f["floor_dluv"]) for f in lod.get("floors", {}).get(obj, []) if f["floor_dluv"] is not None]
+        if base:
+            ax.plot(*zip(*sorted(base)), ":", color="grey", linewidth=1.5,
+                    label="floor: full asset against the reference")
         ax.set_xscale("log", base=2)
         ax.set_xticks(lod["sizes_px"], [str(s) for s in lod["sizes_px"]])
         ax.minorticks_off()
         ax.set_xlim(min(lod["sizes_px"]) / 2, max(lod["sizes_px"]) * 1.3)
         ax.set_xlabel("bounding sphere on screen [px] (log)")
-        ax.set_ylabel("mean ΔL*u*v*")
+        ax.set_ylabel("mean ΔL*u*v* " + ("against the full asset" if error == CHANGE else "against the reference"))
         priced = f", priced on the field: {ch['field']['chosen']}" if "field" in ch else ""
         ax.set_title(f"{obj}: chain {c['name']}{priced}", fontsize=9)
         ax.grid(True, alpha=0.3)

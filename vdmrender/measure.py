@@ -88,6 +88,16 @@ class Harness:
             stats["clock_reasons"] = after["gpus"][0]["clock_reasons"]
         return stats, frames, aliased
 
+    def frames(self, build: Callable, cams) -> list:
+        """A renderer's frames as shipped, untimed and uncounted (a full asset that is not a row of its own:
+        vdmrender.change)."""
+        renderer = build()
+        try:
+            shipped = self.as_shipped(renderer)
+            return [self.timer.read(shipped, c, k) for k, c in enumerate(cams)]
+        finally:
+            renderer.release()
+
     def counted(self, build: Callable, cams) -> tuple[dict, dict, dict]:
         """The variant's work over every camera's frame (exact integers: a --baseline compares them exactly),
         per pass, and per covered pixel over the camera's passes (fragments, fetches and steps: overdraw and

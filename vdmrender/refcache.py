@@ -75,7 +75,8 @@ def object_reference(obj, entry, bundle, scene):
 
 
 def cached_reference(out, folder: str, key: str, count: int):
-    """The previous run's reference frames and classes in `folder` if they were made under `key`, else None."""
+    """The previous run's reference frames, their first halves (reference.filtered; None at 1 spp) and classes in
+    `folder` if they were made under `key`, else None."""
     prev_key = out.previous(f"{folder}/key.txt")
     names = [f"{folder}/{k:03d}" for k in range(count)]
     if not (prev_key.is_file() and prev_key.read_text().strip() == key
@@ -83,14 +84,18 @@ def cached_reference(out, folder: str, key: str, count: int):
         return None
     cached = [exr.read(out.previous(n + ".exr")) for n in names]
     return ([np.stack([p["reference"][c] for c in "RGBA"], -1) for p in cached],
+            [np.stack([p["half"][c] for c in "RGBA"], -1) if "half" in p else None for p in cached],
             [p["classes"]["C"].astype(np.uint8) if "classes" in p else None for p in cached])
 
 
-def save_reference(out, folder: str, key: str, frames, classes, background) -> None:
-    """The reference frames as EXR (the cache) and PNG, the pixel classes where there are some, and the key."""
-    for k, (f, c) in enumerate(zip(frames, classes)):
+def save_reference(out, folder: str, key: str, frames, halves, classes, background) -> None:
+    """The reference frames as EXR (the cache) and PNG, with their first halves (layer `half`) and the pixel
+    classes where there are some, and the key."""
+    for k, (f, h, c) in enumerate(zip(frames, halves, classes)):
         n = f"{folder}/{k:03d}"
         layers = {"reference": {ch: f[..., i] for i, ch in enumerate("RGBA")}}
+        if h is not None:   # the first half of the strata: the frame's noise (vdmrender.scoring.noise)
+            layers["half"] = {ch: h[..., i] for i, ch in enumerate("RGBA")}
         if c is not None:   # which pixels see an open border or the inside (vdmrender.borders), as a mask too
             layers["classes"] = {"C": c.astype(np.float32)}
             images.save_rgb(out.file(n + "-classes.png"), np.dstack([borders.COLOURS[c], np.full(c.shape, 255, np.uint8)]))
@@ -101,17 +106,19 @@ def save_reference(out, folder: str, key: str, frames, classes, background) -> N
 
 def load_or_trace(out, folder: str, key: str, cams, trace, background, what: str, log) -> tuple[list, list, dict]:
     """The reference frames in `folder` (linear RGBA float32) and their pixel classes (None where not
-    classified): the previous run's where made under `key`, else traced by `trace(cams)` -> (frames,
-    classes, rays cast); saved (the next run's cache) and logged as WHAT."""
+    classified): the previous run's where made under `key`, else traced by `trace(cams)` -> (frames, first
+    halves, classes, rays cast); saved (the next run's cache) and logged as WHAT. info["halves"]: each frame's
+    first half (reference.filtered), None at 1 spp."""
     cached = cached_reference(out, folder, key, len(cams))
     if cached is not None:
-        frames, classes = cached
+        frames, halves, classes = cached
         info = {"cached": True, "trace_s": 0.0}
     else:
         t0 = time.perf_counter()
-        frames, classes, rays = trace(progress.bar(cams, f"{what}: reference"))
+        frames, halves, classes, rays = trace(progress.bar(cams, f"{what}: reference"))
         info = {"cached": False, "trace_s": round(time.perf_counter() - t0, 3), "rays": rays}
-    save_reference(out, folder, key, frames, classes, background)
+    info["halves"] = halves
+    save_reference(out, folder, key, frames, halves, classes, background)
     log(f"{what}: reference {len(cams)} frames " +
         ("(cached)" if info["cached"] else f"traced in {info['trace_s']:.2f} s, {info['rays']} rays"))
     return frames, classes, info
@@ -127,9 +134,9 @@ def object_frames(out, obj, entry, bundle, scene, cams, log, folder: str | None 
 
     def trace(cams):
         ref, skirt = object_reference(obj, entry, bundle, scene)
-        frames = [reference.filtered(ref.render, c, spp) for c in cams]
+        frames, halves = zip(*(reference.filtered(ref.render, c, spp) for c in cams))
         classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
-        return frames, classes, ref.scene.rays_cast
+        return list(frames), list(halves), classes, ref.scene.rays_cast
 
     return load_or_trace(out, folder or f"reference/{obj.name}", key, cams, trace, scene.render.background,
                          f"{what or obj.name}" + (f" ({spp} spp)" if spp > 1 else ""), log)

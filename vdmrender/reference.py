@@ -269,14 +269,28 @@ def strata(camera, spp: int):
         yield (np.array([k % n, k // n]) + jitter) / n
 
 
-def filtered(render, camera, spp: int) -> np.ndarray:
+def first_half(spp: int) -> int:
+    """How many of the N x N strata make the first half of a filtered reference (the checkerboard's cells with
+    i + j even; the second half is the others): half of them, the larger half where N is odd."""
+    n = math.isqrt(spp)
+    return sum((k % n + k // n) % 2 == 0 for k in range(spp))
+
+
+def filtered(render, camera, spp: int) -> tuple[np.ndarray, np.ndarray | None]:
     """The box-filtered frame of `render(camera, offset=...)` (a reference's render): the mean over the pixel's
     stratified samples (strata) of linear RGB times coverage, and of coverage, i.e. premultiplied colour and the
     fraction of the pixel the object covers; what a viewer sees of the pixel over the background is then
-    rgb + (1 - coverage) background (images.encode)."""
-    total = np.zeros((camera.height, camera.width, 4))
-    for offset in strata(camera, spp):
+    rgb + (1 - coverage) background (images.encode). With it, the same mean over the first half of the strata
+    (first_half: a checkerboard of them), an independent estimate of the pixel beside the other half's, from which
+    the frame's own sampling noise is estimated (vdmrender.scoring.noise); None at one sample per pixel."""
+    n = math.isqrt(spp)
+    total, half = np.zeros((camera.height, camera.width, 4)), np.zeros((camera.height, camera.width, 4))
+    for k, offset in enumerate(strata(camera, spp)):
         f = render(camera, offset=offset).astype(np.float64)
-        total[..., :3] += f[..., :3] * f[..., 3:]
-        total[..., 3] += f[..., 3]
-    return (total / spp).astype(np.float32)
+        f[..., :3] *= f[..., 3:]
+        total += f
+        if (k % n + k // n) % 2 == 0:
+            half += f
+    if spp == 1:
+        return total.astype(np.float32), None
+    return (total / spp).astype(np.float32), (half / first_half(spp)).astype(np.float32)

@@ -17,7 +17,7 @@ from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, composite, gl, html, images, lod, lodmix, measure, pricing, refcache, report, scoring, sweep, timing
+from . import baseline, change, composite, gl, html, images, lod, lodmix, measure, pricing, refcache, report, scoring, sweep, timing
 from . import device as gpu
 from .camera import cameras_for, framed
 from .metrics import summarise
@@ -122,6 +122,16 @@ TIMING = ("GPU time per frame: the sum of the frame's passes' GL timer queries (
           "the baseline row of the same object and run")
 
 
+CHANGE = ("change_*: the variant's frames against its object's full asset (change_against: the full mesh `mesh`, the "
+          "ray-cast quadrics `impostor@direct`, the truly displaced surface the reference traces `displaced@L`; for "
+          "a composite every object's) drawn the same way, same cameras, size and anti-aliasing, pooled as the error "
+          "is (change_dluv, change_p95_dluv over both coverage masks, change_iou, change_flip): what a viewer sees "
+          "change when the full asset is swapped for the variant; the full asset's own row changes nothing. "
+          "floor_dluv, floor_p95_dluv: the full asset's error against the reference at the same views, which no "
+          "variant's error is below; reference_noise_dluv: the reference's own sampling noise, from two halves of "
+          "its strata (vdmrender.scoring.noise), below which no two errors can be told apart")
+
+
 SWEEP = ("every view again with the camera moved along its line of sight, aimed at the object's bounding-sphere "
          "centre, to where the sphere's silhouette is size_px pixels across (vdmrender.sweep.distance_for; "
          "distance_radii: the first view's eye distance in radii); frame size, field of view and timing as the rows'; frames "
@@ -183,6 +193,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                            "mesostructure object, pixels that see an open border or the surface from inside "
                            "(reference/OBJECT/NNN-classes.png) are scored apart: border_px, inside_px, "
                            "mean_dluv_apart, and every pixel together in mean_dluv_all, iou_all",
+                  "change": CHANGE,
                   "flip": "NVIDIA FLIP (LDR, 67 pixels per degree) of the sRGB frames, averaged over the same "
                           "pixels as the error (flip_mean pools a variant's frames like mean_dluv)" if opts.flip else "not computed",
                   "heatmap_max_dluv": opts.heat_max, "filtering": filtering_note(opts), "rows": rows}
@@ -253,19 +264,25 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, 
     reference and overview sheet written under `prefix` (a screen-size sweep's sizes/NNNpx/); keep: also each
     variant's frames (sRGB, by label) put here."""
     entry, what = bundle.manifest["objects"][obj.name], what or obj.name
+    background = scene.render.background
     refs = scoring.References.traced(
         lambda spp, folder: refcache.object_frames(out, obj, entry, bundle, scene, cams, log, folder, what, spp),
-        f"{prefix}reference/{obj.name}", opts.reference_spp, scene.render.background)
-    sheet, rows = [("reference", refs.filtered)], []
+        f"{prefix}reference/{obj.name}", opts.reference_spp, background)
+    sheet, rows, frames = [("reference", refs.filtered)], [], {}
     for v in chosen:
-        row, enc, heats = _measure(harness, v, cams, refs, out, obj, opts, scene.render.background, prefix, what)
+        row, enc, heats = _measure(harness, v, cams, refs, out, obj, opts, background, prefix, what)
         rows.append({**row, "device": device, "reference_cached": refs.cached})
         sheet += [(v.label, enc), (f"{v.label} error", heats)]
-        if keep is not None:
-            keep[v.label] = enc
+        frames[v.label] = enc
         log(f"{what}: {v.label:>14}  {scoring.row_line(row)}"
             + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")
             + (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
+    full = change.full_asset(obj, entry, bundle, scene)
+    if full.label not in frames:   # drawn the same way, untimed: what every row's change is against
+        frames[full.label] = [images.encode(f, background) for f in harness.frames(lambda: full.build(harness.ctx), cams)]
+    change.attach(rows, frames, full.label, frames[full.label], refs, opts.flip)
+    if keep is not None:
+        keep.update(frames)
     images.overview(sheet, out.file(f"{prefix}overview/{obj.name}.png"))
     return rows
 

@@ -2,23 +2,27 @@
 frames and heat maps, and the one line per measured row that vdmrender logs."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import images, progress
 from .metrics import compare, flip_values, pooled
+from .reference import first_half
 
 
 @dataclass
 class References:
     """An object's or a composite's reference frames as scoring reads them (uint8 sRGB over the background,
     coverage alpha): `filtered`, at the run's samples per pixel (what a viewer sees; the error that decides),
-    and `point`, the pixel-centre reference the `aliased_*` error is against (the same list at 1 spp)."""
+    and `point`, the pixel-centre reference the `aliased_*` error is against (the same list at 1 spp);
+    `noise_dluv`, the filtered frames' own sampling noise (noise; None at 1 spp)."""
     filtered: list
     classes: list
     point: list
     cached: bool
+    noise_dluv: float | None = None
 
     @classmethod
     def traced(cls, load, folder: str, spp: int, background) -> "References":
@@ -30,7 +34,7 @@ class References:
             return cls(filtered, classes, filtered, info["cached"])
         point, _, point_info = load(1, f"{folder}/point")
         return cls(filtered, classes, [images.encode(f, background) for f in point],
-                   info["cached"] and point_info["cached"])
+                   info["cached"] and point_info["cached"], noise(frames, info["halves"], spp, background))
 
     def aliased(self, frames, shipped, background, scores) -> dict:
         """The `aliased_*` fields of a row: its point-sampled frames (measure.Harness) against the pixel-centre
@@ -41,6 +45,22 @@ class References:
         else:
             cs = [compare(images.encode(f, background), r8, cls) for f, r8, cls in zip(frames, self.point, self.classes)]
         return {f"aliased_{k}": v for k, v in pooled(cs).items()}
+
+
+def noise(frames: list, halves: list, spp: int, background) -> float | None:
+    """The filtered reference's own sampling noise as a mean ΔLuv, estimated from its two halves of strata
+    (reference.filtered): each is an independent estimate of the pixel, A over a of the n = spp samples, B over the
+    other b, and the frame F = (a A + b B) / n, so F's deviation from the pixel's true value is sd(A - B) sqrt(a b)
+    / n (half the halves' difference for a = b). Pooled over every pixel either half covers, as a row's mean ΔLuv
+    is pooled; 0 where every sample of every pixel agrees, None where neither half covers a pixel."""
+    a = first_half(spp)
+    b = spp - a
+    cs = []
+    for f, h in zip(frames, halves):
+        other = np.maximum((spp * f.astype(np.float64) - a * h.astype(np.float64)) / b, 0.0)
+        cs.append(compare(images.encode(h, background), images.encode(other.astype(np.float32), background)))
+    d = pooled(cs)["mean_dluv"]
+    return None if d is None else round(d * math.sqrt(a * b) / spp, 4)
 
 
 def score_frames(frames, ref8, classes, out, frame_dir: str, heat_dir: str, heat_max, background, flip, desc: str):

@@ -15,7 +15,8 @@ from .camera import Camera, clip_planes
 from .report import flat as report_flat
 
 COLUMNS = ["object", "size_px", "distance_radii", "label", "technique", "value", "median_ms", "spread_ms", "q1_ms",
-           "q3_ms", "fragments_px", "fetches_px", "steps_px", "mean_dluv", "p95_dluv", "flip_mean", "iou",
+           "q3_ms", "fragments_px", "fetches_px", "steps_px", "change_against", "change_dluv", "change_p95_dluv",
+           "change_iou", "change_flip", "mean_dluv", "p95_dluv", "flip_mean", "iou", "floor_dluv", "reference_noise_dluv",
            "aliased_mean_dluv", "aliased_p95_dluv", "aliased_iou", "empty_frames", "frames", "device"]
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from pathlib import Path, PurePosixPath
 
 from .. import __version__
@@ -39,6 +40,20 @@ def _sha256(data: bytes) -> str:
 def dumps(obj) -> str:
     """Deterministic JSON; key order is the code's and the scene's (technique order matters)."""
     return json.dumps(obj, indent=1) + "\n"
+
+
+def update_scene(path: Path, scene: dict) -> bool:
+    """Give the complete bundle at `path` the scene `scene` where its manifest holds another whose difference the
+    bake does not read (the render settings, vdmbake.bake.RENDER_ONLY: vdmrender renders with the bundle's copy):
+    the manifest rewritten beside it and renamed over it, so a reader sees the old or the new one whole. Returns
+    whether it changed."""
+    manifest = Bundle(path).manifest
+    if manifest["scene"] == scene:
+        return False
+    tmp = Path(path) / f".{MANIFEST}.tmp-{os.getpid()}"
+    tmp.write_text(dumps({**manifest, "scene": scene}))
+    os.replace(tmp, Path(path) / MANIFEST)
+    return True
 
 
 class BundleWriter:
