@@ -124,7 +124,7 @@ def test_what_the_scans_coarsest_mesh_changes_falls_with_its_size(tmp_path):
     way and supersampled, falls well below its change at 512 px: its facets are a dozen pixels wide at 512 px and
     under half a pixel at 16, where a pixel averages 16 shading samples of each. (Under MSAA the change does not
     fall: each pixel shades a few samples, and the full scan's fine normals differ from the coarse mesh's smooth
-    ones at any size: docs/tuning.md.)"""
+    ones at any size: docs/change.md.)"""
     r, out = bake_and_render(tmp_path, SCAN, "--no-flip", "--no-counters")
     assert r.exit_code == 0, r.output
     rows = {row["size_px"]: row for row in json.loads((out / "report.json").read_text())["sweep"]["rows"]}

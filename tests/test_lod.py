@@ -196,7 +196,8 @@ def test_export_is_valid_gltf_with_msft_lod_and_reads_back(tmp_path):
     loose_chain = next(c for c in doc["chains"] if c["name"] == "loose")["objects"]["bunny"]
     levels = [("mesh", 48, 64), ("coarse@0.3", 16, 48), ("coarse@0.1", 0, 16)]
     loose_chain["meshes_only"]["entries"] = [{**loose_chain["entries"][0], "variant": v, "technique": v.split("@")[0],
-                                              "min_px": lo, "max_px": hi} for v, lo, hi in levels]
+                                              "min_px": lo, "max_px": hi, "screen_coverage": [hi / 48, lo / 48]}
+                                             for v, lo, hi in levels]
     (out / "lod.json").write_text(json.dumps(doc))
     r = CliRunner().invoke(export_main, [str(tmp_path / "b.bundle"), "--lod", str(out / "lod.json"), "-o",
                                          str(tmp_path / "x"), "--chain", "loose"])
@@ -350,13 +351,12 @@ def test_export_merges_neighbouring_bands_of_one_variant():
 def test_a_chain_takes_a_finer_level_at_a_smaller_size_only_where_it_is_cheaper():
     """Issue 39: at 16 px the full mesh and coarse@0.1 cost the same and the mesh changes less, which used to bring
     the mesh back below coarse@0.1 (finer at a smaller size: no engine's LOD can express it). The level above holds
-    unless the finer one is cheaper there."""
+    unless the finer one is cheaper there (or the level above is over the limits there)."""
     mesh = lambda size, ms, spread=0.0: {**row("mesh", size, ms, 0.0, spread), "change_against": "mesh"}  # noqa: E731
     coarse = lambda size, ms, dluv: {**row("coarse@0.1", size, ms, dluv), "change_against": "mesh", "faces": 1000}  # noqa: E731
     rows = [mesh(64, 10.0), coarse(64, 3.0, 0.6), mesh(16, 3.0), coarse(16, 3.1, 0.4)]
     ch = lod.chain(rows, {"change_dluv": 1.0}, 512)
     assert [(e["variant"], e["min_px"], e["max_px"]) for e in ch["entries"]] == [("coarse@0.1", 0, 64)]
-    assert lod.cheapest(rows[2:])["label"] == "mesh"   # what the size alone would take
     cheaper = [*rows[:2], mesh(16, 1.0), coarse(16, 3.1, 0.4)]
     assert [e["variant"] for e in lod.chain(cheaper, {"change_dluv": 1.0}, 512)["entries"]] == ["coarse@0.1", "mesh"]
 
@@ -402,3 +402,34 @@ def test_the_floor_counts_the_pairs_the_references_noise_ties():
             for label, d in (("mesh", 0.5), ("coarse@0.3", 0.6), ("coarse@0.1", 0.9))]
     (f,) = lod.floor(rows)
     assert (f["size_px"], f["full_asset"], f["floor_dluv"], f["pairs"], f["ties"]) == (16, "mesh", 0.5, 3, 1)
+
+
+def test_a_chain_of_meshes_is_exported_as_it_is():
+    """configs/lod-bunny.toml's scan: costs tied within the noise below 512 px and the finer mesh changing less, the
+    chain went coarse@0.1 -> coarse@0.3 -> mesh as the size fell, and the export reordered it finest first
+    (shipping the full mesh where lod.md said coarse@0.1). A chain is now monotone in detail, so MSFT_lod's finest
+    first order is the chain's own and the export says nothing."""
+    from vdmbake.export.chain import finest_first, merged
+
+    faces = {"mesh": 100_000, "coarse@0.3": 30_000, "coarse@0.1": 10_000}
+    costs = {512: (9.0, 4.0, 2.0), 256: (9.0, 2.05, 2.0), 128: (2.0, 2.0, 2.0), 64: (2.0, 2.0, 1.0)}
+    changes = {512: (0.0, 0.3, 0.6), 256: (0.0, 0.3, 0.5), 128: (0.0, 0.2, 0.4), 64: (0.0, 0.4, 0.8)}
+    rows = [{**row(v, s, costs[s][k], changes[s][k]), "faces": faces[v], "change_against": "mesh"}
+            for s in costs for k, v in enumerate(faces)]
+    levels = merged(lod.chain(rows, {"change_dluv": 1.0}, 512)["entries"])
+    assert [(e["variant"], e["min_px"]) for e in levels] == [("coarse@0.1", 0)]
+    strict = merged(lod.chain(rows, {"change_dluv": 0.45}, 512)["entries"])   # coarse@0.1 over it below 256 px
+    assert [(e["variant"], e["min_px"]) for e in strict] == [("coarse@0.3", 0)]
+    for chained in (levels, strict):
+        ordered, note = finest_first(chained, [faces[e["variant"]] for e in chained])
+        assert note is None and [e["variant"] for e, _ in ordered] == [e["variant"] for e in chained]
+
+
+def test_of_levels_that_cost_the_same_the_coarser_within_the_limits_is_taken():
+    """The full mesh changes nothing, but where a coarser mesh within the limits costs no more, shipping the finer one
+    buys nothing the limits ask for; an impostor does not compare with meshes and is judged by cost and change."""
+    full = {**row("mesh", 64, 2.0, 0.0), "change_against": "mesh", "faces": 100_000}
+    coarse = {**row("coarse@0.1", 64, 2.1, 0.6), "faces": 10_000}
+    assert lod.cheapest([full, coarse])["label"] == "coarse@0.1"
+    assert lod.cheapest([full, {**coarse, "median_ms": 4.0}])["label"] == "mesh"
+    assert lod.cheapest([full, {**coarse, "technique": "billboards", "label": "boards"}])["label"] == "mesh"

@@ -10,11 +10,13 @@ mesh's cost is about the same, so the choice is conservative within its band. Ch
 interleaved frames where the sweep timed them so (vdmrender.pricing: every variant within the limits and within
 4x of the fastest's median, frame beside frame under the same load; a variant costs the same as the fastest
 unless the 95% confidence interval of their paired log-ratios lies wholly above 10%), else on separately timed
-medians (the same within their interquartile spreads together or 10% of the cheaper); of the variants that cost
-the same, the one of least mean change (or error) is taken, where errors against the reference closer than the
-reference's noise are ties decided by cost, so that two runs pick the same chain. A chain never switches to a
-finer level of detail (more triangles; the full asset finest of all) at a smaller size unless it is cheaper there,
-so a chain of triangle meshes is the order MSFT_lod and engines express. Where no variant is within the limits,
+medians (the same within their interquartile spreads together or 10% of the cheaper); of levels of detail that
+compare (more triangles is finer; the full asset finest of all), a finer one that costs no less than a coarser one
+within the limits is not taken; of the variants left that cost the same, the one of least mean change (or error)
+is taken, where errors against the reference closer than the reference's noise are ties decided by cost, so that
+two runs pick the same chain. A chain never switches to a finer level at a smaller size unless it is cheaper
+there, or the level above is over the limits there (the finer one then takes the bands above it too, where it is
+within the limits), so a chain of triangle meshes is the order MSFT_lod and engines express. Where no variant is within the limits,
 the one of least mean change is taken (the error against the reference cannot rank there: the full asset's own
 error is the floor). With pop_dluv, a switch that would pop more is avoided where a variant within the limits pops
 less."""
@@ -78,7 +80,9 @@ def _cost_ties(rows: list[dict]) -> list[dict]:
 
 
 def cheapest(rows: list[dict], error: str = CHANGE) -> dict:
-    """The cheapest row; of those that cost the same (_cost_ties), the one of least `error` (least)."""
+    """The cheapest row: a level of detail finer than another that costs no less is never it (the coarser serves as
+    well); of those left that cost the same (_cost_ties), the one of least `error` (least)."""
+    rows = [r for r in rows if not any(finer(r, o) and not cheaper(r, o) for o in rows)]
     return least(_cost_ties(rows), error)
 
 
@@ -93,7 +97,7 @@ def detail(row: dict) -> float | None:
     None for the others (impostors: no rank among meshes)."""
     if row["label"] == row.get("change_against"):
         return math.inf
-    return row.get("faces") if row["technique"] in BY_FACES else None
+    return row.get("faces") if row.get("technique") in BY_FACES else None
 
 
 def finer(a: dict, b: dict) -> bool:
@@ -130,16 +134,13 @@ def chain(rows: list[dict], limits: dict, height: int, pop=None, pop_dluv: float
     for s in sizes:
         here = [r for r in rows if r["size_px"] == s]
         above = at.get((s, picks[-1][1]["label"])) if picks else None
-        held = above is not None and meets(above, limits)
-        if held:
-            here = [r for r in here if not finer(r, above) or cheaper(r, above)]
-        ok = [r for r in here if meets(r, limits)]
+        ok = [r for r in here if meets(r, limits)]   # with the level above among them, cheapest keeps finer ones out
         if ok and above is not None and pop is not None and pop_dluv is not None:
             smooth = [r for r in ok if r is above or pop(s, above["label"], r["label"]) <= pop_dluv]
             ok = smooth or ok
         pick = cheapest(ok, error) if ok else least(here, CHANGE)
         picks.append((s, pick, bool(ok)))
-        if above is not None and not held and finer(pick, above):
+        if above is not None and not meets(above, limits) and finer(pick, above):
             needed.append(len(picks) - 1)
     for i in reversed(needed):   # the finer level needed here also takes the coarser bands above it
         for j in range(i - 1, -1, -1):
