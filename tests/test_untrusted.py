@@ -351,3 +351,30 @@ def test_vdmrender_refuses_the_supersampled_target_cleanly(tmp_path, gl_context_
     assert_input_error(result, ["--antialias ssaa4 at 8192 x 16: the supersampled target of 32768 x 64 is over",
                                 "choose a smaller K or resolution"])
 
+
+# --- reports ------------------------------------------------------------------------------------------------------
+
+NAME = "<img src=x onerror=alert(1)>|x"
+
+
+def test_runs_md_escapes_what_it_prints():
+    """Failed before: runs.md carried a bundle's name as raw HTML (report.html escaped it)."""
+    from vdmrender import many
+
+    table = many.table([{"scene": NAME, "status": "failed", "rows": 0, "seconds": 1.0, "reason": "<b>bad</b>\x1b"}])
+    assert "<img" not in table and "<b>" not in table, table
+    assert "| &lt;img src=x onerror=alert(1)&gt;\\|x | failed | 0 | 1.0 | &lt;b&gt;bad&lt;/b&gt;\\x1b |" in table
+
+
+def test_baseline_md_escapes_what_it_prints():
+    from vdmrender import baseline
+
+    row = {k: None for k in ("old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv", "new_p95_dluv",
+                             "d_p95_dluv", "d_flip", "old_ms", "new_ms", "time_ratio", "noise_ms")}
+    block = {"thresholds": {"max_error_increase": None, "max_slowdown": None}, "notes": [f"note {NAME}"],
+             "rows": [{**row, "object": NAME, "label": "<i>mesh</i>", "exceeds": [], "status": "new"}]}
+    table = baseline.table(block)
+    assert "<img" not in table and "<i>" not in table, table
+    assert "note: note &lt;img src=x onerror=alert(1)&gt;\\|x" in table
+    assert "| &lt;img src=x onerror=alert(1)&gt;\\|x | &lt;i&gt;mesh&lt;/i&gt; |" in table
+

@@ -24,6 +24,8 @@ from vdmbake.errors import InputError, escaped
 from vdmbake.formats.safeio import read_regular
 from vdmbake.schema import REQUIRED, Integer, Invalid, Number, Reader, Text, Type, Vector
 
+from .markdown import cell
+
 COLUMNS = ["object", "label", "status", "old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv",
            "new_p95_dluv", "d_p95_dluv", "old_flip", "new_flip", "d_flip", "old_ms", "new_ms", "time_ratio",
            "noise_ms", "counters_changed", "exceeds"]
@@ -195,16 +197,16 @@ def table(block: dict) -> str:
     """The block as a markdown table (stderr and OUT/baseline.md); a row over a threshold is marked."""
     t = block["thresholds"]
     lines = [f"change against the baseline (max error increase {t['max_error_increase']}, "
-             f"max slowdown {t['max_slowdown']})", *(f"note: {n}" for n in block["notes"]), "",
+             f"max slowdown {t['max_slowdown']})", *(f"note: {cell(n)}" for n in block["notes"]), "",
              "| object | variant | mean ΔLuv old → new | Δ mean | p95 old → new | Δ p95 | FLIP Δ | GPU ms old → new "
              "| time ratio | noise ms | exceeds |", "|---|---|---|---:|---|---:|---:|---|---:|---:|---|"]
     for c in block["rows"]:
         lines.append(
-            f"| {c['object']} | {c['label']} | {_cell(c['old_mean_dluv'], 3)} → {_cell(c['new_mean_dluv'], 3)} | "
+            f"| {cell(c['object'])} | {cell(c['label'])} | {_cell(c['old_mean_dluv'], 3)} → {_cell(c['new_mean_dluv'], 3)} | "
             f"{_signed(c['d_mean_dluv'], 3)} | {_cell(c['old_p95_dluv'], 2)} → {_cell(c['new_p95_dluv'], 2)} | "
             f"{_signed(c['d_p95_dluv'], 2)} | {_signed(c['d_flip'], 4)} | {_cell(c['old_ms'], 2)} → "
             f"{_cell(c['new_ms'], 2)} | {_cell(c['time_ratio'], 2)} | {_cell(c['noise_ms'], 2)} | "
-            f"{', '.join(c['exceeds']) or ('' if c['status'] == 'compared' else c['status'])} |")
+            f"{cell(', '.join(c['exceeds']) or ('' if c['status'] == 'compared' else c['status']))} |")
     return "\n".join(lines) + "\n"
 
 

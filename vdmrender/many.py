@@ -16,9 +16,10 @@ from pathlib import Path
 
 from vdmbake import __version__
 from vdmbake.bundle.staging import StagedDir
-from vdmbake.errors import InputError, escaped, paragraph
+from vdmbake.errors import InputError, paragraph
 
 from . import baseline, html, report
+from .markdown import cell
 from .render import run
 
 
@@ -105,6 +106,6 @@ def runs_resolution(runs) -> list:
 
 def table(runs) -> str:
     lines = ["| scene | status | rows | seconds | reason |", "|---|---|---:|---:|---|"]
-    lines += [escaped(f"| {r['scene']} | {r['status']} | {r['rows']} | {r['seconds']:.1f} | {r['reason']} |")
+    lines += [f"| {cell(r['scene'])} | {cell(r['status'])} | {r['rows']} | {r['seconds']:.1f} | {cell(r['reason'])} |"
               for r in runs]
     return "\n".join(lines) + "\n"

@@ -1,0 +1,14 @@
+"""Text from a bundle or report (a scene's or object's name, an error message) printed into a Markdown file
+(runs.md, baseline.md): a Markdown viewer renders raw HTML and reads `|` as a cell's end, so a bundle named
+`<img src=x onerror=...>` would run in the page a CI job shows (report.html escapes the same names)."""
+from __future__ import annotations
+
+import html
+
+from vdmbake.errors import escaped
+
+
+def cell(value) -> str:
+    """`value` as Markdown text of one table cell: unprintable characters escaped as Python writes them, HTML's
+    special characters as entities (CommonMark §6.6: raw HTML is passed through), and `|` as `\\|` (GFM tables)."""
+    return html.escape(escaped(str(value)), quote=False).replace("|", "\\|")
