@@ -14,6 +14,7 @@ import pytest
 
 from test_asset_references import QUAD_UV, QUAD_V, _png, gltf_asset, obj_asset, scene
 from test_bad_input import assert_input_error, bake, gl_context_ok, write_scene  # noqa: F401 (a fixture)
+from test_export_identity import bundles  # noqa: F401 (a fixture)
 from vdmbake.assets import references
 from vdmbake.assets.meshes import load_mesh_file
 from vdmbake.errors import InputError
@@ -377,4 +378,31 @@ def test_baseline_md_escapes_what_it_prints():
     assert "<img" not in table and "<i>" not in table, table
     assert "note: note &lt;img src=x onerror=alert(1)&gt;\\|x" in table
     assert "| &lt;img src=x onerror=alert(1)&gt;\\|x | &lt;i&gt;mesh&lt;/i&gt; |" in table
+
+
+# --- vdmexport's lod.json ------------------------------------------------------------------------------------------
+
+def _entries(*bands, **entry) -> list[dict]:
+    return [{"variant": "mesh", "technique": "mesh", "min_px": lo, "max_px": hi, "meets": True,
+             "screen_coverage": [hi / 32, lo / 32], "measured": [], **entry} for hi, lo in bands]
+
+
+@pytest.mark.parametrize("entries, message", [
+    (_entries((8, 4), (4, 0), screen_coverage=[]),          # an IndexError traceback before
+     "key 'chains[0].objects.ball.entries[0].screen_coverage' has value []; allowed: a list of 2 finite numbers in "
+     "[0, 32768]"),
+    (_entries((8, 0), screen_coverage=[0.9, 0.5]),
+     "screen_coverage' has value [0.9, 0.5]; allowed: [max_px, min_px] over the frame's height 32: [0.25, 0]"),
+    (_entries((8, 0), technique="billboards"),              # exported as an impostor of no parts before
+     "chain 'a' object 'ball' gives variant 'mesh' the technique 'billboards', where the bundle's scene makes it a "
+     "'mesh' variant"),
+])
+def test_lod_json_types_are_checked(tmp_path, bundles, entries, message):
+    from test_export_identity import _export, _lod
+
+    lod = _lod(bundles[0].identity)
+    lod["chains"][0]["objects"]["ball"] = {"entries": entries, "meshes_only": {"entries": _entries((8, 0))}}
+    r = _export(tmp_path, bundles[0], lod)
+    assert r.exit_code == 2 and message in r.output and "Traceback" not in r.output, r.output
+    assert not (tmp_path / "x").exists()
 

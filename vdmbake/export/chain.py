@@ -84,8 +84,10 @@ TOP = {"device": (String(), REQUIRED), "resolution": (Vector(2, 1, MAX_SIDE, int
        "band": (String(), "")}
 CHAIN = {"name": (Text("1-64 characters from A-Z a-z 0-9 _ - (it becomes part of file names)", r"[A-Za-z0-9_-]{1,64}"),
                   REQUIRED)}
+# screen_coverage: the band [max_px, min_px] over the frame's height (MSFT_screencoverage's unit), more than 1 where
+# a sweep size overflows the frame (scene.Sweep.sizes); checked against the band by read_lod.
 ENTRY = {"variant": (String(), REQUIRED), "technique": (String(), REQUIRED), "min_px": (PX, REQUIRED),
-         "max_px": (PX, REQUIRED), "meets": (Boolean(), REQUIRED), "screen_coverage": (Measured(), REQUIRED),
+         "max_px": (PX, REQUIRED), "meets": (Boolean(), REQUIRED), "screen_coverage": (Vector(2, 0, MAX_PX), REQUIRED),
          "measured": (Measured(), REQUIRED)}
 
 
@@ -111,9 +113,15 @@ def read_lod(path: Path) -> dict:
         out = []
         for k, e in enumerate(raw):
             er = Reader(e, f"{r.key(key)}[{k}]", r.origin)
-            out.append(er.values(ENTRY))
-            if out[-1]["min_px"] > out[-1]["max_px"]:
-                er.fail("min_px", out[-1]["min_px"], f"at most max_px ({out[-1]['max_px']})")
+            e = er.values(ENTRY)
+            if e["min_px"] > e["max_px"]:
+                er.fail("min_px", e["min_px"], f"at most max_px ({e['max_px']})")
+            height = head["resolution"][1]   # read before the chains (below)
+            band = [e["max_px"] / height, e["min_px"] / height]
+            if max(abs(a - b) for a, b in zip(e["screen_coverage"], band)) > 1e-6:   # vdmrender rounds to 6 places
+                er.fail("screen_coverage", list(e["screen_coverage"]), f"[max_px, min_px] over the frame's height "
+                        f"{height}: [{band[0]:.6g}, {band[1]:.6g}]")
+            out.append({**e, "screen_coverage": list(e["screen_coverage"])})
         return out
 
     def chain(r: Reader) -> dict:
@@ -129,8 +137,8 @@ def read_lod(path: Path) -> dict:
 
     if not isinstance(top.data.get("chains"), list):
         top.fail("chains", top.data.get("chains"), "a list of chains")
-    out = top.values(TOP)
-    return {**out, "resolution": list(out["resolution"]), "bundle": lod.get("bundle"),
+    head = top.values(TOP)
+    return {**head, "resolution": list(head["resolution"]), "bundle": lod.get("bundle"),
             "chains": [chain(Reader(c, f"chains[{i}]", top.origin)) for i, c in enumerate(lod["chains"])]}
 
 
@@ -164,6 +172,14 @@ def export(bundle_path: Path, lod_path: Path, out_path: Path, only: str | None =
                     raise InputError(f"{escaped(str(lod_path))} names object {escaped(name)!r}, which bundle "
                                      f"{bundle.path} lacks; export with the bundle the chain was rendered from.")
                 obj, entry, stem = objects[name], bundle.manifest["objects"][name], f"{name}-{c['name']}"
+                for e in ch["entries"] + ch.get("meshes_only", {}).get("entries", []):
+                    technique = variant_value(obj, e["variant"])[0]
+                    if e["technique"] != technique:   # which parts are exported follows the technique
+                        raise InputError(f"{escaped(str(lod_path))}: chain {c['name']!r} object {escaped(name)!r} "
+                                         f"gives variant {escaped(e['variant'])!r} the technique "
+                                         f"{escaped(e['technique'])!r}, where the bundle's scene makes it a "
+                                         f"{technique!r} variant; render again, or export with the bundle the chain "
+                                         "was rendered from.")
                 if "meshes_only" in ch:
                     levels, note = _gltf(out, bundle, obj, entry, merged(ch["meshes_only"]["entries"]), stem,
                                          lod["resolution"][1])
