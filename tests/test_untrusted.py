@@ -406,3 +406,20 @@ def test_lod_json_types_are_checked(tmp_path, bundles, entries, message):
     assert r.exit_code == 2 and message in r.output and "Traceback" not in r.output, r.output
     assert not (tmp_path / "x").exists()
 
+
+# --- no warning before a clean error ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("node", [{"scale": [1e308] * 3, "rotation": [1, 1, 1, 1]}, {"matrix": [1e308] * 16},
+                                  {"translation": [1e308, 0, 0], "scale": [1e308, 1, 1]}])
+def test_a_glTF_overflowing_float64_is_refused_without_a_warning(tmp_path, node):
+    """Failed before: numpy's RuntimeWarning (overflow encountered in multiply) and its source line were printed
+    before the clean error."""
+    import warnings
+
+    gltf_asset(tmp_path)
+    _with(tmp_path / "quad.gltf", lambda tree: tree["nodes"][0].update(node))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(InputError, match="its transform has a non-finite number|NaN or Inf coordinates"):
+            load_mesh_file(tmp_path / "quad.gltf")
+

@@ -164,7 +164,11 @@ def read_gltf(files: dict, textures: bool, origin: str, warn) -> Read:
     tree = gltf_tree(files)
     buffer = functools.cache(lambda i: (_at(tree, "buffers", i, origin), gltf_buffer(files, tree, i, origin))[1])
     try:
-        return _read(tree, files, buffer, textures, origin, warn)
+        # A file's numbers may overflow float64 once multiplied (a scale of 1e308): every product is checked instead of
+        # warned about (_local refuses a non-finite transform, meshes.validate a non-finite vertex), so a clean error
+        # is the only thing printed.
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return _read(tree, files, buffer, textures, origin, warn)
     except (KeyError, IndexError, TypeError, AttributeError, ValueError, OverflowError, RecursionError) as e:
         raise InputError(f"{origin}: cannot read its meshes ({type(e).__name__}: {escaped(str(e))[:200]}); fix the "
                          "file.") from None
