@@ -423,3 +423,24 @@ def test_a_glTF_overflowing_float64_is_refused_without_a_warning(tmp_path, node)
         with pytest.raises(InputError, match="its transform has a non-finite number|NaN or Inf coordinates"):
             load_mesh_file(tmp_path / "quad.gltf")
 
+
+# --- a lone copy far from the origin ------------------------------------------------------------------------------
+
+def test_one_copy_far_from_the_origin_is_refused(tmp_path):
+    """Left from issue 32: one copy placed at [1e20, 0, 0] baked with exit 0 (only copies far from each other were
+    refused), and the reference, placed in float64, held nothing of it: IoU 0."""
+    from test_far_copies import SCENE
+
+    from vdmbake.common import instances
+
+    one = np.eye(4)[None].copy()
+    one[0, 0, 3] = 1e20
+    with pytest.raises(InputError, match=r"o: copy 0 lies 1e\+20 from the origin \(at \[1e\+20, 0.0, 0.0\]\) with a "
+                                         r"radius of 1, 1e-20 of that distance, less than 5.68e-14"):
+        instances.check(one, np.zeros(3), 1.0, "o")
+    one[0, 0, 3] = 1e12                      # 1e-12 of its distance: kept to 1/256 of its radius in float64
+    instances.check(one, np.zeros(3), 1.0, "o")
+    lone = SCENE.replace("[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n", "")
+    out = tmp_path / "b"
+    assert_input_error(bake(write_scene(tmp_path, lone.replace("FAR", "1e20")), "-o", out),
+                       "object 'b': copy 0 lies 1e+20 from the origin", out)

@@ -21,6 +21,10 @@ from ..errors import InputError
 # 2^-24 then keeps a copy's shape to 1/256 of its radius; smaller, the copy flattens to a point and is missing
 # from the reference while GL draws it (a copy 1e20 from the object: 23 ΔLuv, IoU 0).
 MIN_SHARE = 2.0 ** -16
+# A copy's radius over its centre's distance from the origin, at least. The copies are placed in float64 world
+# coordinates (placed) before the reference centres them, so float64's 2^-52 of that distance keeps a copy's shape to
+# 1/256 of its radius here; one copy alone 1e20 from the origin came out as a point: an empty reference, IoU 0, exit 0.
+MIN_FAR = 2.0 ** -44
 
 
 def about_axis(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
@@ -93,8 +97,9 @@ def enclosing(m: np.ndarray, centre, radius: float) -> tuple[np.ndarray, float]:
 
 def check(m: np.ndarray, centre, radius: float, origin: str) -> None:
     """Refuse copies the reference cannot hold: each copy's bounding sphere by the range check of a single
-    object's (check_extent), the sphere holding them all too, and each copy at least MIN_SHARE of that sphere's
-    radius. InputError names the first copy out of range, its place and size."""
+    object's (check_extent), the sphere holding them all too, each copy at least MIN_SHARE of that sphere's radius,
+    and each at least MIN_FAR of its distance from the origin. InputError names the first copy out of range, its
+    place and size."""
     c, r = spheres(m, centre, radius)
     with np.errstate(over="ignore", invalid="ignore"):
         bad = ~(np.isfinite(c).all(1) & (np.abs(c).max(1) <= EXTENT) & (1 / EXTENT <= r) & (r <= EXTENT))
@@ -111,6 +116,14 @@ def check(m: np.ndarray, centre, radius: float, origin: str) -> None:
                          f"(radius {r[k]:.6g}) is {r[k] / around:.3g} of it, less than {MIN_SHARE:.3g}: the reference "
                          "traces the copies together in float32 and would lose it; place the copies closer "
                          "together, or make them separate objects.")
+    far = np.linalg.norm(c, axis=1)
+    lost = r < MIN_FAR * far
+    if lost.any():
+        k = int(np.argmax(lost))
+        raise InputError(f"{origin}: copy {k} lies {far[k]:.6g} from the origin (at {np.round(c[k], 6).tolist()}) "
+                         f"with a radius of {r[k]:.6g}, {r[k] / far[k]:.3g} of that distance, less than {MIN_FAR:.3g}: "
+                         "the reference places copies in float64 and would lose its shape; place it nearer the "
+                         "origin, or make it larger.")
 
 
 def count(instances) -> int:
