@@ -1,7 +1,8 @@
 # make demo : install, bake configs/default.toml and render it into out/default/
 # make test : install with test extras and run the test suite
-# make fuzz : the fuzzers (scene files, manifests, textured OBJ/glTF and their references, baselines, lod.json, composite
-#             sets, octahedral and pyramid parts), 1000 randomised examples each (FUZZ_EXAMPLES=N for more)
+# make fuzz : the fuzzers (scene files, manifests, textured OBJ/glTF and their references, file references spelt to
+#             leave the scene's folder, glTF node trees, baselines, lod.json, composite sets, octahedral and pyramid
+#             parts), 1000 randomised examples each (FUZZ_EXAMPLES=N for more)
 # make docs : README's and docs' result tables written from the committed result files (docs/results/*.json)
 # make kill-test: 20 SIGKILLs and 20 SIGTERMs at random times during a small bake and render (debris, lost bundles)
 # make bench: the slow measurements (out/bench/*.json, *.md, *.png), never asserted

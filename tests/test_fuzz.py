@@ -1,6 +1,7 @@
 """The fuzzer (tests/fuzz_inputs.py) over scene files and manifests and, since issue 21, over textured meshes
 (OBJ + MTL + PNG, glTF + .bin + PNG), baseline reports, composite sets and octahedral and pyramid parts, and since
-issue 32 over part cache entries as hostile files, stats.log lines and glTF accessors' layouts: a few
+issue 32 over part cache entries as hostile files, stats.log lines and glTF accessors' layouts, and since issue 42
+over file references spelt to leave the scene's folder and glTF node trees (tests/fuzz_untrusted.py): a few
 hundred examples of each inside `make test` (derandomised, so the suite is reproducible; each target well
 under 60 s on 2 cores); `make fuzz` runs 1000+ of each, randomised (VDM_FUZZ_EXAMPLES)."""
 from __future__ import annotations
@@ -19,6 +20,7 @@ from fuzz_inputs import (CACHE_SCENE, SETTINGS, TEXTURES_SETTING, DamagedPart, Q
                          check_composite_bake, check_manifest, check_part, check_scene_data, check_scene_text,
                          check_stats, check_textured_bake, composite_sets, examples, gltf_case, mutated, obj_case,
                          part_case, stats_lines, ADDRESS, check_address_text)
+from fuzz_untrusted import check_node_tree, check_reference, node_tree_case, reference_case
 from test_bad_input import bake, write_scene
 from scenes import TINY_HEAD
 
@@ -330,3 +332,24 @@ def test_fuzz_gltf_accessors_are_accepted_unmutated(tmp_path):
 def test_fuzz_scheduler_address(address):
     pytest.importorskip("distributed")
     check_address_text(address)
+
+
+# ------------------------------------------------------------------ issue 42: file references and node trees
+
+@given(case=reference_case())
+@examples(150)
+def test_fuzz_file_references(tmp_path_factory, case):
+    check_reference(tmp_path_factory.mktemp("refs"), case)
+
+
+@pytest.mark.parametrize("slot", ["buffer", "image", "mtllib", "map_Kd"])
+@pytest.mark.parametrize("name", ["", "../textures/"])
+def test_fuzz_file_references_are_accepted_plainly_spelt(tmp_path, slot, name):
+    """The plain spellings load, a sibling folder of the scene's tree too: every rule of check_reference holds."""
+    check_reference(tmp_path, (slot, name + {"buffer": "quad.bin", "mtllib": "m.mtl"}.get(slot, "tex.png")))
+
+
+@given(case=node_tree_case())
+@examples(150)
+def test_fuzz_gltf_node_trees(tmp_path_factory, case):
+    check_node_tree(tmp_path_factory.mktemp("nodes"), case)
