@@ -171,9 +171,9 @@ def confined(name: str, folder: Path, roots: tuple[Path, ...], shown: str) -> Pa
     try:
         target = (folder / name).resolve()
     except (OSError, ValueError, RuntimeError) as e:   # a NUL in the name, a loop of links
-        raise InputError(f"{shown} '{escaped(name)}' names no file ({type(e).__name__}: {escaped(str(e))}).") from None
+        raise InputError(f"{shown} names no file ({type(e).__name__}: {escaped(str(e))}).") from None
     if not any(target.is_relative_to(root) for root in roots):
-        raise InputError(f"{shown} '{escaped(name)}' resolves to {escaped(str(target))}, outside "
+        raise InputError(f"{shown} resolves to {escaped(str(target))}, outside "
                          f"{' and '.join(escaped(str(r)) for r in dict.fromkeys(roots))}; a mesh file may name only "
                          "files inside the scene's folder or its own (no absolute path, no '..' or link leading out); "
                          "copy the file there.")
@@ -207,9 +207,10 @@ def reached_files(path: Path, spec: str, textures: bool = True, root: Path | Non
         found[chain] = Reached(what, file, read[real])
         kind = path.suffix[1:].lower() if len(chain) == 1 else "mtl" if what == "material library" else ""
         for name, named in references(kind, read[real], textures, escaped(" > ".join(chain))):
-            shown = f"{escaped(' > '.join(chain))}: the {named}"
-            todo.append((chain + (name,), confined(unquote(name) if kind in ("gltf", "glb") else name, file.parent,
-                                                   roots, shown), named))
+            path_name = unquote(name) if kind in ("gltf", "glb") else name   # a URI's %XX decoded (RFC 3986 §2.1)
+            shown = f"{escaped(' > '.join(chain))}: the {named} '{escaped(name)}'" + (
+                f" ('{escaped(path_name)}' percent-decoded)" if path_name != name else "")
+            todo.append((chain + (name,), confined(path_name, file.parent, roots, shown), named))
     return found
 
 
