@@ -165,7 +165,8 @@ def _chain(tmp_path: Path, depth: int, twice: bool = False) -> Path:
 
 
 def test_a_deep_node_chain_is_read_in_linear_work(tmp_path):
-    """Failed before at 100,000 nodes (the ancestors' tuple copied per node: never finished); read here at 20,000."""
+    """The tree walked once per node: before, the ancestors' tuple was copied per node (a 100,000-deep chain baked in
+    34 s, 3.6 s now; no wall time is asserted, so this passed before too). Read here at 20,000."""
     m = load_mesh_file(_chain(tmp_path, 20_000), textures=False)
     assert np.allclose(m.vertices[:, 2].min(), 20.0)
 
