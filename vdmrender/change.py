@@ -6,7 +6,8 @@ grows (every pixel is an edge pixel, a GL frame shades once per pixel where the 
 and the reference's sampling noise is as large as the differences between variants. Neither depends on the
 variant, so the change against the full asset is what a level-of-detail switch is decided on (the rule of
 engines' LOD tools, which compare each level's render with the full model's at that size); the full asset's
-fidelity is the floor no variant can beat, reported beside it with the reference's noise (vdmrender.scoring)."""
+fidelity is the floor, what the pipeline and not the representation costs (a variant lands below it only where it
+smooths what the full asset aliases), reported beside it with the reference's noise (vdmrender.scoring)."""
 from __future__ import annotations
 
 import dataclasses
@@ -61,10 +62,11 @@ def fields(frames: list, full: list, flip: bool) -> dict:
 
 
 def floor(full: list, refs) -> dict:
-    """The full asset's own error against the reference at these views (scoring.References): the floor no variant
-    can beat, with the reference's noise, which no difference below it can show."""
+    """The full asset's own error against the reference at these views (scoring.References): the floor, what the
+    pipeline and not the representation costs, with the reference's noise, below which no difference shows."""
     p = pooled([compare(f, r, c) for f, r, c in zip(full, refs.filtered, refs.classes)])
-    return {"floor_dluv": p["mean_dluv"], "floor_p95_dluv": p["p95_dluv"], "reference_noise_dluv": refs.noise_dluv}
+    return {"floor_dluv": p["mean_dluv"], "floor_p95_dluv": p["p95_dluv"], "floor_iou": p["iou"],
+            "reference_noise_dluv": refs.noise_dluv}
 
 
 def attach(rows: list[dict], frames: dict, label: str, full: list, refs, flip: bool) -> None:

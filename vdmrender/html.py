@@ -475,13 +475,14 @@ def lod_section(obj: str, lod: dict, colour: dict) -> str:
     floor = lod.get("floors", {}).get(obj)
     if floor:
         rows = "".join(f"<tr><td class='n'>{f['size_px']}</td><td>{esc(f['full_asset'])}</td>"
-                       f"<td class='n'>{num(f['floor_dluv'], 3)}</td><td class='n'>{num(f['reference_noise_dluv'], 3)}"
+                       f"<td class='n'>{num(f['floor_dluv'], 3)}</td><td class='n'>{num(f.get('floor_iou'), 4)}</td>"
+                       f"<td class='n'>{num(f['reference_noise_dluv'], 3)}"
                        f"</td><td class='n'>{f['ties']} of {f['pairs']}</td></tr>" for f in floor)
         out.append("<details open><summary>the floor: what no variant changes</summary><p class='muted'>The full "
-                   "asset's own error against the reference (no variant's is below it) and the reference's sampling "
+                   "asset's own error against the reference (what the pipeline, not the representation, costs) and the reference's sampling "
                    "noise (no difference below it can be told from noise); chains decide on the change against the "
                    "full asset unless a chain says limit_on = \"reference\".</p><table><thead><tr><th>size [px]</th>"
-                   "<th>full asset</th><th>its mean ΔLuv</th><th>reference noise ΔLuv</th><th>variant pairs within "
+                   "<th>full asset</th><th>its mean ΔLuv</th><th>its IoU</th><th>reference noise ΔLuv</th><th>variant pairs within "
                    f"noise</th></tr></thead><tbody>{rows}</tbody></table></details>")
     for c in lod["chains"]:
         ch = c["objects"].get(obj)

@@ -182,7 +182,7 @@ def floor(rows: list[dict]) -> list[dict]:
         ties = [1 for a, b in pairs if abs(a["mean_dluv"] - b["mean_dluv"]) <= math.hypot(
             noise(a, "mean_dluv"), noise(b, "mean_dluv"))]
         out.append({"size_px": s, "full_asset": here[0].get("change_against"), "floor_dluv": here[0].get("floor_dluv"),
-                    "floor_p95_dluv": here[0].get("floor_p95_dluv"),
+                    "floor_p95_dluv": here[0].get("floor_p95_dluv"), "floor_iou": here[0].get("floor_iou"),
                     "reference_noise_dluv": here[0].get("reference_noise_dluv"), "pairs": len(pairs), "ties": len(ties)})
     return out
 
@@ -265,12 +265,15 @@ def table(lod: dict) -> str:
              f"{seen['reference_spp']} samples per pixel. {lod['rule']}", ""]
     for obj, rows in lod.get("floors", {}).items():
         lines += [f"## The floor of {obj}: its full asset against the reference", "",
-                  "No variant's error against the reference is below its full asset's (drawn the same way), and no "
-                  "difference below the reference's noise can be told from noise.", "",
-                  "| size [px] | full asset | mean ΔLuv | p95 ΔLuv | reference noise ΔLuv | variant pairs within noise |",
-                  "|---:|---|---:|---:|---:|---:|"]
+                  "The full asset's own error against the reference, drawn the same way as every variant, is what "
+                  "the pipeline costs (a shading sample per pixel, the anti-aliasing), not the representation; no "
+                  "difference below the reference's noise can be told from noise. Where the full asset's IoU falls "
+                  "(ray-cast quadrics miss atoms smaller than a pixel), what the chains decide on is drawn wrong too.", "",
+                  "| size [px] | full asset | mean ΔLuv | p95 ΔLuv | IoU | reference noise ΔLuv | variant pairs within "
+                  "noise |", "|---:|---|---:|---:|---:|---:|---:|"]
         lines += [f"| {f['size_px']} | {f['full_asset']} | {num(f['floor_dluv'], 3)} | {num(f['floor_p95_dluv'], 2)} | "
-                  f"{num(f['reference_noise_dluv'], 3)} | {f['ties']} of {f['pairs']} |" for f in rows]
+                  f"{num(f.get('floor_iou'), 4)} | {num(f['reference_noise_dluv'], 3)} | {f['ties']} of {f['pairs']} |"
+                  for f in rows]
         lines.append("")
     for c in lod["chains"]:
         limits = ", ".join(f"{k} {'>=' if k.endswith('iou') else '<='} {v:g}" for k, v in c["limits"].items())

@@ -127,9 +127,9 @@ CHANGE = ("change_*: the variant's frames against its object's full asset (chang
           "a composite every object's) drawn the same way, same cameras, size and anti-aliasing, pooled as the error "
           "is (change_dluv, change_p95_dluv over both coverage masks, change_iou, change_flip): what a viewer sees "
           "change when the full asset is swapped for the variant; the full asset's own row changes nothing. "
-          "floor_dluv, floor_p95_dluv: the full asset's error against the reference at the same views, which no "
-          "variant's error is below; reference_noise_dluv: the reference's own sampling noise, from two halves of "
-          "its strata (vdmrender.scoring.noise), below which no two errors can be told apart")
+          "floor_dluv, floor_p95_dluv, floor_iou: the full asset's error against the reference at the same views, what the "
+          "pipeline costs whatever the representation; reference_noise_dluv: the reference's own sampling noise, "
+          "from two halves of its strata (vdmrender.scoring.noise), below which no two errors can be told apart")
 
 
 SWEEP = ("every view again with the camera moved along its line of sight, aimed at the object's bounding-sphere "

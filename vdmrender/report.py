@@ -14,7 +14,7 @@ COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "
            "q1_ms", "q3_ms", "spread_ms", "wall_ms", "submit_ms", "samples", "warmup_s", "warmup_frames", "steady",
            "passes_ms", "fragments_px", "fetches_px", "steps_px", "primitives", "instances", "gpu_bytes",
            "ratio_to_baseline", "baseline", "change_against", "change_dluv", "change_p95_dluv", "change_iou",
-           "change_flip", "mean_dluv", "p95_dluv", "max_dluv", "iou", "flip_mean", "floor_dluv", "floor_p95_dluv",
+           "change_flip", "mean_dluv", "p95_dluv", "max_dluv", "iou", "flip_mean", "floor_dluv", "floor_p95_dluv", "floor_iou",
            "reference_noise_dluv",
            "aliased_mean_dluv", "aliased_p95_dluv", "aliased_iou", "coverage",
            "nonfinite", "device",
