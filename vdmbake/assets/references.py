@@ -196,11 +196,10 @@ def reached_files(path: Path, spec: str, textures: bool = True, root: Path | Non
             continue
         real, total = file.resolve(), sum(len(d) for d in read.values())
         if real not in read:
-            try:
-                read[real] = read_regular(file, described(chain, what) + (
-                    f" (the files a mesh file reaches hold at most {MAX_FILE_BYTES} bytes together, {total} read "
-                    "before it)" if total else ""), limit=MAX_FILE_BYTES - total,
-                                          follow=len(chain) == 1)   # a named file resolved: a link now was swapped in
+            shown = described(chain, what) + (f" (the files a mesh file reaches hold at most {MAX_FILE_BYTES} bytes "
+                                              f"together, {total} read before it)" if total else "")
+            try:   # a reference is opened as resolved, not through a link: one there now was swapped in since
+                read[real] = read_regular(file, shown, limit=MAX_FILE_BYTES - total, follow=len(chain) == 1)
             except FileNotFoundError:
                 raise InputError(f"{escaped(str(file))}: the {described(chain, what)} is not found (a name in a mesh "
                                  "file is relative to the mesh file's folder).") from None
@@ -210,7 +209,7 @@ def reached_files(path: Path, spec: str, textures: bool = True, root: Path | Non
             path_name = unquote(name) if kind in ("gltf", "glb") else name   # a URI's %XX decoded (RFC 3986 §2.1)
             shown = f"{escaped(' > '.join(chain))}: the {named} '{escaped(name)}'" + (
                 f" ('{escaped(path_name)}' percent-decoded)" if path_name != name else "")
-            todo.append((chain + (name,), confined(path_name, file.parent, roots, shown), named))
+            todo.append((chain + (name,), confined(path_name, path.parent, roots, shown), named))
     return found
 
 
