@@ -222,13 +222,17 @@ def test_gpu_instancing_places_every_copy(tmp_path):
     assert len(got) == 12 and {tuple(v) for v in got} == {tuple(v) for v in np.round(want, 6)}
 
 
-def test_gpu_instancing_copies_are_bounded_before_they_are_made(tmp_path, monkeypatch):
+def test_copies_are_bounded_before_they_are_made(tmp_path, monkeypatch):
+    """Nodes and EXT_mesh_gpu_instancing's copies together are held to MAX_COPIES, before a matrix is made."""
     from vdmbake.assets import gltf
 
     monkeypatch.setattr(gltf, "MAX_COPIES", 2)
-    with pytest.raises(InputError, match="node 0: EXT_mesh_gpu_instancing places 3 copies where 2 more fit the 2 a "
-                                         "file may place"):
+    with pytest.raises(InputError, match="node 0 places 3 copies of its mesh where 2 more fit the 2 a file may "
+                                         "place"):
         load_mesh_file(_instanced(tmp_path), textures=False)
+    _with(tmp_path / "quad.gltf", lambda tree: tree.update(nodes=[{"mesh": 0}] * 3, scenes=[{"nodes": [0, 1, 2]}]))
+    with pytest.raises(InputError, match="node 2 places 1 copies of its mesh where 0 more fit the 2 a file may place"):
+        load_mesh_file(tmp_path / "quad.gltf", textures=False)
 
 
 @pytest.mark.parametrize("required, match", [

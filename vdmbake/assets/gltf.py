@@ -274,17 +274,17 @@ def _gpu_instances(tree: dict, node: dict, buffer, shown: str, room: int) -> np.
     TRANSLATION, ROTATION and SCALE accessors, a missing one the identity), or the identity alone without it; at most
     `room` copies."""
     ext = (node.get("extensions") or {}).get("EXT_mesh_gpu_instancing")
-    if ext is None:
-        return np.eye(4)[None]
-    attrs = ext["attributes"]
-    if not attrs or set(attrs) - {"TRANSLATION", "ROTATION", "SCALE"}:
+    attrs = {} if ext is None else ext["attributes"]
+    if ext is not None and (not attrs or set(attrs) - {"TRANSLATION", "ROTATION", "SCALE"}):
         raise InputError(f"{shown}: EXT_mesh_gpu_instancing attributes {escaped(repr(sorted(attrs)))[:200]}; "
                          "applied here: TRANSLATION, ROTATION and SCALE, at least one; fix the file.")
-    count = max(_at(tree, "accessors", index, shown).get("count", 0) for index in attrs.values())
+    count = max(_at(tree, "accessors", index, shown).get("count", 0) for index in attrs.values()) if attrs else 1
     if type(count) is not int or count > room:   # checked before a matrix is made
-        raise InputError(f"{shown}: EXT_mesh_gpu_instancing places {escaped(repr(count))} copies where {room} more "
-                         f"fit the {MAX_COPIES} a file may place (each merged into the one mesh baked); give the "
-                         "copies as the object's instances in the scene instead, or place fewer.")
+        raise InputError(f"{shown} places {escaped(repr(count))} copies of its mesh where {max(room, 0)} more fit the "
+                         f"{MAX_COPIES} a file may place (each merged into the one mesh baked); give the copies as the "
+                         "object's instances in the scene instead, or place fewer.")
+    if ext is None:
+        return np.eye(4)[None]
     read = {name: values(tree, index, buffer, f"{shown} EXT_mesh_gpu_instancing {name}",
                          ("VEC4",) if name == "ROTATION" else ("VEC3",),
                          (5126, 5120, 5122) if name == "ROTATION" else (5126,)) for name, index in attrs.items()}
