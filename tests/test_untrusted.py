@@ -1,8 +1,9 @@
 """Assets are untrusted input (issue 42): the files a mesh file names resolve inside the scene's folder or the mesh
 file's own (one rule for every format: references.confined), each read once; bounded work per file; glTF's required
 extensions honoured or refused (§3.12) and GLB headers checked; GL limits checked before drawing; vdmexport's
-lod.json typed; a lone far copy refused. Each test failed before the fix (exit 0, a traceback, or work without a
-bound); the assets are written here, a few hundred bytes each."""
+lod.json typed; a lone far copy refused. Each finding's test failed at 62f9cd8 (exit 0, a traceback, or work without
+a bound); the tests of what must keep working (a sibling folder of the scene's tree, a deep node chain) say so. The
+assets are written here, a few hundred bytes each."""
 from __future__ import annotations
 
 import json
@@ -12,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_asset_references import QUAD_UV, QUAD_V, _png, gltf_asset, obj_asset, scene
+from test_asset_references import QUAD_V, _png, gltf_asset, obj_asset, scene
 from test_bad_input import assert_input_error, bake, gl_context_ok, write_scene  # noqa: F401 (a fixture)
 from test_export_identity import bundles  # noqa: F401 (a fixture)
 from vdmbake.assets import references
@@ -103,6 +104,7 @@ def _sibling(tmp_path: Path) -> Path:
 
 
 def test_textures_in_a_sibling_folder_of_the_scene_still_load(tmp_path):
+    """What must keep working: ../textures beside a model in the scene's tree, the scene's folder the root."""
     m = load_mesh_file(_sibling(tmp_path), root=tmp_path)
     assert m.texture is not None and m.texture.shape == (4, 4, 3)
 
