@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -422,8 +423,6 @@ def test_lod_json_types_are_checked(tmp_path, bundles, entries, message):
 def test_a_glTF_overflowing_float64_is_refused_without_a_warning(tmp_path, node):
     """Failed before: numpy's RuntimeWarning (overflow encountered in multiply) and its source line were printed
     before the clean error."""
-    import warnings
-
     gltf_asset(tmp_path)
     _with(tmp_path / "quad.gltf", lambda tree: tree["nodes"][0].update(node))
     with warnings.catch_warnings():
@@ -452,3 +451,16 @@ def test_one_copy_far_from_the_origin_is_refused(tmp_path):
     out = tmp_path / "b"
     assert_input_error(bake(write_scene(tmp_path, lone.replace("FAR", "1e20")), "-o", out),
                        "object 'b': copy 0 lies 1e+20 from the origin", out)
+
+
+def test_a_mesh_at_1e308_is_refused_without_a_warning(tmp_path):
+    """The finding as found: a node translated to 1e308 printed numpy's RuntimeWarning (overflow encountered in add)
+    and its source line (meshes.validate) before the clean error."""
+    gltf_asset(tmp_path)
+    _with(tmp_path / "quad.gltf", lambda tree: tree["nodes"][0].update(translation=[1e308, 0, 0]))
+    out = tmp_path / "out"
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        result = bake(write_scene(tmp_path, scene("quad.gltf")), "-o", out)
+    assert_input_error(result, "the bounding sphere (centre [1e+308, 0.5, 0.05], radius 0.5", out)
+    assert not said, [str(w.message) for w in said]

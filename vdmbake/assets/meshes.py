@@ -63,10 +63,16 @@ class TriMesh:
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre of the bounding box and the radius that encloses every vertex (infinite, without a warning,
         for a mesh too large to measure: parts.check_extent refuses it)."""
-        lo, hi = self.vertices.min(0), self.vertices.max(0)
+        centre = middle(self.vertices)
         with np.errstate(over="ignore", invalid="ignore"):
-            centre = 0.5 * (lo + hi)
             return centre, float(np.linalg.norm(self.vertices - centre, axis=1).max())
+
+
+def middle(vertices: np.ndarray) -> np.ndarray:
+    """The centre of the vertices' bounding box, each bound halved before they are summed (halving is exact, so the
+    same bits as halving their sum): finite for any finite vertices, where a file may place them at 1e308 (refused
+    by their extent, parts.check_extent, without an overflow warning printed first)."""
+    return 0.5 * vertices.min(0) + 0.5 * vertices.max(0)
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -117,7 +123,7 @@ def weld(vertices: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:
     """(V,) int64 position ids: vertices within rel_tol of the bounding radius share an id (they are one
     point of the surface, split only for their texture coordinates, e.g. at a UV seam). Ids are
     numbered in order of first appearance, so the first vertex of each id can stand for it."""
-    centre = 0.5 * (vertices.min(0) + vertices.max(0))
+    centre = middle(vertices)
     scale = max(float(np.abs(vertices - centre).max()), 1e-300) * rel_tol
     _, first, inv = np.unique(np.round((vertices - centre) / scale), axis=0, return_index=True, return_inverse=True)
     order = np.argsort(first)
@@ -189,7 +195,7 @@ def validate(mesh: TriMesh, origin: str) -> TriMesh:
         raise InputError(f"{origin}: face indices reach {int(mesh.faces.max())} but the mesh has "
                          f"{len(mesh.vertices)} vertices.")
     # Nothing to draw: every vertex at one point, or every face without area (collinear corners).
-    v = mesh.vertices - 0.5 * (mesh.vertices.min(0) + mesh.vertices.max(0))
+    v = mesh.vertices - middle(mesh.vertices)
     r = float(np.abs(v).max())
     tri = v[mesh.faces] / (r or 1.0)
     if r == 0 or not (np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) > 1e-12).any():

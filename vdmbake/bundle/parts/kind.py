@@ -53,7 +53,9 @@ def check_extent(origin: str, centre, radius: float) -> None:
     and depth ranges overflow (or vanish in) the float32 the GL pipeline computes in."""
     centre = np.asarray(centre, np.float64)
     if not (np.isfinite(centre).all() and np.abs(centre).max() <= EXTENT and 1 / EXTENT <= radius <= EXTENT):
-        raise InputError(f"{origin}: the bounding sphere (centre {np.round(centre, 6).tolist()}, radius {radius:.6g}) "
+        with np.errstate(over="ignore", invalid="ignore"):   # rounding 1e308 overflows: shown as it is, no warning
+            shown = np.where(np.abs(centre) < 1e300, np.round(centre, 6), centre).tolist()
+        raise InputError(f"{origin}: the bounding sphere (centre {shown}, radius {radius:.6g}) "
                          f"is out of range: vdmrender draws objects within {EXTENT:g} of the origin, of radius "
                          f"{1 / EXTENT:g} to {EXTENT:g} scene units; scale or move the object (transform) or its "
                          "model.")
