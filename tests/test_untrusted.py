@@ -110,6 +110,19 @@ def test_textures_in_a_sibling_folder_of_the_scene_still_load(tmp_path):
     assert m.texture is not None and m.texture.shape == (4, 4, 3)
 
 
+def test_the_bake_reads_textures_in_a_sibling_folder_of_the_scenes_tree(tmp_path):
+    """The scene's folder is the root the bake passes: models/quad.gltf reads ../textures/tex.png; a scene's
+    `assets` folder names another root, and outside it the same reference is refused."""
+    _sibling(tmp_path)
+    out = tmp_path / "out"
+    r = bake(write_scene(tmp_path, scene("models/quad.gltf")), "-o", out)
+    assert r.exit_code == 0, r.output
+    assert "albedo_map" in json.loads((out / "manifest.json").read_text())["objects"]["thing"]
+    r = bake(write_scene(tmp_path, scene("models/quad.gltf", 'assets = "models"\n'), "narrow.toml"), "-o",
+             tmp_path / "narrow")
+    assert_input_error(r, ["the texture '../textures/tex.png' resolves to", "outside"], tmp_path / "narrow")
+
+
 def test_the_default_root_is_the_mesh_files_folder(tmp_path):
     with pytest.raises(InputError, match="the texture '../textures/tex.png' resolves to .*outside .*models;"):
         load_mesh_file(_sibling(tmp_path))
@@ -359,7 +372,8 @@ def test_vdmrender_refuses_the_supersampled_target_cleanly(tmp_path, gl_context_
     gltf_asset(tmp_path)
     result, out = bake_and_render(tmp_path, scene("quad.gltf"), "--antialias", "ssaa4", "--resolution", "8192x16")
     assert_input_error(result, ["--antialias ssaa4 at 8192 x 16: the supersampled target of 32768 x 64 is over",
-                                "choose a smaller K or resolution"])
+                                "choose a smaller K or resolution"], out)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]   # no staging folder left either
 
 
 # --- reports ------------------------------------------------------------------------------------------------------

@@ -39,7 +39,7 @@ def object_mesh(obj: Object, base: Path, warn=None) -> TriMesh:
     if obj.primitive:
         mesh = primitives.build(obj.primitive, obj.params)
     else:
-        mesh = load_mesh_file(resolve_path(obj.mesh, base), obj.textures == "use", warn)
+        mesh = load_mesh_file(resolve_path(obj.mesh, base), obj.textures == "use", warn, root=assets_root(obj, base))
     world = transformed(mesh, obj.transform)
     return validate(world, f"object {obj.name!r}")
 
@@ -62,6 +62,12 @@ def bake_code() -> str:
     return code_fingerprint(package_modules(__name__.partition(".")[0]))
 
 
+def assets_root(obj: Object, base: Path) -> Path:
+    """The folder inside which the files the object's mesh file names may lie (besides its own folder): the scene's
+    `assets` folder, else the scene file's (base)."""
+    return base / obj.assets if obj.assets else base
+
+
 RENDER_ONLY = "render"   # the scene's table the bake never reads: how vdmrender renders, measures and decides
 
 
@@ -77,7 +83,8 @@ def input_hash(scene: Scene, base: Path, code: str | None = None) -> tuple[str, 
                   if spec and _is_file(spec, patterns)]
     inputs = {f: file_sha256(resolve_path(f, base)) for f in files}
     for o in (o for o in scene.objects if o.mesh):
-        for chain, f in reached_files(resolve_path(o.mesh, base), o.mesh, o.textures == "use").items():
+        for chain, f in reached_files(resolve_path(o.mesh, base), o.mesh, o.textures == "use",
+                                      assets_root(o, base)).items():
             inputs[" > ".join(chain)] = hashlib.sha256(f.data).hexdigest()
     baked = {k: v for k, v in scene.to_dict().items() if k != RENDER_ONLY}
     key = json.dumps({"format_version": FORMAT_VERSION, "tool_version": __version__, "code": code or bake_code(),
@@ -98,7 +105,8 @@ def object_inputs(obj: Object, base: Path) -> dict:
                   if spec and _is_file(spec, patterns)]
     inputs = {f: file_sha256(resolve_path(f, base)) for f in files}
     if obj.mesh:
-        for chain, f in reached_files(resolve_path(obj.mesh, base), obj.mesh, obj.textures == "use").items():
+        for chain, f in reached_files(resolve_path(obj.mesh, base), obj.mesh, obj.textures == "use",
+                                      assets_root(obj, base)).items():
             inputs[" > ".join(chain)] = hashlib.sha256(f.data).hexdigest()
     return inputs
 

@@ -251,6 +251,11 @@ class Object:
     """One object; exactly one source: mesh, primitive, molecule, or spheres/cylinders."""
     name: str = setting(REQUIRED, _NAME, "unique name (output folders, report rows)")
     mesh: str | None = setting(None, _PATH, "a mesh file (glTF/GLB read here; OBJ, PLY, STL, ... through trimesh)")
+    assets: str | None = setting(None, Text("a folder (relative to the scene file)"),
+                                 "the folder inside which the files a mesh file names (glTF buffers and images, OBJ "
+                                 "`mtllib` and `map_Kd`, PLY `TextureFile`) may lie, besides the mesh file's own "
+                                 "folder; default: the scene file's folder. A name resolving elsewhere (an absolute "
+                                 "path, `..` or a symbolic link leading out) is refused (exit 2)")
     textures: str = setting("use", Choice("use", "ignore"),
                             "the mesh file's own texture (OBJ `map_Kd` through its `mtllib`, glTF base colour, PLY "
                             "`TextureFile`): `use` it as the albedo (a texture that cannot be read is an error, exit "

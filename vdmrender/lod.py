@@ -32,6 +32,7 @@ from vdmbake.scene import LIMIT_ON
 
 from . import pricing
 from .baseline import POINT
+from .markdown import cell
 
 NOISE = 0.1   # separately timed medians (no interleaved times): a difference below this share is not one in cost
 TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
@@ -260,7 +261,7 @@ def table(lod: dict) -> str:
         return "-" if x is None else f"{x:.{digits}f}"
 
     seen = lod.get("error") or POINT
-    lines = [f"LOD chains on {lod['device']}, frame {lod['resolution'][0]}x{lod['resolution'][1]}, sizes measured "
+    lines = [f"LOD chains on {cell(lod['device'])}, frame {lod['resolution'][0]}x{lod['resolution'][1]}, sizes measured "
              f"{', '.join(map(str, lod['sizes_px']))} px; frames anti-aliased {seen['antialias']}, the reference at "
              f"{seen['reference_spp']} samples per pixel. {lod['rule']}", ""]
     for obj, rows in lod.get("floors", {}).items():
@@ -271,7 +272,7 @@ def table(lod: dict) -> str:
                   "(ray-cast quadrics miss atoms smaller than a pixel), what the chains decide on is drawn wrong too.", "",
                   "| size [px] | full asset | mean ΔLuv | p95 ΔLuv | IoU | reference noise ΔLuv | variant pairs within "
                   "noise |", "|---:|---|---:|---:|---:|---:|---:|"]
-        lines += [f"| {f['size_px']} | {f['full_asset']} | {num(f['floor_dluv'], 3)} | {num(f['floor_p95_dluv'], 2)} | "
+        lines += [f"| {f['size_px']} | {cell(f['full_asset'])} | {num(f['floor_dluv'], 3)} | {num(f['floor_p95_dluv'], 2)} | "
                   f"{num(f.get('floor_iou'), 4)} | {num(f['reference_noise_dluv'], 3)} | {f['ties']} of {f['pairs']} |"
                   for f in rows]
         lines.append("")
@@ -287,7 +288,7 @@ def table(lod: dict) -> str:
             for e in ch["entries"]:
                 top = e["measured"][0]
                 switch = e.get("switch_px")
-                lines.append(f"| ({e['min_px']}, {e['max_px']}] | {e['variant']} | {'yes' if e['meets'] else '**no**'} | "
+                lines.append(f"| ({e['min_px']}, {e['max_px']}] | {cell(e['variant'])} | {'yes' if e['meets'] else '**no**'} | "
                              f"{num(top.get(CHANGE), 3)} | {num(top.get('change_p95_dluv'), 2)} | "
                              f"{num(top.get('change_iou'), 4)} | {num(top['mean_dluv'], 3)} | "
                              f"{num(top.get('floor_dluv'), 3)} | {num(top['median_ms'], 3)} | "
@@ -304,7 +305,7 @@ def table(lod: dict) -> str:
                 lines += [f"Priced on the field of copies: {f['how']}", "",
                           "| on the field | median GPU ms | spread ms | change ΔLuv | ΔLuv against the reference | "
                           "floor ΔLuv | within limits |", "|---|---:|---:|---:|---:|---:|---|"]
-                lines += [f"| {'**' + r['variant'] + '**' if r['variant'] == f['chosen'] else r['variant']} | "
+                lines += [f"| {'**' + cell(r['variant']) + '**' if r['variant'] == f['chosen'] else cell(r['variant'])} | "
                           f"{num(r['median_ms'], 2)} | {num(r['spread_ms'], 2)} | {num(r.get('change_dluv'), 3)} | "
                           f"{num(r['mean_dluv'], 3)} | {num(r.get('floor_dluv'), 3)} | {'yes' if r['meets'] else 'no'} |"
                           for r in f["candidates"]]

@@ -162,8 +162,12 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         ctx.release()
         raise InputError(f"--max-error-increase with --baseline {opts.baseline}: {errors_not}.")
     device_info, nvml = gpu.describe(ctx), gpu.nvml_clocks()
+    try:   # its anti-aliased target is checked against the device's limits: refused before the output is staged
+        harness = measure.Harness(ctx, gl.Target(ctx, width, height), plan, opts.counters, opts.antialias)
+    except BaseException:
+        ctx.release()
+        raise
     out = StagedDir(out_path, "report.json", "vdmrender output folder")
-    harness = measure.Harness(ctx, gl.Target(ctx, width, height), plan, opts.counters, opts.antialias)
     try:
         sizes = sorted(opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ()), reverse=True)
         lod_sets = scene.render.sweep.lod if sizes and scene.render.sweep else ()
