@@ -5,6 +5,8 @@ float64."""
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -276,21 +278,46 @@ def first_half(spp: int) -> int:
     return sum((k % n + k // n) % 2 == 0 for k in range(spp))
 
 
-def filtered(render, camera, spp: int) -> tuple[np.ndarray, np.ndarray | None]:
+def workers() -> int:
+    """The threads a filtered reference traces on: every core this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:   # not on Linux
+        return os.cpu_count() or 1
+
+
+def _in_order(pool, fn, items, ahead: int):
+    """fn(item) for every item on the pool's threads, yielded in the items' order, with at most `ahead` running or
+    waiting to be taken: a bounded number of frames in memory, and sums that do not depend on which thread ends first."""
+    pending = []
+    for item in items:
+        pending.append(pool.submit(fn, item))
+        if len(pending) >= ahead:
+            yield pending.pop(0).result()
+    for p in pending:
+        yield p.result()
+
+
+def filtered(render, camera, spp: int, threads: int | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """The box-filtered frame of `render(camera, offset=...)` (a reference's render): the mean over the pixel's
     stratified samples (strata) of linear RGB times coverage, and of coverage, i.e. premultiplied colour and the
     fraction of the pixel the object covers; what a viewer sees of the pixel over the background is then
     rgb + (1 - coverage) background (images.encode). With it, the same mean over the first half of the strata
     (first_half: a checkerboard of them), an independent estimate of the pixel beside the other half's, from which
-    the frame's own sampling noise is estimated (vdmrender.scoring.noise); None at one sample per pixel."""
+    the frame's own sampling noise is estimated (vdmrender.scoring.noise); None at one sample per pixel.
+    The strata are traced on `threads` threads (workers(): every core; Embree and numpy's large loops release the
+    GIL), each a whole frame, and summed in their own order: the same bytes whatever the thread count."""
     n = math.isqrt(spp)
     total, half = np.zeros((camera.height, camera.width, 4)), np.zeros((camera.height, camera.width, 4))
-    for k, offset in enumerate(strata(camera, spp)):
-        f = render(camera, offset=offset).astype(np.float64)
-        f[..., :3] *= f[..., 3:]
-        total += f
-        if (k % n + k // n) % 2 == 0:
-            half += f
+    threads = threads or workers()
+    with ThreadPoolExecutor(threads) as pool:
+        frames = _in_order(pool, lambda offset: render(camera, offset=offset), strata(camera, spp), threads)
+        for k, f in enumerate(frames):
+            f = f.astype(np.float64)
+            f[..., :3] *= f[..., 3:]
+            total += f
+            if (k % n + k // n) % 2 == 0:
+                half += f
     if spp == 1:
         return total.astype(np.float32), None
     return (total / spp).astype(np.float32), (half / first_half(spp)).astype(np.float32)

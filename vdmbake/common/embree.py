@@ -9,6 +9,7 @@ Embree sees a mesh about one unit across whatever its scale (1e-9 or 1e9).
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,7 @@ class RayScene:
         self._scene = rtcore_scene.EmbreeScene()
         TriangleMesh(self._scene, np.ascontiguousarray(((vertices - self.anchor) / self.scale)[faces], dtype=np.float32))
         self.rays_cast = 0
+        self._count = threading.Lock()   # scenes are traced from several threads (reference.filtered, the bakes)
 
     def _batches(self, origins, dirs, tfar, relative=False):
         n = len(origins)
@@ -43,7 +45,8 @@ class RayScene:
         shift = 0.0 if relative else self.anchor
         for s in range(0, n, CHUNK):
             e = min(n, s + CHUNK)
-            self.rays_cast += e - s
+            with self._count:
+                self.rays_cast += e - s
             yield s, e, (np.ascontiguousarray((origins[s:e] - shift) / self.scale, dtype=np.float32),
                          np.ascontiguousarray(dirs[s:e], dtype=np.float32),
                          np.ascontiguousarray(np.minimum(tfar[s:e] / self.scale, 3.0e38), dtype=np.float32))

@@ -1,0 +1,51 @@
+"""The filtered reference's sampling (issue 40): traced on every core with the same bytes whatever the thread count."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vdmbake.assets import primitives
+from vdmbake.formats import exr
+from vdmbake.scene import Light, Material
+from vdmrender import reference
+from vdmrender.camera import Camera, clip_planes
+
+LIGHT = Light(direction=(0.36, 0.48, 0.8), color=(1.0, 1.0, 1.0), ambient=(0.1, 0.1, 0.1))
+MATERIAL = Material(albedo=(0.8, 0.6, 0.4), diffuse=0.8, specular=0.3)
+
+
+def torus_reference() -> reference.MeshReference:
+    """A torus lit from the side: silhouettes, a shadow it casts on itself and a highlight."""
+    return reference.MeshReference(primitives.torus(1.0, 0.4, 48, 24), LIGHT, MATERIAL)
+
+
+def camera(size: int = 24) -> Camera:
+    eye, centre = np.array([0.3, -3.0, 1.6]), np.zeros(3)
+    return Camera(eye, centre, np.array([0.0, 0.0, 1.0]), 45.0, size, size, *clip_planes(eye, centre, centre, 1.4))
+
+
+def exr_bytes(frame, half) -> bytes:
+    """What refcache.save_reference writes of a frame and its first half."""
+    return exr.to_bytes({"reference": {c: frame[..., i] for i, c in enumerate("RGBA")},
+                         "half": {c: half[..., i] for i, c in enumerate("RGBA")}})
+
+
+@pytest.mark.parametrize("spp", [4, 16])
+def test_the_same_bytes_on_one_and_two_threads(spp):
+    """The strata traced on one thread and on two (and more than there are strata): the same EXR bytes, and the same
+    rays counted."""
+    ref, cam = torus_reference(), camera()
+    out, rays = [], []
+    for threads in (1, 2, 5):
+        before = ref.scene.rays_cast
+        out.append(exr_bytes(*reference.filtered(ref.render, cam, spp, threads)))
+        rays.append(ref.scene.rays_cast - before)
+    assert out[0] == out[1] == out[2]
+    assert rays[0] == rays[1] == rays[2] > spp * cam.width * cam.height
+
+
+def test_every_core_by_default():
+    assert reference.workers() >= 1
+    ref, cam = torus_reference(), camera(12)
+    np.testing.assert_array_equal(reference.filtered(ref.render, cam, 4)[0],
+                                  reference.filtered(ref.render, cam, 4, 1)[0])
