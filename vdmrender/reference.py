@@ -258,17 +258,51 @@ class CompositeReference:
         return np.take_along_axis(np.stack([f for f, _ in out]), nearest, 0)[0]
 
 
+def _permute(i: np.ndarray, count: int, p: np.ndarray) -> np.ndarray:
+    """Element i of a pseudo-random permutation of range(count) chosen by p (uint32 arrays, one permutation per
+    element of p): Kensler 2013, "Correlated Multi-Jittered Sampling", listing 3: a hash bijective on the smallest
+    power of two at least count, walked until it lands below count."""
+    w = count - 1
+    for shift in (1, 2, 4, 8, 16):
+        w |= w >> shift
+    i, todo = i.astype(np.uint32), np.ones(i.shape, bool)
+    while todo.any():
+        j, q = i[todo], p[todo]
+        j ^= q; j *= 0xe170893d; j ^= q >> 16; j ^= (j & w) >> 4; j ^= q >> 8; j *= 0x0929eb3f   # noqa: E702
+        j ^= q >> 23; j ^= (j & w) >> 1; j *= 1 | q >> 27; j *= 0x6935fa69; j ^= (j & w) >> 11    # noqa: E702
+        j *= 0x74dcb303; j ^= (j & w) >> 2; j *= 0x9e501cc3; j ^= (j & w) >> 2; j *= 0xc860a3df    # noqa: E702
+        j &= w; j ^= j >> 5                                                                           # noqa: E702
+        i[todo] = j
+        todo = i >= count
+    return (i + p) % np.uint32(count)
+
+
+def _unit(i: int, p: np.ndarray) -> np.ndarray:
+    """A pseudo-random number in [0, 1) for sample i of each pattern p (Kensler 2013, listing 4, in float64)."""
+    i = np.uint32(i) ^ p
+    i ^= i >> 17; i ^= i >> 10; i *= 0xb36534e5; i ^= i >> 12; i ^= i >> 21; i *= 0x93fc4795     # noqa: E702
+    i ^= 0xdf6e307f; i ^= i >> 17; i *= 1 | p >> 18                                                # noqa: E702
+    return i / 4294967808.0
+
+
 def strata(camera, spp: int):
-    """The N x N sample points of every pixel (spp = N^2), one per stratum (cell of an N x N grid), jittered
-    within it (stratified sampling: error on an edge falls as 1/N, no grid pattern to alias with the scene's);
-    seeded per stratum, so a run's reference is deterministic. Yields (H, W, 2) offsets (Camera.pixel_rays)."""
+    """The N x N sample points of every pixel (spp = N^2), sample k in stratum (k mod N, k div N) of an N x N grid
+    of the pixel: correlated multi-jittered (Kensler 2013, listing 5), so that the N samples of each row and of each
+    column of strata also fall in N different sub-columns (sub-rows), a Latin hypercube besides the strata: edges
+    along the axes converge as 1/N^2, not 1/N. Each pixel has its own pattern (p, its index from 1: 0 would give x and y one permutation), so a run's reference
+    is deterministic and neighbouring pixels share no pattern to alias with the scene's. Yields (H, W, 2) offsets
+    (Camera.pixel_rays)."""
     n = math.isqrt(spp)
     if n == 1:
         yield None   # the pixel centre: the point-sampled reference, as every GL frame without AA samples
         return
+    p = np.arange(1, camera.height * camera.width + 1, dtype=np.uint32).reshape(camera.height, camera.width)
     for k in range(spp):
-        jitter = np.random.default_rng(k).random((camera.height, camera.width, 2))
-        yield (np.array([k % n, k // n]) + jitter) / n
+        i, j = np.full(p.shape, k % n, np.uint32), np.full(p.shape, k // n, np.uint32)
+        sx = _permute(i, n, p * np.uint32(0xa511e9b3))
+        sy = _permute(j, n, p * np.uint32(0x63d83595))
+        jx, jy = _unit(k, p * np.uint32(0xa399d265)), _unit(k, p * np.uint32(0x711ad6a5))
+        yield np.stack([(k % n + (sy + jx) / n) / n, (k // n + (sx + jy) / n) / n], -1)
 
 
 def first_half(spp: int) -> int:
