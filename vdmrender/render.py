@@ -262,11 +262,12 @@ def _measure(harness, v, cams, refs, out, obj, opts, background, prefix="", what
     return row, enc, heats
 
 
-def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log, prefix="", what=None,
+def render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, device, log, prefix="", what=None,
                   keep: dict | None = None) -> list[dict]:
-    """One object's variants from cameras `cams`, against its reference: their report rows; frames, heat maps,
-    reference and overview sheet written under `prefix` (a screen-size sweep's sizes/NNNpx/); keep: also each
-    variant's frames (sRGB, by label) put here."""
+    """One object's variants from cameras `cams`, against its reference and, for their change, its full asset
+    (`full`: change.full_asset's variant, drawn untimed where it is not one of `chosen`): their report rows; frames,
+    heat maps, reference and overview sheet written under `prefix` (a screen-size sweep's sizes/NNNpx/); keep: also
+    each variant's frames (sRGB, by label) put here."""
     entry, what = bundle.manifest["objects"][obj.name], what or obj.name
     background = scene.render.background
     refs = scoring.References.traced(
@@ -281,7 +282,6 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, 
         log(f"{what}: {v.label:>14}  {scoring.row_line(row)}"
             + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")
             + (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
-    full = change.full_asset(obj, entry, bundle, scene)
     if full.label not in frames:   # drawn the same way, untimed: what every row's change is against
         frames[full.label] = [images.encode(f, background) for f in harness.frames(lambda: full.build(harness.ctx), cams)]
     change.attach(rows, frames, full.label, frames[full.label], refs, opts.flip)
@@ -319,7 +319,8 @@ def render_views(harness, out, bundle, scene, obj, only, opts, device, log, size
     mixes = {name: c["entries"] for name, c in chains.items()} if world is not None else {}
     rows = render_object(harness, out, bundle, scene, obj, cams,
                          chosen + [lodmix.mixed(obj, entry, bundle, scene, name, entries, world)
-                                   for name, entries in mixes.items()], opts, device, log)
+                                   for name, entries in mixes.items()], change.full_asset(obj, entry, bundle, scene),
+                         opts, device, log)
     for row in rows:
         if row["technique"] == "lod":
             row["lod_copies"] = lodmix.copies_chosen(entry, world, mixes[row["value"]], cams)
@@ -333,6 +334,7 @@ def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) -> 
     entry = bundle.manifest["objects"][obj.name]
     obj = dataclasses.replace(obj, instances=None)   # one copy: the chain is the object's
     chosen = variants(obj, entry, bundle, scene, only)
+    full = change.full_asset(obj, entry, bundle, scene)   # one for every size: a mesostructure's is built once
     centre, radius = framed(obj, entry, scene)
     views = cameras_for(scene.camera, centre, radius, width, height)
     rows, frames = [], {}
@@ -340,7 +342,7 @@ def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) -> 
         cams = sweep.sized(views, centre, radius, size)
         distance = round(sweep.distance_for(size, 1.0, views[0].fov_deg, height), 4)
         here = [{**r, "size_px": size, "distance_radii": distance}
-                for r in render_object(harness, out, bundle, scene, obj, cams, chosen, opts, device, log,
+                for r in render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, device, log,
                                        f"sizes/{size}px/", f"{obj.name} @{size}px", frames.setdefault(size, {}))]
         contest = lod.contenders(here, scene.render.sweep.lod if scene.render.sweep else ())
         if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.pricing)
