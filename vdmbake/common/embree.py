@@ -58,11 +58,12 @@ class RayScene:
             r = self._scene.run(o, d, dists=tf, output=1)
             hit = r["primID"] >= 0
             h.prim[s:e] = r["primID"]
-            h.t[s:e] = np.where(hit, r["tfar"].astype(np.float64) * self.scale, np.inf)
             h.u[s:e], h.v[s:e] = r["u"], r["v"]
-            ng = r["Ng"].astype(np.float64)
-            length = np.linalg.norm(ng, axis=1, keepdims=True)
-            h.ng[s:e] = np.where(length > 0, ng / np.where(length > 0, length, 1.0), 0.0)
+            # the hits' distances and unit normals only: a frame's misses cost no arithmetic
+            h.t[s:e][hit] = r["tfar"][hit].astype(np.float64) * self.scale
+            ng = r["Ng"][hit].astype(np.float64)
+            length = np.sqrt(np.einsum("ij,ij->i", ng, ng))[:, None]
+            h.ng[s:e][hit] = ng / np.where(length > 0, length, 1.0)   # a zero normal stays zero
         return h
 
     def distances(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
