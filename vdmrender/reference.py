@@ -298,12 +298,12 @@ def strata(camera, spp: int):
         yield None   # the pixel centre: the point-sampled reference, as every GL frame without AA samples
         return
     p = np.arange(1, camera.height * camera.width + 1, dtype=np.uint32).reshape(camera.height, camera.width)
+    # the permutations depend on a sample's column (row) of strata only: N of each, not N^2
+    sx = [_permute(np.full(p.shape, i, np.uint32), n, p * np.uint32(0xa511e9b3)) for i in range(n)]
+    sy = [_permute(np.full(p.shape, j, np.uint32), n, p * np.uint32(0x63d83595)) for j in range(n)]
     for k in range(spp):
-        i, j = np.full(p.shape, k % n, np.uint32), np.full(p.shape, k // n, np.uint32)
-        sx = _permute(i, n, p * np.uint32(0xa511e9b3))
-        sy = _permute(j, n, p * np.uint32(0x63d83595))
         jx, jy = _unit(k, p * np.uint32(0xa399d265)), _unit(k, p * np.uint32(0x711ad6a5))
-        yield np.stack([(k % n + (sy + jx) / n) / n, (k // n + (sx + jy) / n) / n], -1)
+        yield np.stack([(k % n + (sy[k // n] + jx) / n) / n, (k // n + (sx[k % n] + jy) / n) / n], -1)
 
 
 def first_half(spp: int) -> int:
