@@ -47,7 +47,7 @@ def variants(runs: dict[str, Path]) -> dict:
 
 
 def bands(entries: list[dict]) -> str:
-    return ", ".join(f"{e['variant']} ({e['min_px']}, {e['max_px']}]{'' if e['meets'] else '*'}"
+    return ", ".join(f"{e['variant']} ({e['min_px']}, {e['max_px']}]{'' if e['meets'] else chr(92) + '*'}"
                      + (f" pop {e['measured'][0]['pop_dluv']:.2f}" if e["measured"][0].get("pop_dluv") is not None else "")
                      for e in entries)
 
