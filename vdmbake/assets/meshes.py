@@ -243,7 +243,7 @@ def load_mesh_file(path: Path, textures: bool = True, warn=None, root: Path | No
 
     warn = warn or (lambda m: print(f"warning: {m}", file=sys.stderr))
     shown = escaped(str(path))
-    files = reached_files(path, str(path), textures, root)
+    files = reached_files(path, str(path), textures, root, warn)
     for chain, f in files.items():
         if f.what == "texture":
             check_picture(f.data, f"{escaped(str(f.path))} (the {described(chain, f.what)})")

@@ -133,22 +133,56 @@ def names_texture(kind: str, files: dict) -> bool:
 def _gltf_references(tree: dict, textures: bool, origin: str) -> list[tuple[str, str]]:
     named = [(b["uri"], "buffer") for b in tree.get("buffers", []) if "uri" in b]
     if textures:
-        named += [(image["uri"], "texture") for image in tree.get("images", []) if "uri" in image]
-        listed, images = tree.get("textures", []), tree.get("images", [])
-        for i, material in enumerate(tree.get("materials", [])):
-            index = material.get("pbrMetallicRoughness", {}).get("baseColorTexture", {}).get("index")
-            if index is None:
-                continue
-            texture = listed[index] if isinstance(index, int) and 0 <= index < len(listed) else {}
-            source = texture.get("source", 0)   # none: an extension names the image
-            if not texture or not (isinstance(source, int) and 0 <= source < len(images)):
-                raise InputError(f"{origin}: material {i}'s base colour is texture {escaped(repr(index))}, which "
-                                 f"names no image of the file ({len(listed)} textures, {len(images)} images); fix "
-                                 'the file, or set textures = "ignore" on the object.')
+        images = tree.get("images", [])
+        named += [(images[i]["uri"], "texture") for i in sorted(_base_colour_images(tree, origin))
+                  if "uri" in images[i]]
     for uri, what in named:
         if not isinstance(uri, str):
             raise InputError(f"{origin}: a {what} uri is {escaped(repr(uri))}; glTF 2.0 gives a uri as a string.")
     return [(uri, what) for uri, what in named if not uri.startswith("data:")]
+
+
+def _base_colour_images(tree: dict, origin: str) -> set[int]:
+    """The images a material's base colour reads (through its texture's source), the only pictures drawn: the
+    others (occlusion, metallic-roughness, normal, emissive) are never opened. A base colour naming no image is an
+    InputError naming `origin`."""
+    listed, images, read = tree.get("textures", []), tree.get("images", []), set()
+    for i, material in enumerate(tree.get("materials", [])):
+        index = material.get("pbrMetallicRoughness", {}).get("baseColorTexture", {}).get("index")
+        if index is None:
+            continue
+        texture = listed[index] if isinstance(index, int) and 0 <= index < len(listed) else {}
+        source = texture.get("source", 0)   # none: an extension names the image
+        if not texture or not (isinstance(source, int) and 0 <= source < len(images)):
+            raise InputError(f"{origin}: material {i}'s base colour is texture {escaped(repr(index))}, which "
+                             f"names no image of the file ({len(listed)} textures, {len(images)} images); fix "
+                             'the file, or set textures = "ignore" on the object.')
+        read.add(source)
+    return read
+
+
+def _missing_unread_pictures(path: Path, data: bytes, roots: tuple[Path, ...], origin: str) -> list[str]:
+    """Warnings for the image files of the glTF at `path` (its bytes `data`) that no base colour reads and that are
+    not there (or lie outside `roots`): only the base colour is drawn, so a file whose occlusion picture was left
+    behind (as copies of the published BoomBox are) still bakes, and the warning says what is missing."""
+    try:
+        tree = _gltf_json(path.suffix[1:].lower(), data, origin)
+        images, read = tree.get("images", []), _base_colour_images(tree, origin)
+        unread = [(i, image["uri"]) for i, image in enumerate(images)
+                  if i not in read and isinstance(image.get("uri"), str) and not image["uri"].startswith("data:")]
+    except (ValueError, RecursionError, AttributeError, TypeError, KeyError, InputError):
+        return []   # the reader refuses such a file with its reason
+    missing = []
+    for i, uri in unread:
+        try:
+            there = confined(unquote(uri), path.parent, roots, "").is_file()
+        except InputError:
+            there = False
+        if not there:
+            missing.append(f"{origin}: image {i} '{escaped(uri)}' is not found (or lies outside the folders a mesh "
+                           "file may name); no material's base colour reads it, and only the base colour is drawn, "
+                           "so the file is read without it")
+    return missing
 
 
 @dataclass(frozen=True)
@@ -180,14 +214,15 @@ def confined(name: str, folder: Path, roots: tuple[Path, ...], shown: str) -> Pa
     return target
 
 
-def reached_files(path: Path, spec: str, textures: bool = True, root: Path | None = None) \
+def reached_files(path: Path, spec: str, textures: bool = True, root: Path | None = None, warn=None) \
         -> dict[tuple[str, ...], Reached]:
     """The mesh file at `path` (named `spec` in the scene) and every file it reaches (`references`), keyed by the
     chain of names that reaches it: (spec,), (spec, "m.mtl"), (spec, "m.mtl", "tex.png"). Names are relative to
     the mesh file's folder, as trimesh resolves them (a glTF URI percent-decoded), and `confined` to `root` (the
     scene's folder; None: the mesh file's folder) or the mesh file's folder. Each resolved file is read once
     through safeio (a regular file; all of them together at most MAX_FILE_BYTES, so one buffer named in several
-    spellings is one read). A missing file is an InputError naming it and the file that named it."""
+    spellings is one read). A missing file is an InputError naming it and the file that named it; a glTF image no
+    base colour reads is not reached, and `warn` (if given) hears of one that is missing."""
     roots = tuple(dict.fromkeys(r.resolve() for r in (path.parent, root or path.parent)))
     found, read, todo = {}, {}, [((spec,), path, "mesh file")]
     while todo:
@@ -210,6 +245,9 @@ def reached_files(path: Path, spec: str, textures: bool = True, root: Path | Non
             shown = f"{escaped(' > '.join(chain))}: the {named} '{escaped(name)}'" + (
                 f" ('{escaped(path_name)}' percent-decoded)" if path_name != name else "")
             todo.append((chain + (name,), confined(path_name, path.parent, roots, shown), named))
+    if warn is not None and textures and path.suffix.lower() in (".gltf", ".glb"):
+        for message in _missing_unread_pictures(path, found[(spec,)].data, roots, escaped(spec)):
+            warn(message)
     return found
 
 
