@@ -54,3 +54,72 @@ def test_a_missing_base_colour_picture_is_still_refused(tmp_path):
     (tmp_path / "tex.png").unlink()
     with pytest.raises(InputError, match="tex.png"):
         load_mesh_file(tmp_path / "quad.gltf")
+
+
+# ---------------------------------------------------------- 3. KHR_texture_transform and TEXCOORD_1 on the base colour
+
+PICTURE = (np.arange(16 * 3).reshape(4, 4, 3) * 5).astype(np.uint8)   # 16 distinct texels, row 0 the picture's top
+
+
+def _texel(m, x, y, row, col):
+    from tests.test_gltf_samples import albedo_at
+    from vdmbake.common.colour import srgb8_to_linear
+
+    got, want = albedo_at(m, [[x, y, 0]])[0], srgb8_to_linear(PICTURE[row, col])
+    assert np.allclose(got, want, rtol=0, atol=1e-6), (x, y, row, col, got, want)
+
+
+def _quad(path, info=None, uv1=None, sampler=None, pictures=1, uv=UV):
+    """The quad (glTF UV (x, 1 - y)) reading PICTURE with textureInfo `info`, TEXCOORD_1 `uv1`; `pictures` = 2 adds
+    a second quad at x = 2 with a plain picture, so the file's pictures share an atlas."""
+    g = Gltf()
+    p = g.primitive(material=g.material(picture=PICTURE, info=info, sampler=sampler), uv=uv)
+    if uv1 is not None:
+        p["attributes"]["TEXCOORD_1"] = g.accessor(np.asarray(uv1, np.float32))
+    g.node(mesh=g.mesh(p))
+    if pictures == 2:
+        g.node(mesh=g.mesh(g.primitive(material=g.material(picture=np.full((2, 2, 3), 77)), uv=UV)),
+               translation=[2.0, 0, 0])
+    return load_mesh_file(g.write(path))
+
+
+SPEC_EXAMPLE = {"extensions": {"KHR_texture_transform": {"offset": [0, 1], "rotation": np.pi / 2,
+                                                         "scale": [0.5, 0.5]}}}
+
+
+@pytest.mark.parametrize("pictures", [1, 2])
+def test_texture_transform_is_applied(tmp_path, pictures):
+    """The extension's own example: 'only the lower left quadrant of the source image, rotated clockwise 90 deg'
+    (scale 0.5, rotation pi/2, offset (0, 1)): glTF UV (s, t) reads (t / 2, 1 - s / 2), so the quad's point (x, y)
+    shows texel row 3 - floor(2x), column floor(2 - 2y) (rows 2-3, columns 0-1). Alone, and in an atlas."""
+    m = _quad(tmp_path / "t.gltf", SPEC_EXAMPLE, pictures=pictures)
+    for x in (0.25, 0.75):
+        for y in (0.25, 0.75):
+            _texel(m, x, y, row=int(4 - 0.5 - 2 * x), col=int(2 - 2 * y))
+
+
+@pytest.mark.parametrize("info", [{"texCoord": 1},
+                                  {"extensions": {"KHR_texture_transform": {"texCoord": 1}}}])
+def test_base_colour_on_texcoord_1(tmp_path, info):
+    """TEXCOORD_1 = half of TEXCOORD_0: the quad shows the picture's top-left quadrant (the extension's texCoord
+    overrides the textureInfo's)."""
+    m = _quad(tmp_path / "t.gltf", info, uv1=UV * 0.5)
+    for x in (0.25, 0.75):
+        for y in (0.25, 0.75):
+            _texel(m, x, y, row=int(2 * (1 - y)), col=int(2 * x))
+
+
+@pytest.mark.parametrize("info, uv1, match", [
+    ({"texCoord": 2}, UV, "TEXCOORD_2, which the primitive does not have"),
+    ({"extensions": {"KHR_texture_transform": {"rotation": "x"}}}, None, "KHR_texture_transform"),
+    ({"extensions": {"KHR_texture_transform": {"scale": [1]}}}, None, "KHR_texture_transform"),
+])
+def test_texture_coordinates_out_of_spec_are_refused(tmp_path, info, uv1, match):
+    with pytest.raises(InputError, match=match):
+        _quad(tmp_path / "t.gltf", info, uv1=uv1)
+
+
+def test_a_transform_leaving_an_atlas_tile_is_refused_by_name(tmp_path):
+    """In an atlas a transformed UV outside [0, 1] would read the neighbouring picture: refused, as plain UVs are."""
+    with pytest.raises(InputError, match=r"outside \[0, 1\]"):
+        _quad(tmp_path / "t.gltf", {"extensions": {"KHR_texture_transform": {"scale": [2, 2]}}}, pictures=2)

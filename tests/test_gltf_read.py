@@ -196,11 +196,11 @@ def test_factor_alone_is_the_asset_colour(tmp_path):
     assert ignored.colors is None
 
 
-# -------------------------------------------------- 4. texture transforms and wrap modes: refused, not ignored
+# ------------------------------------- 4. wrap modes: refused, not ignored (transforms: tests/test_gltf_published.py)
 
 @pytest.mark.parametrize("info, sampler, uv, match", [
-    ({"extensions": {"KHR_texture_transform": {"offset": [0.5, 0]}}}, None, None, "KHR_texture_transform"),
-    ({"texCoord": 1}, None, None, "TEXCOORD_0"),
+    ({"extensions": {"KHR_texture_transform": {"offset": "x"}}}, None, None, "KHR_texture_transform offset"),
+    ({"texCoord": 1}, None, None, "TEXCOORD_1, which the primitive does not have"),
     (None, {"wrapS": 33071}, None, "wrapS"),                  # CLAMP_TO_EDGE where the UVs reach the edge
     (None, {"wrapT": 33648}, UV * 0.9 + 0.05, "wrapT"),       # MIRRORED_REPEAT within half a texel of it
 ])

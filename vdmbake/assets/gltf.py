@@ -1,10 +1,10 @@
 """glTF 2.0 meshes read from the file's own JSON and accessors (not through trimesh, whose scene merge packs several
 base-colour pictures and the materials' factors into one atlas whose UVs point at other regions, and multiplies a
 factor in twice): the default scene's node tree with each node's transform (§3.5.2), each triangle primitive with
-its POSITION, NORMAL, TEXCOORD_0 and COLOR_0 in any legal encoding, sparse accessors (§3.6.2.3), morph targets at
+its POSITION, NORMAL, TEXCOORD_n and COLOR_0 in any legal encoding, sparse accessors (§3.6.2.3), morph targets at
 the default weights (§3.7.2.2), strips and fans (§3.7.2.1), EXT_mesh_gpu_instancing's copies, and its material:
 baseColorFactor x COLOR_0 as one linear colour per vertex, applied once (§3.9.2), and the base-colour picture kept
-as the file's own sRGB texels.
+as the file's own sRGB texels, read at its texCoord through its KHR_texture_transform.
 Several pictures (or pictured and unpictured primitives) in one file go into an atlas built here, each picture in
 its own tile with a one-texel gutter that repeats what the file's wrap mode reads past its edge, so the renderer's
 and the reference's bilinear read (vdmbake.common.texture.sample) reads every texel as the file means it.
@@ -42,7 +42,7 @@ BYTES_PER_VERTEX = 1024    # peak memory per vertex placed, through the read, th
                            # (tracemalloc, a 90,000-vertex grid with NORMAL and TEXCOORD_0), rounded up
 _COMPRESSION = ("KHR_draco_mesh_compression", "EXT_meshopt_compression")   # geometry not read here: refused by name
 # The extensions a file may require (glTF 2.0 §3.12: a loader refuses a file requiring any other): what this reader
-# honours. KHR_texture_transform: an identity transform read, any other refused by _material; KHR_mesh_quantization:
+# honours. KHR_texture_transform: applied to the base colour's UVs (_material); KHR_mesh_quantization:
 # the integer attributes values() reads; EXT_mesh_gpu_instancing: its copies placed (_gpu_instances).
 REQUIRED_READ = ("KHR_texture_transform", "KHR_mesh_quantization", "EXT_mesh_gpu_instancing")
 
@@ -466,17 +466,17 @@ def _material(tree, part, buffer, textures, origin) -> dict:
     if info is None:
         return {"albedo": albedo, "picture": None, "shown": shown}
     said = f"{shown}: its base-colour texture"
-    transform = info.get("extensions", {}).get("KHR_texture_transform")
-    if info.get("texCoord", 0) != 0 or (transform or {}).get("texCoord", 0) != 0:
-        raise InputError(f"{said} is read at another TEXCOORD than TEXCOORD_0, which is the only one read; "
-                         'export it with one UV set, or set textures = "ignore" on the object.')
-    if transform is not None and (transform.get("offset", [0, 0]) != [0, 0] or transform.get("rotation", 0) != 0
-                                  or transform.get("scale", [1, 1]) != [1, 1]):
-        raise InputError(f"{said} has a KHR_texture_transform ({escaped(repr(transform))}), which is not "
-                         'applied here; bake it into the UVs, or set textures = "ignore" on the object.')
-    if part["uv"] is None:
-        raise InputError(f"{said} is read at TEXCOORD_0, which the primitive does not have; fix the file, or set "
+    transform = (info.get("extensions") or {}).get("KHR_texture_transform")
+    # KHR_texture_transform: the extension's texCoord, where given, overrides the textureInfo's
+    at = info.get("texCoord", 0) if transform is None or "texCoord" not in transform else transform["texCoord"]
+    if type(at) is not int or at < 0:
+        raise InputError(f"{said}: texCoord {escaped(repr(at))}; glTF 2.0 gives a non-negative integer; fix the file.")
+    uv = part["uv"] if at == 0 else _texcoord(tree, prim, at, buffer, shown, len(part["pos"]))
+    if uv is None:
+        raise InputError(f"{said} is read at TEXCOORD_{at}, which the primitive does not have; fix the file, or set "
                          'textures = "ignore" on the object.')
+    if transform is not None:
+        uv = _transformed(uv, transform, said)
     tex = _at(tree, "textures", info.get("index"), said)
     if "source" not in tex:
         raise InputError(f"{said} names its picture only through an extension ({escaped(repr(list(tex)))[:80]}), "
@@ -487,7 +487,42 @@ def _material(tree, part, buffer, textures, origin) -> dict:
         raise InputError(f"{said}: sampler wrap modes {escaped(repr(wrap))}; glTF 2.0 gives {list(_WRAPS)}; fix the "
                          "file.")
     _at(tree, "images", tex["source"], said)
-    return {"albedo": albedo, "picture": (tex["source"], *wrap), "shown": shown}
+    return {"albedo": albedo, "picture": (tex["source"], *wrap), "shown": shown, "uv": uv}
+
+
+def _texcoord(tree, prim, at: int, buffer, shown: str, count: int) -> np.ndarray:
+    """TEXCOORD_`at` of a primitive (v flipped, as _geometry flips TEXCOORD_0), or None where it has none."""
+    index = prim["attributes"].get(f"TEXCOORD_{at}")
+    if index is None:
+        return None
+    uv = values(tree, index, buffer, f"{shown} TEXCOORD_{at}", ("VEC2",))
+    if len(uv) != count:
+        raise InputError(f"{shown}: TEXCOORD_{at} has {len(uv)} entries, POSITION {count}; glTF 2.0 gives every "
+                         "attribute one entry per vertex; fix the file.")
+    return np.column_stack([uv[:, 0], 1.0 - uv[:, 1]])
+
+
+def _transformed(uv: np.ndarray, transform, said: str) -> np.ndarray:
+    """UVs (v flipped) through a KHR_texture_transform: in the file's UV space, scale, then rotate (u' = cos u +
+    sin v, v' = -sin u + cos v: the extension's rotation matrix, as its example's 'lower left quadrant, rotated
+    clockwise 90 deg' reads), then offset. Affine, so the per-vertex UVs transformed read as a transform per
+    fragment would: applied once here, the frames, the reference and the exported file read the same UVs."""
+    def numbers(key, default, n):
+        got = transform.get(key, default)
+        got = [got] if n == 1 and type(got) in (int, float) else got
+        if not (isinstance(got, list) and len(got) == n and all(type(x) in (int, float) and np.isfinite(x)
+                                                               for x in got)):
+            raise InputError(f"{said}: KHR_texture_transform {key} is {escaped(repr(transform.get(key)))[:100]}; "
+                             f"the extension gives {'a number' if n == 1 else f'{n} numbers'}; fix the file.")
+        return np.asarray(got, np.float64)
+
+    if not isinstance(transform, dict):
+        raise InputError(f"{said}: KHR_texture_transform is {escaped(repr(transform))[:100]}, not an object; fix "
+                         "the file.")
+    offset, (rotation,), scale = numbers("offset", [0, 0], 2), numbers("rotation", 0, 1), numbers("scale", [1, 1], 2)
+    s, t = uv[:, 0] * scale[0], (1.0 - uv[:, 1]) * scale[1]
+    c, r = np.cos(rotation), np.sin(rotation)
+    return np.column_stack([c * s + r * t + offset[0], 1.0 - (-r * s + c * t + offset[1])])
 
 
 def _picture(tree, files, buffer, source: int, origin: str) -> np.ndarray:
