@@ -10,6 +10,11 @@
   the tree as glTF 2.0 §3.5 gives it: a tree loads with one quad per copy placed (2 triangles each); anything
   else (a node reached twice, an index out of range, nothing placed, an unknown required extension) is refused.
 
+* Draco-compressed glTF (issue 43): the grid of tests/gltf_files.py compressed by DracoPy, its stream's bytes
+  changed or cut and its JSON's declarations (counts, attribute ids, component types and types) changed. The
+  oracle: the file is refused in one line, or loads no more vertices and triangles than the grid has, with finite
+  positions; DracoPy decodes in this process, so a crash in it fails the run.
+
 Every example runs within a time limit, so work out of proportion to the file (a node tree's copies multiplying)
 fails it."""
 from __future__ import annotations
@@ -210,3 +215,65 @@ def check_node_tree(folder: Path, case: dict) -> None:
     _event(f"{want} copies")
     assert want is not None, "a file to be refused loaded"
     assert len(mesh.faces) == 2 * want, (len(mesh.faces), want)
+
+
+# ------------------------------------------------------------------------------------- Draco-compressed glTF
+
+@st.composite
+def draco_case(draw) -> dict:
+    """The Draco grid's file (a GLB or not) with up to 3 bytes of its stream changed, maybe cut short, and maybe
+    one declaration of its JSON changed."""
+    stream = st.tuples(st.integers(0, 10 ** 6), st.integers(0, 255))
+    return {"glb": draw(st.booleans()), "bytes": draw(st.lists(stream, max_size=3)),
+            "cut": draw(st.none() | st.integers(0, 10 ** 6)),
+            "declare": draw(st.none() | st.tuples(st.sampled_from(["count", "componentType", "type", "id"]),
+                                                  st.integers(0, 5), st.sampled_from([0, 1, 15, 17, 54, 5121, 5126,
+                                                                                      "VEC2", "VEC4", 2 ** 40, -1])))}
+
+
+def check_draco(folder: Path, case: dict) -> None:
+    """load_mesh_file on the spoilt Draco grid: refused in one line, or at most the grid's 16 vertices and 18
+    triangles with finite positions."""
+    from gltf_files import draco_grid
+
+    from vdmbake.assets.meshes import load_mesh_file
+
+    def spoil(tree, ext):
+        view = tree["bufferViews"][ext["bufferView"]]
+        if case["cut"] is not None:
+            view["byteLength"] = case["cut"] % (view["byteLength"] + 1)
+        if case["declare"] is not None:
+            key, which, value = case["declare"]
+            if key == "id":
+                ext["attributes"][sorted(ext["attributes"])[which % 4]] = value
+            else:
+                tree["accessors"][which % len(tree["accessors"])][key] = value
+
+    path = draco_grid(folder / ("d.glb" if case["glb"] else "d.gltf"), glb=case["glb"], spoil=spoil)
+    if case["bytes"]:   # the stream's bytes changed in place: found after the JSON, where draco_grid put them
+        data = bytearray(path.read_bytes())
+        if not case["glb"]:
+            import base64
+            tree = json.loads(data)
+            blob = bytearray(base64.b64decode(tree["buffers"][0]["uri"].partition(",")[2]))
+        view = json.loads(data[20:20 + int.from_bytes(data[12:16], "little")]) if case["glb"] else tree
+        ext = next(iter(view["meshes"][0]["primitives"][0]["extensions"].values()))
+        where = view["bufferViews"][ext["bufferView"]]
+        at0 = (28 + int.from_bytes(data[12:16], "little")) if case["glb"] else 0
+        target = data if case["glb"] else blob
+        for at, value in case["bytes"]:
+            target[at0 + where["byteOffset"] + at % max(where["byteLength"], 1)] = value
+        if not case["glb"]:
+            tree["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(blob).decode()
+            data = json.dumps(tree).encode()
+        path.write_bytes(bytes(data))
+    with time_limit(20, "load_mesh_file"):
+        try:
+            mesh = load_mesh_file(path, warn=lambda m: None)
+        except InputError as e:
+            one_line(e)
+            _event("refused")
+            return
+    _event("loaded")
+    assert len(mesh.vertices) <= 16 and len(mesh.faces) <= 18, (len(mesh.vertices), len(mesh.faces))
+    assert np.isfinite(mesh.vertices).all()

@@ -182,3 +182,47 @@ def box_vertex_colors(path):
                           "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}
     out.write_text(json.dumps(tree))
     return out
+
+
+def draco_grid(path, draco=True, glb=False, spoil=None):
+    """A 4 x 4 grid of vertices (18 triangles) with NORMAL, TEXCOORD_0 and COLOR_0 (normalized unsigned bytes), as a
+    plain file or with KHR_draco_mesh_compression (encoded by DracoPy, order preserved, positions to 16 bits, the
+    rest lossless): the same geometry either way. `spoil(tree, extension)` edits the compressed file's JSON."""
+    import DracoPy
+
+    x, y = np.meshgrid(np.arange(4.0), np.arange(4.0))
+    pos = np.column_stack([x.ravel(), y.ravel(), 0.1 * np.sin(x.ravel() + y.ravel())]).astype(np.float32)
+    normal = np.column_stack([np.full(16, 0.1), np.zeros(16), np.ones(16)]) / np.hypot(0.1, 1.0)
+    uv = pos[:, :2] / 3.0
+    colour = (np.arange(48).reshape(16, 3) * 5).astype(np.uint8)
+    quads = [(r * 4 + c, r * 4 + c + 1, r * 4 + c + 5, r * 4 + c + 4) for r in range(3) for c in range(3)]
+    faces = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))], np.uint32)
+    g = Gltf()
+    names = {"POSITION": pos, "NORMAL": normal.astype(np.float32), "TEXCOORD_0": uv.astype(np.float32),
+             "COLOR_0": colour}
+    if not draco:
+        prim = {"attributes": {k: g.accessor(v, normalized=k == "COLOR_0") for k, v in names.items()},
+                "indices": g.accessor(faces.ravel().astype(np.uint16))}
+    else:
+        data = DracoPy.encode(pos, faces, quantization_bits=16, preserve_order=True, colors=colour,
+                              tex_coord=uv.astype(np.float64), normals=normal)
+        ids = {{0: "POSITION", 1: "NORMAL", 2: "COLOR_0", 3: "TEXCOORD_0"}[a["attribute_type"]]: a["unique_id"]
+               for a in DracoPy.decode(data).attributes}
+        g.blob += b"\0" * (-len(g.blob) % 4)
+        g.tree["bufferViews"].append({"buffer": 0, "byteOffset": len(g.blob), "byteLength": len(data)})
+        g.blob += data
+        accessors = g.tree["accessors"]
+        prim = {"attributes": {}, "extensions": {"KHR_draco_mesh_compression": {
+            "bufferView": len(g.tree["bufferViews"]) - 1, "attributes": ids}}}
+        for name, v in names.items():
+            accessors.append({"componentType": 5121 if name == "COLOR_0" else 5126, "count": 16,
+                              "type": f"VEC{v.shape[1]}", **({"normalized": True} if name == "COLOR_0" else {})})
+            prim["attributes"][name] = len(accessors) - 1
+        accessors[prim["attributes"]["POSITION"]].update(min=pos.min(0).tolist(), max=pos.max(0).tolist())
+        accessors.append({"componentType": 5123, "count": faces.size, "type": "SCALAR"})
+        prim["indices"] = len(accessors) - 1
+        g.tree["extensionsUsed"] = g.tree["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+        if spoil is not None:
+            spoil(g.tree, prim["extensions"]["KHR_draco_mesh_compression"])
+    g.node(mesh=g.mesh(prim))
+    return g.write(path, "glb" if glb else "data")

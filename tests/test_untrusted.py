@@ -255,7 +255,7 @@ def test_copies_are_bounded_before_they_are_made(tmp_path, monkeypatch):
     (["KHR_materials_pbrSpecularGlossiness"], r"it requires the extension KHR_materials_pbrSpecularGlossiness "
                                               r"\(extensionsRequired\), which this reader does not apply; glTF 2.0 "
                                               r"§3.12 says to refuse such a file"),
-    (["KHR_draco_mesh_compression"], r"its geometry is compressed \(KHR_draco_mesh_compression\)"),
+    (["EXT_meshopt_compression"], r"its geometry is compressed \(EXT_meshopt_compression\)"),
     ("x", r"extensionsRequired is 'x'"),
 ])
 def test_required_extensions_are_honoured_or_refused(tmp_path, required, match):

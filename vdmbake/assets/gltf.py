@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import base64
 import binascii
+import copy
 import functools
 import io
 from dataclasses import dataclass
@@ -40,27 +41,129 @@ MAX_COPIES = 1_000_000     # the most meshes one file may place (nodes and their
                            # many as a scene's instances.scatter makes
 BYTES_PER_VERTEX = 1024    # peak memory per vertex placed, through the read, the merge and the normals: 757 bytes
                            # (tracemalloc, a 90,000-vertex grid with NORMAL and TEXCOORD_0), rounded up
-_COMPRESSION = ("KHR_draco_mesh_compression", "EXT_meshopt_compression")   # geometry not read here: refused by name
+_DRACO = "KHR_draco_mesh_compression"
+# Compressed geometry not decoded here, refused by name: EXT_meshopt_compression has no Python decoder that reads
+# its bufferViews (tried: pymeshoptimizer 0.3.0, which wraps meshoptimizer's mesh optimisers, not its codec).
+_COMPRESSION = ("EXT_meshopt_compression",)
 # The extensions a file may require (glTF 2.0 §3.12: a loader refuses a file requiring any other): what this reader
 # honours. KHR_texture_transform: applied to the base colour's UVs (_material); KHR_mesh_quantization:
-# the integer attributes values() reads; EXT_mesh_gpu_instancing: its copies placed (_gpu_instances).
-REQUIRED_READ = ("KHR_texture_transform", "KHR_mesh_quantization", "EXT_mesh_gpu_instancing")
+# the integer attributes values() reads; EXT_mesh_gpu_instancing: its copies placed (_gpu_instances);
+# KHR_draco_mesh_compression: decoded by DracoPy into plain accessors (opened).
+REQUIRED_READ = ("KHR_texture_transform", "KHR_mesh_quantization", "EXT_mesh_gpu_instancing", _DRACO)
 
 
-def check_accessors(files: dict, origin: str) -> None:
-    """Every accessor a mesh primitive reads (its attributes and indices) checked against its bufferView and buffer
-    and against the primitive's other attributes (glTF 2.0 §3.6.2, §3.7.2.1), before read_gltf reads a
-    byte: a component type and type of a vertex attribute, a count shared by every attribute, a byteStride no
-    smaller than the element (else elements overlap), offsets aligned to the component, and every element within
-    the view and the view within the buffer. InputError names the file, the accessor and what is wrong."""
+@dataclass
+class Opened:
+    """A glTF file as read_gltf reads it: its JSON with every Draco-compressed primitive rewritten to plain
+    accessors over the decoded data, `buffer(i)` the bytes of buffer i (the decoded data as buffers after the
+    file's own), and `stored` the bytes of the file, the files it reaches and the decoded data."""
+    tree: dict
+    buffer: object
+    stored: int
+
+
+def opened(files: dict, origin: str) -> Opened:
+    """The glTF among `files` (references.reached_files) parsed, its extensions checked (check_extensions) and its
+    KHR_draco_mesh_compression primitives decoded (_decoded), so that decoded data meets every check plain data
+    meets (check_accessors, values, the memory budget)."""
     try:
         tree = gltf_tree(files)
     except (ValueError, RecursionError) as e:        # JSONDecodeError and UnicodeDecodeError are ValueErrors
         raise InputError(f"{origin}: not readable glTF JSON ({type(e).__name__}: {escaped(str(e))[:200]}); fix the "
                          "file.") from None
-    buffer = functools.cache(lambda i: gltf_buffer(files, tree, i, origin))
     check_extensions(tree, origin)
+    buffer = functools.cache(lambda i: (_at(tree, "buffers", i, origin), gltf_buffer(files, tree, i, origin))[1])
     stored = sum(len(f.data) for f in files.values())
+    try:
+        tree, blobs = _decoded(tree, buffer, origin)
+    except (KeyError, IndexError, TypeError, AttributeError, ValueError) as e:
+        raise InputError(f"{origin}: cannot read its {_DRACO} primitives ({type(e).__name__}: "
+                         f"{escaped(str(e))[:200]}); fix the file.") from None
+    if not blobs:
+        return Opened(tree, buffer, stored)
+    first = len(tree["buffers"]) - len(blobs)
+    return Opened(tree, lambda i: blobs[i - first] if type(i) is int and i >= first else buffer(i),
+                  stored + sum(map(len, blobs)))
+
+
+def _decoded(tree: dict, buffer, origin: str) -> tuple[dict, list]:
+    """(tree, decoded buffers): every primitive with KHR_draco_mesh_compression decoded by DracoPy and rewritten as
+    a plain one, each attribute the extension names (and the indices) a new accessor over a new buffer appended to
+    the file's, of the component type and type its own accessor declares, which the extension says the decoded data
+    has (the declared accessor stays for its type and count). The declared POSITION counts are held to the memory
+    budget before anything is decoded; a decoded attribute of another count or width than declared is refused."""
+    draco = [(m, p) for m, mesh in enumerate(tree.get("meshes", [])) if isinstance(mesh, dict)
+             for p, prim in enumerate(mesh.get("primitives", []))
+             if isinstance(prim, dict) and _DRACO in (prim.get("extensions") or {})]
+    if not draco:
+        return tree, []
+    import DracoPy
+
+    tree = copy.deepcopy(tree)
+    declared = sum(_at(tree, "accessors", tree["meshes"][m]["primitives"][p]["attributes"]["POSITION"], origin)
+                   ["count"] for m, p in draco)
+    budget.check(declared * BYTES_PER_VERTEX, f"{origin}: its {len(draco)} Draco-compressed primitives of "
+                 f"{declared} vertices (as their POSITION accessors declare), decoded,", "simplify the mesh")
+    blobs, first = [], len(tree.get("buffers", []))
+
+    def plain(array: np.ndarray, declared: dict) -> int:
+        """A new accessor of `declared`'s componentType, type and normalized over `array`, in a buffer of its own."""
+        blobs.append(np.ascontiguousarray(array).tobytes())
+        tree.setdefault("buffers", []).append({"byteLength": len(blobs[-1])})
+        tree.setdefault("bufferViews", []).append({"buffer": first + len(blobs) - 1, "byteLength": len(blobs[-1])})
+        tree["accessors"].append({key: declared[key] for key in ("componentType", "type", "normalized", "count")
+                                  if key in declared} | {"bufferView": len(tree["bufferViews"]) - 1})
+        return len(tree["accessors"]) - 1
+
+    for m, p in draco:
+        prim, where = tree["meshes"][m]["primitives"][p], f"{origin}: mesh {m} primitive {p}"
+        ext = prim["extensions"].pop(_DRACO)
+        if prim.get("mode", 4) != 4:
+            raise InputError(f"{where}: mode {escaped(repr(prim.get('mode')))} with {_DRACO}, which decodes "
+                             "triangles; the extension allows triangles (mode 4) here; fix the file.")
+        view = _at(tree, "bufferViews", ext.get("bufferView"), where)
+        data = _strided(tree, ext["bufferView"], 0, view["byteLength"], np.dtype("u1"), 1, buffer, where).tobytes()
+        try:
+            mesh = DracoPy.decode(data)
+        except Exception as e:   # DracoPy raises ValueError, FileTypeException, ... for what it cannot decode
+            raise InputError(f"{where}: its {_DRACO} data ({len(data)} bytes) cannot be decoded ({type(e).__name__}: "
+                             f"{escaped(str(e))[:200]}); fix the file.") from None
+        if not isinstance(mesh, DracoPy.DracoMesh):
+            raise InputError(f"{where}: its {_DRACO} data decodes to points without triangles; fix the file.")
+        by_id = {a["unique_id"]: a for a in mesh.attributes}
+        for name, uid in ext["attributes"].items():
+            shown = f"{where} {escaped(name)}"
+            index = prim["attributes"].get(name)
+            a = _at(tree, "accessors", index, shown)
+            width, ct = _WIDTHS.get(a.get("type")), a.get("componentType")
+            got = by_id.get(uid)
+            if got is None or width is None or ct not in _DTYPES:
+                raise InputError(f"{shown}: {_DRACO} names attribute {escaped(repr(uid))} of the decoded data "
+                                 f"(which has {sorted(by_id)}) for accessor {index} ({escaped(repr(a.get('type')))} "
+                                 f"of componentType {escaped(repr(ct))}); fix the file.")
+            decoded = np.asarray(got["data"]).reshape(len(got["data"]), -1)
+            typed = decoded.astype(_DTYPES[ct])
+            if decoded.shape != (a.get("count"), width) or not np.array_equal(typed, decoded):
+                raise InputError(f"{shown}: decodes to {decoded.shape[0]} x {decoded.shape[1]} values of "
+                                 f"{decoded.dtype}, where accessor {index} declares {escaped(repr(a.get('count')))} "
+                                 f"x {width} of componentType {ct}; fix the file.")
+            prim["attributes"][name] = plain(typed, a)
+        faces = np.asarray(mesh.faces, np.uint32).ravel()
+        declared = _at(tree, "accessors", prim["indices"], f"{where} indices") if "indices" in prim else {}
+        if declared and declared.get("count") != len(faces):
+            raise InputError(f"{where}: decodes to {len(faces)} indices where its indices accessor declares "
+                             f"{escaped(repr(declared.get('count')))}; fix the file.")
+        prim["indices"] = plain(faces, {"componentType": 5125, "type": "SCALAR", "count": len(faces)})
+    return tree, blobs
+
+
+def check_accessors(gltf: Opened, origin: str) -> None:
+    """Every accessor a mesh primitive reads (its attributes and indices) checked against its bufferView and buffer
+    and against the primitive's other attributes (glTF 2.0 §3.6.2, §3.7.2.1), before read_gltf reads a
+    byte: a component type and type of a vertex attribute, a count shared by every attribute, a byteStride no
+    smaller than the element (else elements overlap), offsets aligned to the component, and every element within
+    the view and the view within the buffer. InputError names the file, the accessor and what is wrong."""
+    tree, buffer, stored = gltf.tree, gltf.buffer, gltf.stored
     try:
         for k, a in enumerate(tree.get("accessors", [])):   # zeros or sparse: elements no byte of the file stores
             if "bufferView" not in a and type(a.get("count")) is int and a["count"] > stored:
@@ -85,8 +188,9 @@ def check_accessors(files: dict, origin: str) -> None:
 
 def check_extensions(tree: dict, origin: str) -> None:
     """Refuse what the file requires and this reader does not do (glTF 2.0 §3.12: a loader that does not support an
-    extension in extensionsRequired refuses the file), and compressed geometry wherever it is named (listed in
-    extensionsUsed or extensionsRequired, or on a primitive: its accessors have no bytes and would read as zeros)."""
+    extension in extensionsRequired refuses the file), and compressed geometry not decoded here wherever it is named
+    (listed in extensionsUsed or extensionsRequired, or on a primitive: its accessors have no bytes and would read
+    as zeros)."""
     required = tree.get("extensionsRequired", [])
     if not isinstance(required, list) or not all(isinstance(e, str) for e in required):
         raise InputError(f"{origin}: extensionsRequired is {escaped(repr(required))[:200]}; glTF 2.0 gives a list of "
@@ -97,7 +201,8 @@ def check_extensions(tree: dict, origin: str) -> None:
     packed = [e for e in _COMPRESSION if e in required or e in tree.get("extensionsUsed", []) or e in on_primitives]
     if packed:
         raise InputError(f"{origin}: its geometry is compressed ({escaped(', '.join(packed))}), which is not read "
-                         "here; export it uncompressed (e.g. gltf-transform copy without compression).")
+                         f"here (no Python package decodes it; {_DRACO} is read); export it uncompressed or with "
+                         "Draco (e.g. gltf-transform draco).")
     unread = [e for e in required if e not in REQUIRED_READ]
     if unread:
         raise InputError(f"{origin}: it requires the extension{'s' if len(unread) > 1 else ''} "
@@ -157,12 +262,12 @@ class Read:
     texture: np.ndarray | None         # the albedo map read at `uvs` (the file's picture, or the atlas of them)
 
 
-def read_gltf(files: dict, textures: bool, origin: str, warn) -> Read:
-    """The triangles of the glTF among `files` (references.reached_files) as the default scene places them, with
-    their albedo (`textures`: materials read, else COLOR_0 only). Points and lines beside triangles are left out and
-    named to `warn`; a file of only those is refused by name. Every other fault is an InputError naming `origin`."""
-    tree = gltf_tree(files)
-    buffer = functools.cache(lambda i: (_at(tree, "buffers", i, origin), gltf_buffer(files, tree, i, origin))[1])
+def read_gltf(files: dict, gltf: Opened, textures: bool, origin: str, warn) -> Read:
+    """The triangles of the glTF among `files` (references.reached_files; `gltf` as `opened` reads it) as the
+    default scene places them, with their albedo (`textures`: materials read, else COLOR_0 only). Points and lines
+    beside triangles are left out and named to `warn`; a file of only those is refused by name. Every other fault
+    is an InputError naming `origin`."""
+    tree, buffer = gltf.tree, gltf.buffer
     try:
         # A file's numbers may overflow float64 once multiplied (a scale of 1e308): every product is checked instead of
         # warned about (_local refuses a non-finite transform, meshes.validate a non-finite vertex), so a clean error
@@ -184,7 +289,6 @@ def _at(tree: dict, key: str, index, origin: str):
 
 
 def _read(tree, files, buffer, textures, origin, warn) -> Read:
-    check_extensions(tree, origin)
     parts, skipped, geometry = [], {}, {}
     placed = _instances(tree, buffer, origin)
     vertices = sum(_position_count(tree, _at(tree, "meshes", m, origin)) for m, _, _ in placed)

@@ -15,7 +15,7 @@ import numpy as np
 from ..common import texture
 from ..common.colour import srgb8_to_linear
 from ..errors import InputError, escaped
-from .gltf import check_accessors, read_gltf
+from .gltf import check_accessors, opened, read_gltf
 from .references import check_picture, described, names_texture, reached_files
 
 
@@ -250,14 +250,15 @@ def load_mesh_file(path: Path, textures: bool = True, warn=None, root: Path | No
     resolver = {chain[-1]: f.data for chain, f in files.items() if len(chain) > 1}
     gltf = path.suffix[1:].lower() in ("gltf", "glb")
     if gltf:
-        check_accessors(files, shown)
+        parsed = opened(files, shown)   # Draco decoded, before any check, so decoded data meets the plain checks
+        check_accessors(parsed, shown)
     limit = Image.MAX_IMAGE_PIXELS
     try:
         Image.MAX_IMAGE_PIXELS = texture.MAX_PIXELS
         with warnings.catch_warnings():   # a picture over the limit: refused, not decoded with a warning
             warnings.simplefilter("error", Image.DecompressionBombWarning)
             if gltf:
-                loaded = read_gltf(files, textures, shown, warn)
+                loaded = read_gltf(files, parsed, textures, shown, warn)
             else:
                 loaded = trimesh.load_scene(io.BytesIO(files[(str(path),)].data), resolver=resolver,
                                             file_type=trimesh.util.split_extension(path.name,
