@@ -10,10 +10,11 @@
   the tree as glTF 2.0 §3.5 gives it: a tree loads with one quad per copy placed (2 triangles each); anything
   else (a node reached twice, an index out of range, nothing placed, an unknown required extension) is refused.
 
-* Draco-compressed glTF (issue 43): the grid of tests/gltf_files.py compressed by DracoPy, its stream's bytes
-  changed or cut and its JSON's declarations (counts, attribute ids, component types and types) changed. The
-  oracle: the file is refused in one line, or loads no more vertices and triangles than the grid has, with finite
-  positions; DracoPy decodes in this process, so a crash in it fails the run.
+* compressed glTF (issue 43): the grid of tests/gltf_files.py compressed by Draco (DracoPy) or meshopt (meshopt),
+  its compressed bytes changed (a Draco stream cut) and its JSON's declarations (counts, attribute ids, component
+  types and types; a meshopt view's count, byteStride, mode, filter) changed. The oracle: the file is refused in
+  one line, or loads no more vertices and triangles than the grid has, with finite positions; both decoders run
+  in this process, so a crash in one fails the run.
 
 Every example runs within a time limit, so work out of proportion to the file (a node tree's copies multiplying)
 fails it."""
@@ -217,53 +218,61 @@ def check_node_tree(folder: Path, case: dict) -> None:
     assert len(mesh.faces) == 2 * want, (len(mesh.faces), want)
 
 
-# ------------------------------------------------------------------------------------- Draco-compressed glTF
+# --------------------------------------------------------------------------- compressed glTF (Draco, meshopt)
 
 @st.composite
-def draco_case(draw) -> dict:
-    """The Draco grid's file (a GLB or not) with up to 3 bytes of its stream changed, maybe cut short, and maybe
-    one declaration of its JSON changed."""
+def compressed_case(draw) -> dict:
+    """The grid of tests/gltf_files.py compressed by Draco (a GLB or not) or meshopt, up to 3 bytes of its streams
+    changed, a Draco stream maybe cut short, and maybe one declaration of its JSON changed."""
+    codec = draw(st.sampled_from(["draco", "meshopt"]))
     stream = st.tuples(st.integers(0, 10 ** 6), st.integers(0, 255))
-    return {"glb": draw(st.booleans()), "bytes": draw(st.lists(stream, max_size=3)),
+    keys = ["count", "componentType", "type", "id"] if codec == "draco" else ["count", "byteStride", "mode", "filter"]
+    return {"codec": codec, "glb": codec == "draco" and draw(st.booleans()), "bytes": draw(st.lists(stream, max_size=3)),
             "cut": draw(st.none() | st.integers(0, 10 ** 6)),
-            "declare": draw(st.none() | st.tuples(st.sampled_from(["count", "componentType", "type", "id"]),
-                                                  st.integers(0, 5), st.sampled_from([0, 1, 15, 17, 54, 5121, 5126,
-                                                                                      "VEC2", "VEC4", 2 ** 40, -1])))}
+            "declare": draw(st.none() | st.tuples(st.sampled_from(keys), st.integers(0, 5), st.sampled_from(
+                [0, 1, 2, 4, 15, 17, 54, 5121, 5126, "VEC2", "VEC4", "ATTRIBUTES", "TRIANGLES", "OCTAHEDRAL",
+                 "QUATERNION", 2 ** 40, -1])))}
 
 
-def check_draco(folder: Path, case: dict) -> None:
-    """load_mesh_file on the spoilt Draco grid: refused in one line, or at most the grid's 16 vertices and 18
-    triangles with finite positions."""
-    from gltf_files import draco_grid
+def check_compressed(folder: Path, case: dict) -> None:
+    """load_mesh_file on the spoilt grid: refused in one line, or at most the grid's 16 vertices and 18 triangles
+    with finite positions."""
+    import base64
+
+    from gltf_files import draco_grid, meshopt_grid
 
     from vdmbake.assets.meshes import load_mesh_file
 
     def spoil(tree, ext):
-        view = tree["bufferViews"][ext["bufferView"]]
-        if case["cut"] is not None:
+        if case["codec"] == "meshopt":
+            ext = ext[(case["declare"] or ("", 0))[1] % len(ext)]
+        elif case["cut"] is not None:
+            view = tree["bufferViews"][ext["bufferView"]]
             view["byteLength"] = case["cut"] % (view["byteLength"] + 1)
         if case["declare"] is not None:
             key, which, value = case["declare"]
             if key == "id":
                 ext["attributes"][sorted(ext["attributes"])[which % 4]] = value
+            elif case["codec"] == "meshopt":
+                ext[key] = value
             else:
                 tree["accessors"][which % len(tree["accessors"])][key] = value
 
-    path = draco_grid(folder / ("d.glb" if case["glb"] else "d.gltf"), glb=case["glb"], spoil=spoil)
-    if case["bytes"]:   # the stream's bytes changed in place: found after the JSON, where draco_grid put them
+    if case["codec"] == "meshopt":
+        path = meshopt_grid(folder / "m.gltf", spoil=spoil)
+    else:
+        path = draco_grid(folder / ("d.glb" if case["glb"] else "d.gltf"), glb=case["glb"], spoil=spoil)
+    if case["bytes"]:   # the compressed bytes changed in place: the GLB's binary chunk, or buffer 0's data: URI
         data = bytearray(path.read_bytes())
-        if not case["glb"]:
-            import base64
+        if case["glb"]:
+            at0 = 28 + int.from_bytes(data[12:16], "little")
+            for at, value in case["bytes"]:
+                data[at0 + at % (len(data) - at0)] = value
+        else:
             tree = json.loads(data)
             blob = bytearray(base64.b64decode(tree["buffers"][0]["uri"].partition(",")[2]))
-        view = json.loads(data[20:20 + int.from_bytes(data[12:16], "little")]) if case["glb"] else tree
-        ext = next(iter(view["meshes"][0]["primitives"][0]["extensions"].values()))
-        where = view["bufferViews"][ext["bufferView"]]
-        at0 = (28 + int.from_bytes(data[12:16], "little")) if case["glb"] else 0
-        target = data if case["glb"] else blob
-        for at, value in case["bytes"]:
-            target[at0 + where["byteOffset"] + at % max(where["byteLength"], 1)] = value
-        if not case["glb"]:
+            for at, value in case["bytes"]:
+                blob[at % len(blob)] = value
             tree["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(blob).decode()
             data = json.dumps(tree).encode()
         path.write_bytes(bytes(data))
@@ -272,8 +281,8 @@ def check_draco(folder: Path, case: dict) -> None:
             mesh = load_mesh_file(path, warn=lambda m: None)
         except InputError as e:
             one_line(e)
-            _event("refused")
+            _event(f"{case['codec']} refused")
             return
-    _event("loaded")
+    _event(f"{case['codec']} loaded")
     assert len(mesh.vertices) <= 16 and len(mesh.faces) <= 18, (len(mesh.vertices), len(mesh.faces))
     assert np.isfinite(mesh.vertices).all()

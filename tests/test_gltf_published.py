@@ -165,16 +165,53 @@ def test_decoded_data_meets_the_accessor_checks(tmp_path, spoil, match):
         load_mesh_file(G.draco_grid(tmp_path / "d.gltf", spoil=spoil))
 
 
-def test_fuzz_draco(tmp_path_factory):
-    """tests/fuzz_untrusted.py's Draco target, 100 derandomised examples here (make fuzz runs more: see test_fuzz)."""
+def test_fuzz_compressed(tmp_path_factory):
+    """tests/fuzz_untrusted.py's target for compressed files, 200 derandomised examples here."""
     from hypothesis import given
 
     from fuzz_inputs import examples
-    from fuzz_untrusted import check_draco, draco_case
+    from fuzz_untrusted import check_compressed, compressed_case
 
-    @given(case=draco_case())
-    @examples(100)
+    @given(case=compressed_case())
+    @examples(200)
     def run(case):
-        check_draco(tmp_path_factory.mktemp("draco"), case)
+        check_compressed(tmp_path_factory.mktemp("packed"), case)
 
     run()
+
+
+# --------------------------------------------------------------------- 1. EXT_meshopt_compression decoded
+
+def test_meshopt_reads_as_the_plain_file(tmp_path):
+    """The grid with every bufferView meshopt-compressed (lossless, as gltfpack writes it without quantisation)
+    loads exactly as the grid written plain (each triangle with its winding, though the index codec may start it at
+    another corner); the fallback buffer, which holds no data, is never read."""
+    from tests import gltf_files as G
+
+    def started(faces):   # each triangle rotated to start at its smallest index: the same winding, one spelling
+        return np.array([np.roll(f, -int(np.argmin(f))) for f in faces])
+
+    plain = load_mesh_file(G.draco_grid(tmp_path / "plain.gltf", draco=False))
+    packed = load_mesh_file(G.meshopt_grid(tmp_path / "m.gltf"))
+    assert np.array_equal(started(packed.faces), started(plain.faces))
+    for name in ("vertices", "uvs", "colors", "normals"):
+        assert np.array_equal(getattr(packed, name), getattr(plain, name)), name
+
+
+@pytest.mark.parametrize("spoil, match", [
+    (lambda tree, exts: exts[0].update(count=15), r"bufferView 0 \(EXT_meshopt_compression\): count 15, byteStride 12"
+                                                  r".* for a view of 192 bytes"),
+    (lambda tree, exts: exts[0].update(mode="POINTS"), r"mode 'POINTS'"),
+    (lambda tree, exts: exts[4].update(byteStride=4, count=27) or tree["bufferViews"][4].update(byteLength=108),
+     r"bufferView 4 \(EXT_meshopt_compression\): its \d+ compressed bytes cannot be decoded"),
+    (lambda tree, exts: exts[1].update(byteLength=10 ** 6), r"bufferView 1 .* are not within a buffer of the file"),
+    (lambda tree, exts: exts[0].update(count=2 ** 40) or tree["bufferViews"][0].update(byteLength=12 * 2 ** 40),
+     "meshopt-compressed bufferViews, decoded .* GiB of memory"),
+])
+def test_meshopt_views_are_checked(tmp_path, spoil, match):
+    """Each view's declarations are checked before decoding, its decoded size held to the memory budget, and a
+    stream meshoptimizer cannot decode refused, naming the view."""
+    from tests import gltf_files as G
+
+    with pytest.raises(InputError, match=match):
+        load_mesh_file(G.meshopt_grid(tmp_path / "m.gltf", spoil=spoil))

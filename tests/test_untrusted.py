@@ -255,7 +255,7 @@ def test_copies_are_bounded_before_they_are_made(tmp_path, monkeypatch):
     (["KHR_materials_pbrSpecularGlossiness"], r"it requires the extension KHR_materials_pbrSpecularGlossiness "
                                               r"\(extensionsRequired\), which this reader does not apply; glTF 2.0 "
                                               r"§3.12 says to refuse such a file"),
-    (["EXT_meshopt_compression"], r"its geometry is compressed \(EXT_meshopt_compression\)"),
+    (["KHR_meshopt_compression"], r"requires the extension KHR_meshopt_compression"),   # Draco, meshopt: read
     ("x", r"extensionsRequired is 'x'"),
 ])
 def test_required_extensions_are_honoured_or_refused(tmp_path, required, match):
@@ -268,10 +268,11 @@ def test_required_extensions_are_honoured_or_refused(tmp_path, required, match):
 
 
 def test_compression_on_a_primitive_is_named(tmp_path):
+    """Compressed geometry is decoded (issue 43); a primitive whose Draco data is not in the file is refused by name."""
     gltf_asset(tmp_path)
     _with(tmp_path / "quad.gltf", lambda tree: tree["meshes"][0]["primitives"][0].update(
-        extensions={"EXT_meshopt_compression": {}}))
-    with pytest.raises(InputError, match=r"compressed \(EXT_meshopt_compression\)"):
+        extensions={"KHR_draco_mesh_compression": {"bufferView": 99, "attributes": {}}}))
+    with pytest.raises(InputError, match=r"mesh 0 primitive 0: bufferView 99 does not exist"):
         load_mesh_file(tmp_path / "quad.gltf")
 
 

@@ -41,22 +41,20 @@ MAX_COPIES = 1_000_000     # the most meshes one file may place (nodes and their
                            # many as a scene's instances.scatter makes
 BYTES_PER_VERTEX = 1024    # peak memory per vertex placed, through the read, the merge and the normals: 757 bytes
                            # (tracemalloc, a 90,000-vertex grid with NORMAL and TEXCOORD_0), rounded up
-_DRACO = "KHR_draco_mesh_compression"
-# Compressed geometry not decoded here, refused by name: EXT_meshopt_compression has no Python decoder that reads
-# its bufferViews (tried: pymeshoptimizer 0.3.0, which wraps meshoptimizer's mesh optimisers, not its codec).
-_COMPRESSION = ("EXT_meshopt_compression",)
+_DRACO, _MESHOPT = "KHR_draco_mesh_compression", "EXT_meshopt_compression"   # decoded: opened
 # The extensions a file may require (glTF 2.0 §3.12: a loader refuses a file requiring any other): what this reader
 # honours. KHR_texture_transform: applied to the base colour's UVs (_material); KHR_mesh_quantization:
 # the integer attributes values() reads; EXT_mesh_gpu_instancing: its copies placed (_gpu_instances);
-# KHR_draco_mesh_compression: decoded by DracoPy into plain accessors (opened).
-REQUIRED_READ = ("KHR_texture_transform", "KHR_mesh_quantization", "EXT_mesh_gpu_instancing", _DRACO)
+# KHR_draco_mesh_compression and EXT_meshopt_compression: decoded into plain accessors and views (opened).
+REQUIRED_READ = ("KHR_texture_transform", "KHR_mesh_quantization", "EXT_mesh_gpu_instancing", _DRACO, _MESHOPT)
 
 
 @dataclass
 class Opened:
-    """A glTF file as read_gltf reads it: its JSON with every Draco-compressed primitive rewritten to plain
-    accessors over the decoded data, `buffer(i)` the bytes of buffer i (the decoded data as buffers after the
-    file's own), and `stored` the bytes of the file, the files it reaches and the decoded data."""
+    """A glTF file as read_gltf reads it: its JSON with compressed data rewritten as plain (each meshopt bufferView
+    over its decoded bytes, each Draco primitive over accessors of its decoded attributes), `buffer(i)` the bytes of
+    buffer i (the decoded data as buffers after the file's own), and `stored` the bytes of the file, the files it
+    reaches and the decoded data."""
     tree: dict
     buffer: object
     stored: int
@@ -64,53 +62,119 @@ class Opened:
 
 def opened(files: dict, origin: str) -> Opened:
     """The glTF among `files` (references.reached_files) parsed, its extensions checked (check_extensions) and its
-    KHR_draco_mesh_compression primitives decoded (_decoded), so that decoded data meets every check plain data
-    meets (check_accessors, values, the memory budget)."""
+    compressed data decoded (_meshopt, then _draco, whose stream may lie in a meshopt view), so that decoded data
+    meets every check plain data meets (check_accessors, values, the memory budget)."""
     try:
         tree = gltf_tree(files)
     except (ValueError, RecursionError) as e:        # JSONDecodeError and UnicodeDecodeError are ValueErrors
         raise InputError(f"{origin}: not readable glTF JSON ({type(e).__name__}: {escaped(str(e))[:200]}); fix the "
                          "file.") from None
+    if not isinstance(tree, dict):
+        raise InputError(f"{origin}: its JSON is a {type(tree).__name__}, where glTF 2.0 gives an object; fix the "
+                         "file.")
     check_extensions(tree, origin)
     buffer = functools.cache(lambda i: (_at(tree, "buffers", i, origin), gltf_buffer(files, tree, i, origin))[1])
     stored = sum(len(f.data) for f in files.values())
+    blobs, first = [], len(tree.get("buffers", [])) if isinstance(tree.get("buffers", []), list) else 0
+
+    def added(data: bytes) -> int:
+        """A buffer of decoded bytes, after the file's own: its index."""
+        blobs.append(data)
+        tree.setdefault("buffers", []).append({"byteLength": len(data)})
+        return first + len(blobs) - 1
+
+    def read(i):
+        return blobs[i - first] if type(i) is int and i >= first else buffer(i)
+
     try:
-        tree, blobs = _decoded(tree, buffer, origin)
+        if _meshopt_views(tree) or _draco_primitives(tree):
+            tree = copy.deepcopy(tree)   # rewritten below (the file's own buffers keep their entries)
+            _meshopt(tree, buffer, added, origin)
+            _draco(tree, read, added, origin)
     except (KeyError, IndexError, TypeError, AttributeError, ValueError) as e:
-        raise InputError(f"{origin}: cannot read its {_DRACO} primitives ({type(e).__name__}: "
+        raise InputError(f"{origin}: cannot read its compressed data ({type(e).__name__}: "
                          f"{escaped(str(e))[:200]}); fix the file.") from None
-    if not blobs:
-        return Opened(tree, buffer, stored)
-    first = len(tree["buffers"]) - len(blobs)
-    return Opened(tree, lambda i: blobs[i - first] if type(i) is int and i >= first else buffer(i),
-                  stored + sum(map(len, blobs)))
+    return Opened(tree, read if blobs else buffer, stored + sum(map(len, blobs)))
 
 
-def _decoded(tree: dict, buffer, origin: str) -> tuple[dict, list]:
-    """(tree, decoded buffers): every primitive with KHR_draco_mesh_compression decoded by DracoPy and rewritten as
-    a plain one, each attribute the extension names (and the indices) a new accessor over a new buffer appended to
-    the file's, of the component type and type its own accessor declares, which the extension says the decoded data
+def _meshopt_views(tree: dict) -> list:
+    """(index, bufferView) of every bufferView with EXT_meshopt_compression."""
+    return [(v, view) for v, view in enumerate(tree.get("bufferViews", []))
+            if isinstance(view, dict) and _MESHOPT in (view.get("extensions") or {})]
+
+
+def _draco_primitives(tree: dict) -> list:
+    """(mesh, primitive) of every primitive with KHR_draco_mesh_compression."""
+    return [(m, p) for m, mesh in enumerate(tree.get("meshes", [])) if isinstance(mesh, dict)
+            for p, prim in enumerate(mesh.get("primitives", []))
+            if isinstance(prim, dict) and _DRACO in (prim.get("extensions") or {})]
+
+
+def _meshopt(tree: dict, buffer, added, origin: str) -> None:
+    """Every bufferView with EXT_meshopt_compression rewritten over its decoded bytes (the `meshopt` package, the
+    JavaScript decoder's functions over meshoptimizer 1.3's C++): `count` elements of `byteStride` bytes decoded
+    in its mode (ATTRIBUTES, TRIANGLES, INDICES) and filter (NONE, OCTAHEDRAL, QUATERNION, EXPONENTIAL), in a
+    buffer of their own; the view's byteLength must be what they fill (the extension: count x byteStride). The
+    views' decoded bytes are held to the memory budget before any is decoded; the fallback buffer is never read."""
+    views = _meshopt_views(tree)
+    if not views:
+        return
+    import meshopt
+
+    sizes = []
+    for v, view in views:
+        ext, shown = view["extensions"][_MESHOPT], f"{origin}: bufferView {v} ({_MESHOPT})"
+        count, stride, mode = ext.get("count"), ext.get("byteStride"), ext.get("mode")
+        filter_ = ext.get("filter", "NONE")
+        sizes_ok = {"ATTRIBUTES": stride in range(4, 257, 4), "TRIANGLES": stride in (2, 4) and count % 3 == 0,
+                    "INDICES": stride in (2, 4)} if type(count) is int and type(stride) is int and count > 0 else {}
+        if not sizes_ok.get(mode) or filter_ not in ("NONE", "OCTAHEDRAL", "QUATERNION", "EXPONENTIAL") or (
+                mode != "ATTRIBUTES" and filter_ != "NONE") or view.get("byteLength") != count * stride:
+            raise InputError(f"{shown}: count {escaped(repr(count))}, byteStride {escaped(repr(stride))}, mode "
+                             f"{escaped(repr(mode))}, filter {escaped(repr(filter_))} for a view of "
+                             f"{escaped(repr(view.get('byteLength')))} bytes; the extension gives a positive count, "
+                             "ATTRIBUTES of 4 to 256 bytes in fours (filtered or not), TRIANGLES (a count in threes) or "
+                             "INDICES of 2 or 4 bytes unfiltered, and a byteLength of count x byteStride; fix the file.")
+        sizes.append(count * stride)
+    budget.check(2 * sum(sizes), f"{origin}: its {len(views)} meshopt-compressed bufferViews, decoded ({sum(sizes)} "
+                 "bytes) beside the file,", "simplify the mesh")
+    for v, view in views:
+        ext, shown = view["extensions"].pop(_MESHOPT), f"{origin}: bufferView {v} ({_MESHOPT})"
+        start, length = ext.get("byteOffset", 0), ext.get("byteLength")
+        data = buffer(ext["buffer"]) if type(ext.get("buffer")) is int else None
+        if data is None or not (type(start) is int and type(length) is int and 0 <= start
+                                and start + length <= len(data)):
+            raise InputError(f"{shown}: its compressed bytes (buffer {escaped(repr(ext.get('buffer')))}, byteOffset "
+                             f"{escaped(repr(start))}, byteLength {escaped(repr(length))}) are not within a buffer of "
+                             "the file; fix the file.")
+        try:
+            rows = meshopt.decode_gltf_buffer(data[start:start + length], ext["count"], ext["byteStride"],
+                                              ext["mode"], ext.get("filter", "NONE"))
+        except ValueError as e:   # meshoptimizer's decoders check every read against the data's end
+            raise InputError(f"{shown}: its {length} compressed bytes cannot be decoded ({escaped(str(e))[:200]}); "
+                             "fix the file.") from None
+        view.update(buffer=added(np.ascontiguousarray(rows).tobytes()), byteOffset=0)
+
+
+def _draco(tree: dict, buffer, added, origin: str) -> None:
+    """Every primitive with KHR_draco_mesh_compression decoded by DracoPy and rewritten as a plain one, each
+    attribute the extension names (and the indices) a new accessor over a buffer of its own (`added`), of the component type and type its own accessor declares, which the extension says the decoded data
     has (the declared accessor stays for its type and count). The declared POSITION counts are held to the memory
     budget before anything is decoded; a decoded attribute of another count or width than declared is refused."""
-    draco = [(m, p) for m, mesh in enumerate(tree.get("meshes", [])) if isinstance(mesh, dict)
-             for p, prim in enumerate(mesh.get("primitives", []))
-             if isinstance(prim, dict) and _DRACO in (prim.get("extensions") or {})]
+    draco = _draco_primitives(tree)
     if not draco:
-        return tree, []
+        return
     import DracoPy
 
-    tree = copy.deepcopy(tree)
     declared = sum(_at(tree, "accessors", tree["meshes"][m]["primitives"][p]["attributes"]["POSITION"], origin)
                    ["count"] for m, p in draco)
     budget.check(declared * BYTES_PER_VERTEX, f"{origin}: its {len(draco)} Draco-compressed primitives of "
                  f"{declared} vertices (as their POSITION accessors declare), decoded,", "simplify the mesh")
-    blobs, first = [], len(tree.get("buffers", []))
 
     def plain(array: np.ndarray, declared: dict) -> int:
         """A new accessor of `declared`'s componentType, type and normalized over `array`, in a buffer of its own."""
-        blobs.append(np.ascontiguousarray(array).tobytes())
-        tree.setdefault("buffers", []).append({"byteLength": len(blobs[-1])})
-        tree.setdefault("bufferViews", []).append({"buffer": first + len(blobs) - 1, "byteLength": len(blobs[-1])})
+        data = np.ascontiguousarray(array).tobytes()
+        tree.setdefault("bufferViews", []).append({"buffer": added(data), "byteLength": len(data)})
         tree["accessors"].append({key: declared[key] for key in ("componentType", "type", "normalized", "count")
                                   if key in declared} | {"bufferView": len(tree["bufferViews"]) - 1})
         return len(tree["accessors"]) - 1
@@ -154,7 +218,6 @@ def _decoded(tree: dict, buffer, origin: str) -> tuple[dict, list]:
             raise InputError(f"{where}: decodes to {len(faces)} indices where its indices accessor declares "
                              f"{escaped(repr(declared.get('count')))}; fix the file.")
         prim["indices"] = plain(faces, {"componentType": 5125, "type": "SCALAR", "count": len(faces)})
-    return tree, blobs
 
 
 def check_accessors(gltf: Opened, origin: str) -> None:
@@ -188,21 +251,11 @@ def check_accessors(gltf: Opened, origin: str) -> None:
 
 def check_extensions(tree: dict, origin: str) -> None:
     """Refuse what the file requires and this reader does not do (glTF 2.0 §3.12: a loader that does not support an
-    extension in extensionsRequired refuses the file), and compressed geometry not decoded here wherever it is named
-    (listed in extensionsUsed or extensionsRequired, or on a primitive: its accessors have no bytes and would read
-    as zeros)."""
+    extension in extensionsRequired refuses the file)."""
     required = tree.get("extensionsRequired", [])
     if not isinstance(required, list) or not all(isinstance(e, str) for e in required):
         raise InputError(f"{origin}: extensionsRequired is {escaped(repr(required))[:200]}; glTF 2.0 gives a list of "
                          "names; fix the file.")
-    on_primitives = [e for mesh in tree.get("meshes", []) if isinstance(mesh, dict)
-                     for prim in mesh.get("primitives", []) if isinstance(prim, dict)
-                     for e in (prim.get("extensions") or {}) if isinstance(prim.get("extensions"), dict)]
-    packed = [e for e in _COMPRESSION if e in required or e in tree.get("extensionsUsed", []) or e in on_primitives]
-    if packed:
-        raise InputError(f"{origin}: its geometry is compressed ({escaped(', '.join(packed))}), which is not read "
-                         f"here (no Python package decodes it; {_DRACO} is read); export it uncompressed or with "
-                         "Draco (e.g. gltf-transform draco).")
     unread = [e for e in required if e not in REQUIRED_READ]
     if unread:
         raise InputError(f"{origin}: it requires the extension{'s' if len(unread) > 1 else ''} "
