@@ -119,10 +119,12 @@ def test_texture_coordinates_out_of_spec_are_refused(tmp_path, info, uv1, match)
         _quad(tmp_path / "t.gltf", info, uv1=uv1)
 
 
-def test_a_transform_leaving_an_atlas_tile_is_refused_by_name(tmp_path):
-    """In an atlas a transformed UV outside [0, 1] would read the neighbouring picture: refused, as plain UVs are."""
-    with pytest.raises(InputError, match=r"outside \[0, 1\]"):
-        _quad(tmp_path / "t.gltf", {"extensions": {"KHR_texture_transform": {"scale": [2, 2]}}}, pictures=2)
+def test_a_transform_leaving_an_atlas_tile_wraps(tmp_path):
+    """Scale 2 in an atlas: glTF UV (2x, 2 - 2y) reads, as REPEAT does, texel (floor(8 - 8y) mod 4, floor(8x) mod
+    4). Refused before this step (a wrapped UV read the neighbouring tile)."""
+    m = _quad(tmp_path / "t.gltf", {"extensions": {"KHR_texture_transform": {"scale": [2, 2]}}}, pictures=2)
+    for x, y in ((0.0625, 0.9375), (0.6875, 0.9375), (0.6875, 0.3125)):
+        _texel(m, x, y, row=int(8 - 8 * y) % 4, col=int(8 * x) % 4)
 
 
 # ------------------------------------------------------------------- 1. KHR_draco_mesh_compression decoded
@@ -215,3 +217,70 @@ def test_meshopt_views_are_checked(tmp_path, spoil, match):
 
     with pytest.raises(InputError, match=match):
         load_mesh_file(G.meshopt_grid(tmp_path / "m.gltf", spoil=spoil))
+
+
+# --------------------------------------------------------------------- 2. every wrap mode as the file says
+
+CLAMP, MIRROR, REPEAT = 33071, 33648, 10497
+
+
+@pytest.mark.parametrize("pictures", [1, 2])
+@pytest.mark.parametrize("wrap_s, wrap_t", [(CLAMP, MIRROR), (MIRROR, CLAMP), (MIRROR, REPEAT), (CLAMP, CLAMP)])
+def test_every_wrap_mode_reads_as_the_file_says(tmp_path, pictures, wrap_s, wrap_t):
+    """UVs over [-0.5, 1.5] (the quad's glTF UV (2x - 0.5, 1.5 - 2y)), the picture alone or beside another (then in
+    an atlas): at each point the texel the GL spec's wrap gives (§8.14.2: CLAMP_TO_EDGE the edge texel, MIRRORED_REPEAT
+    the mirror image, REPEAT the opposite side), bilinear between texel centres. Refused before issue 43 (the UVs
+    reach the edge of a CLAMP_TO_EDGE or MIRRORED_REPEAT picture, or leave [0, 1] in an atlas)."""
+    from tests.test_gltf_samples import albedo_at
+    from vdmbake.common.colour import srgb8_to_linear
+
+    m = _quad(tmp_path / "w.gltf", sampler={"wrapS": wrap_s, "wrapT": wrap_t}, pictures=pictures, uv=UV * 2 - 0.5)
+    lin = srgb8_to_linear(PICTURE)
+
+    def texel(i, mode):   # the file's texel index i along an axis of 4 texels, wrapped by hand
+        return {CLAMP: min(max(i, 0), 3), REPEAT: i % 4, MIRROR: i % 8 if i % 8 < 4 else 7 - i % 8}[mode]
+
+    for s in (-0.375, -0.125, 0.0, 0.625, 1.0, 1.125, 1.375):
+        for t in (-0.375, 0.125, 1.0, 1.375):
+            x, y = (s + 0.5) / 2, (1.5 - t) / 2
+            fs, ft = s * 4 - 0.5, t * 4 - 0.5          # bilinear in the file's texel space (rows from the top)
+            i0, j0 = int(np.floor(fs)), int(np.floor(ft))
+            a, b = fs - i0, ft - j0
+            want = sum(w * lin[texel(j, wrap_t), texel(i, wrap_s)] for i, j, w in (
+                (i0, j0, (1 - a) * (1 - b)), (i0 + 1, j0, a * (1 - b)), (i0, j0 + 1, (1 - a) * b),
+                (i0 + 1, j0 + 1, a * b)))
+            got = albedo_at(m, [[x, y, 0]])[0]
+            assert np.allclose(got, want, rtol=0, atol=1e-6), (s, t, got, want)
+
+
+def test_a_span_too_wide_to_lay_out_is_refused_by_name(tmp_path):
+    """UVs over 10,000 pictures of a CLAMP_TO_EDGE sampler: laid out, 40,002 texels a side, over GL's least
+    GL_MAX_TEXTURE_SIZE: refused before a texel is copied, naming the primitive, its span and its modes."""
+    with pytest.raises(InputError, match=r"mesh 0 primitive 0 \(material 0\): its base-colour UVs span u 0 to 1e\+04"
+                                         r".* wrap modes 33071, 10497.* laid out as 40002 x 6 texels"):
+        _quad(tmp_path / "w.gltf", sampler={"wrapS": CLAMP}, uv=UV * [10 ** 4, 1])
+
+
+def test_render_of_wrap_modes_in_an_atlas_matches_the_reference(tmp_path, ctx):
+    """The mirrored and clamped picture beside a second one (an atlas), UVs over [-0.5, 1.5]: the `mesh` technique's
+    frame (llvmpipe, 64 x 64) against the reference of the same loaded mesh; its reading is checked point by point
+    above, so this checks that the renderer reads the laid-out atlas as the reference does."""
+    from types import SimpleNamespace
+
+    from tests.test_gltf_read import BG, drawn_and_traced
+    from vdmbake.bundle import parts
+    from vdmbake.scene import Light, Material
+    from vdmrender import images, reference
+    from vdmrender.camera import orbit
+
+    m = _quad(tmp_path / "w.gltf", sampler={"wrapS": MIRROR, "wrapT": CLAMP}, pictures=2, uv=UV * 2 - 0.5)
+    light, material = Light(), Material()
+    centre, radius = m.bounding_sphere()
+    cam = orbit(SimpleNamespace(count=1, elevation_deg=0, azimuth_deg=-90, distance=2.2, fov_deg=40),
+                [0, 1, 0], centre, radius, 64, 64)[0]
+    stored = parts.stored(parts.MESH, m)
+    stored.texture = m.texture
+    truth = images.encode(reference.MeshReference(m, light, material).render(cam), BG)
+    drawn, traced = drawn_and_traced(ctx, m, stored, cam, light, material, truth)
+    print(f"wrap modes in an atlas: frame against reference {drawn['mean']:.4f} mean dLuv, IoU {drawn['iou']:.4f}")
+    assert drawn["iou"] > 0.99 and drawn["mean"] < 0.3, drawn

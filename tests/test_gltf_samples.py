@@ -65,12 +65,16 @@ def test_uvs_between_texel_centres_blend_as_the_file_wraps(tmp_path):
         assert np.allclose(got, [middle, edge], rtol=0, atol=1e-6), (k, got)
 
 
-def test_uvs_leaving_the_picture_with_several_pictures_are_refused(tmp_path):
+def test_uvs_leaving_the_picture_with_several_pictures_wrap(tmp_path):
+    """Refused before issue 43 (a wrapped UV read the neighbouring tile): UVs over [0, 2] read each picture as
+    REPEAT does, texel (0, 0) at (0.25, 0.25), (1.25, 0.25) and (0.25, 1.25) (the quad's point (s / 2, 1 - t / 2))."""
     g = G.Gltf()
     for k, picture in enumerate(G.PICTURES[:2]):
         g.node(mesh=g.mesh(g.primitive(material=g.material(picture=picture), uv=G.UV * 2)), translation=[2 * k, 0, 0])
-    with pytest.raises(InputError, match=r"mesh 0 primitive 0 \(material 0\).*outside \[0, 1\]"):
-        load_mesh_file(g.write(tmp_path / "wrap.gltf"))
+    m = load_mesh_file(g.write(tmp_path / "wrap.gltf"))
+    for k, picture in enumerate(G.PICTURES[:2]):
+        got = albedo_at(m, [[2 * k + s / 2, 1 - t / 2, 0] for s, t in ((0.25, 0.25), (1.25, 0.25), (0.25, 1.25))])
+        assert np.allclose(got, srgb8_to_linear(picture[0, 0]), rtol=0, atol=1e-6), (k, got)
 
 
 def test_render_of_several_textures_shows_the_file_colours(tmp_path, ctx):

@@ -327,8 +327,7 @@ def test_an_atlas_is_built_within_the_side_gl_reads(tmp_path):
     import gltf_files as G
 
     wide = [np.full((1, 16384, 3), c, np.uint8) for c in (50, 200)]
-    with pytest.raises(InputError, match=r"its 3 base-colour pictures make an atlas of 16386 x \d+ texels \(each "
-                                         r"picture with a one-texel gutter\), over the \d+ texels and 16384 a side"):
+    with pytest.raises(InputError, match=r"laid out as 16386 x 3 texels, over the 16384 a side"):   # with its gutter
         load_mesh_file(G.texture_coordinate_test(tmp_path / "wide.gltf", wide))
 
 

@@ -5,9 +5,10 @@ its POSITION, NORMAL, TEXCOORD_n and COLOR_0 in any legal encoding, sparse acces
 the default weights (§3.7.2.2), strips and fans (§3.7.2.1), EXT_mesh_gpu_instancing's copies, and its material:
 baseColorFactor x COLOR_0 as one linear colour per vertex, applied once (§3.9.2), and the base-colour picture kept
 as the file's own sRGB texels, read at its texCoord through its KHR_texture_transform.
-Several pictures (or pictured and unpictured primitives) in one file go into an atlas built here, each picture in
-its own tile with a one-texel gutter that repeats what the file's wrap mode reads past its edge, so the renderer's
-and the reference's bilinear read (vdmbake.common.texture.sample) reads every texel as the file means it.
+Several pictures (or pictured and unpictured primitives, or a picture whose wrap mode is not REPEAT where its UVs
+reach the edge) in one file go into an atlas built here, each picture laid out over the UVs that read it as its
+sampler's wrap modes read it (at least with a one-texel gutter), so the renderer's and the reference's bilinear
+read (vdmbake.common.texture.sample) reads every texel as the file means it.
 
 The file is untrusted: an extension it requires and this reader does not apply is refused (§3.12), and its work is
 bounded before anything is allocated: elements no byte stores by the file's size, each node visited once, the copies
@@ -710,59 +711,88 @@ def _picture(tree, files, buffer, source: int, origin: str) -> np.ndarray:
 
 def _texture(tree, files, buffer, parts, origin):
     """(UVs, albedo map) of the parts: None, None where none has a base-colour texture; the file's picture and
-    UVs where every part reads one picture the same way; else an atlas of every (picture, wrapS, wrapT) and a white
-    tile for the unpictured parts, with UVs moved into the tiles."""
+    UVs where every part reads one picture the same way and the renderer's REPEAT read is its sampler's (REPEAT, or
+    UVs that stay half a texel inside the picture); else an atlas of every (picture, wrapS, wrapT) laid out over
+    the UVs that read it (_laid_out), a white tile for the unpictured parts, with UVs moved into the tiles."""
     keys = list(dict.fromkeys(q["picture"] for q in parts if q["picture"] is not None))
     if not keys:
         return None, None
     pictures = {k: _picture(tree, files, buffer, k[0], origin) for k in keys}
     if len(keys) == 1 and all(q["picture"] is not None for q in parts):
         picture, uvs = pictures[keys[0]], np.concatenate([q["uv"] for q in parts])
-        for axis, key in enumerate(("wrapS", "wrapT")):   # the map is read wrapping around, as REPEAT
-            mode, size = keys[0][1 + axis], picture.shape[1 - axis]
-            near = (0.5 / size <= uvs[:, axis]) & (uvs[:, axis] <= 1 - 0.5 / size)
-            if mode != _REPEAT and not near.all():
-                raise InputError(f"{parts[0]['shown']}: its base-colour texture has {key} = {mode} and UVs that reach "
-                                 f"its edge, where only REPEAT ({_REPEAT}) is read as the file means; set {key} to "
-                                 f"{_REPEAT} (or leave it out), or set textures = \"ignore\" on the object.")
-        return uvs, picture
-    tiles = [(k, pictures[k]) for k in keys]
-    if any(q["picture"] is None for q in parts):
-        tiles.append((None, np.full((1, 1, 3), 255, np.uint8)))   # glTF's default base colour: white (§3.9.2)
-    atlas, place = _atlas(tiles, origin)
+        inside = [(0.5 / size <= uvs[:, axis]).all() and (uvs[:, axis] <= 1 - 0.5 / size).all()
+                  for axis, size in enumerate((picture.shape[1], picture.shape[0]))]
+        if all(mode == _REPEAT or near for mode, near in zip(keys[0][1:], inside)):
+            return uvs, picture
+    spans = {}   # per key, the UVs its parts read, and at least the whole picture (so a file of UVs in [0, 1]
+    for q in parts:   # lays out as it always did: each picture with a one-texel gutter)
+        if q["picture"] is not None:
+            if not np.isfinite(q["uv"]).all():
+                raise InputError(f"{q['shown']}: its base-colour UVs are not finite (after its KHR_texture_transform);"
+                                 " fix the file.")
+            lo, hi = spans.get(q["picture"], (np.zeros(2), np.ones(2)))
+            spans[q["picture"]] = (np.minimum(lo, q["uv"].min(0)), np.maximum(hi, q["uv"].max(0)))
+    tiles = [(k, *_laid_out(pictures[k], k, spans[k], next(q["shown"] for q in parts if q["picture"] == k)))
+             for k in keys]
+    if any(q["picture"] is None for q in parts):   # glTF's default base colour: white (§3.9.2)
+        tiles.append((None, np.full((3, 3, 3), 255, np.uint8), (-1, -1)))
+    atlas, place = _atlas([(k, m) for k, m, _ in tiles], origin)
     h, w = atlas.shape[:2]
+    start = {k: s for k, _, s in tiles}
     uvs = []
     for q in parts:
-        x, y, tw, th = place[q["picture"]]
+        x, y = place[q["picture"]]
         if q["picture"] is None:
-            uvs.append(np.tile([(x + 0.5 * tw) / w, (y + 0.5 * th) / h], (len(q["pos"]), 1)))
+            uvs.append(np.tile([(x + 1.5) / w, (y + 1.5) / h], (len(q["pos"]), 1)))
             continue
-        uv = q["uv"]
-        if not ((uv >= 0) & (uv <= 1)).all():   # NaN fails too
-            raise InputError(f"{q['shown']}: TEXCOORD_0 outside [0, 1] (u {uv[:, 0].min():.3g} to "
-                             f"{uv[:, 0].max():.3g}, v {1 - uv[:, 1].max():.3g} to {1 - uv[:, 1].min():.3g}), and the "
-                             "file has several base-colour pictures, read here from one atlas where a wrapped UV would "
-                             "read a neighbouring picture; keep each primitive's UVs within [0, 1], give the file one "
-                             'picture, or set textures = "ignore" on the object.')
-        uvs.append(np.column_stack([(x + uv[:, 0] * tw) / w, (y + uv[:, 1] * th) / h]))
+        picture, (c0, r0) = pictures[q["picture"]], start[q["picture"]]
+        uvs.append(np.column_stack([(x + q["uv"][:, 0] * picture.shape[1] - c0) / w,
+                                    (y + q["uv"][:, 1] * picture.shape[0] - r0) / h]))
     return np.concatenate(uvs), atlas
 
 
+def _wrapped(index: np.ndarray, size: int, mode: int) -> np.ndarray:
+    """Texel indices as a sampler of `mode` reads them past the edge (the GL 4.6 spec, §8.14.2, to which glTF 2.0
+    §5.26 defers): REPEAT modulo the size, CLAMP_TO_EDGE clamped, MIRRORED_REPEAT (size - 1) - mirror((i mod
+    2 size) - size), mirror(a) = a for a >= 0, else -(1 + a)."""
+    if mode == _REPEAT:
+        return index % size
+    if mode == 33071:
+        return np.clip(index, 0, size - 1)
+    a = index % (2 * size) - size
+    return size - 1 - np.where(a >= 0, a, -(1 + a))
+
+
+def _laid_out(picture: np.ndarray, key, span, shown: str):
+    """(tile, (first column, first row)): the texels a bilinear read of `picture` with the key's wrapS and wrapT
+    touches at UVs within `span` ((lo, hi), each (u, v)), laid out in order, each index wrapped as the sampler wraps
+    it (_wrapped). Read without wrapping at tile x + u W - first column, the tile gives every such UV the file's
+    sampler's texels and weights, whatever the mode, so pictures of different modes share an atlas, and UVs outside
+    [0, 1] (tiled floors, transformed UVs) read as the file means. Sizes are checked before a texel is copied."""
+    (lo, hi), (height, width) = span, picture.shape[:2]
+    first = np.floor(lo * (width, height) - 0.5).astype(np.int64)     # the lowest texel a read touches, per axis
+    end = np.floor(hi * (width, height) - 0.5).astype(np.int64) + 2   # past the highest (its right neighbour)
+    n = end - first
+    if n.max() > MAX_TEXTURE_SIDE or n[0] * n[1] > texture.MAX_PIXELS:
+        raise InputError(f"{shown}: its base-colour UVs span u {lo[0]:.4g} to {hi[0]:.4g}, v {1 - hi[1]:.4g} to "
+                         f"{1 - lo[1]:.4g} over a picture of {width} x {height} with wrap modes {key[1]}, {key[2]}; "
+                         "read from an atlas (the file has several pictures, or a mode other than REPEAT), that span "
+                         f"is laid out as {n[0]} x {n[1]} texels, over the {MAX_TEXTURE_SIDE} a side and "
+                         f"{texture.MAX_PIXELS} texels accepted; keep the UVs nearer [0, 1], or set textures = "
+                         '"ignore" on the object.')
+    cols = _wrapped(np.arange(first[0], end[0]), width, key[1])
+    rows = _wrapped(np.arange(first[1], end[1]), height, key[2])
+    return picture[rows][:, cols], (int(first[0]), int(first[1]))
+
+
 def _atlas(tiles, origin):
-    """One albedo map holding every tile (key, map) on shelves, each framed by a one-texel gutter that repeats what
-    its sampler reads past the edge (REPEAT: the opposite edge; CLAMP_TO_EDGE and MIRRORED_REPEAT: the edge itself),
-    so that bilinear reads at UVs in [0, 1] see the texels the file's sampler sees. Returns the map and, per key,
-    the tile's (x, y, width, height) in texels without its gutter."""
-    framed = []
-    for key, m in tiles:
-        wrap_s, wrap_t = (_REPEAT, _REPEAT) if key is None else key[1:]
-        m = np.pad(m, ((1, 1), (0, 0), (0, 0)), mode="wrap" if wrap_t == _REPEAT else "edge")
-        framed.append((key, np.pad(m, ((0, 0), (1, 1), (0, 0)), mode="wrap" if wrap_s == _REPEAT else "edge")))
-    widest = max(m.shape[1] for _, m in framed)
-    width = min(max(widest, int(np.ceil(np.sqrt(sum(m.shape[0] * m.shape[1] for _, m in framed))))), MAX_TEXTURE_SIDE)
+    """One albedo map holding every tile (key, map) on shelves, tallest first. Returns the map and, per key, the
+    tile's (x, y) in texels."""
+    widest = max(m.shape[1] for _, m in tiles)
+    width = min(max(widest, int(np.ceil(np.sqrt(sum(m.shape[0] * m.shape[1] for _, m in tiles))))), MAX_TEXTURE_SIDE)
     x = y = shelf = 0
     spots = []
-    for key, m in sorted(framed, key=lambda t: -t[1].shape[0]):
+    for key, m in sorted(tiles, key=lambda t: -t[1].shape[0]):
         if x + m.shape[1] > width:
             x, y, shelf = 0, y + shelf, 0
         spots.append((key, m, x, y))
@@ -770,14 +800,14 @@ def _atlas(tiles, origin):
     height = y + shelf
     if width * height > texture.MAX_PIXELS or max(widest, height) > MAX_TEXTURE_SIDE:
         raise InputError(f"{origin}: its {len(tiles)} base-colour pictures make an atlas of {max(widest, width)} x "
-                         f"{height} texels (each picture with a one-texel gutter), over the {texture.MAX_PIXELS} "
-                         f"texels and {MAX_TEXTURE_SIDE} a side accepted; scale them down, or set textures = "
-                         '"ignore".')
+                         f"{height} texels (each picture laid out over the UVs that read it, at least with a one-texel "
+                         f"gutter), over the {texture.MAX_PIXELS} texels and {MAX_TEXTURE_SIDE} a side accepted; "
+                         'scale them down, or set textures = "ignore".')
     atlas = np.zeros((height, width, 3), np.uint8)
     place = {}
     for key, m, x, y in spots:
         atlas[y:y + m.shape[0], x:x + m.shape[1]] = m
-        place[key] = (x + 1, y + 1, m.shape[1] - 2, m.shape[0] - 2)
+        place[key] = (x, y)
     return atlas, place
 
 
