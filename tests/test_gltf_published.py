@@ -284,3 +284,32 @@ def test_render_of_wrap_modes_in_an_atlas_matches_the_reference(tmp_path, ctx):
     drawn, traced = drawn_and_traced(ctx, m, stored, cam, light, material, truth)
     print(f"wrap modes in an atlas: frame against reference {drawn['mean']:.4f} mean dLuv, IoU {drawn['iou']:.4f}")
     assert drawn["iou"] > 0.99 and drawn["mean"] < 0.3, drawn
+
+
+# ------------------------------------------------------ 5. mip levels of an atlas keep the unpictured parts' colour
+
+def _box_level(lin: np.ndarray, level: int) -> np.ndarray:
+    """Mip level `level` of linear texels by 2 x 2 boxes (glGenerateMipmap's filter on even sides)."""
+    for _ in range(level):
+        h, w = lin.shape[0] // 2 * 2, lin.shape[1] // 2 * 2
+        lin = lin[:h, :w].reshape(h // 2, 2, w // 2, 2, 3).mean((1, 3))
+    return lin
+
+
+def test_unpictured_parts_stay_white_through_the_mip_levels(tmp_path):
+    """Dark pictures beside a factor-only quad share an atlas: the quad's UV reads white at mip levels 0 to 5, where
+    before issue 43 its one-texel tile averaged in its dark neighbours (sRGB 213 -> 100 at level 2, 10 at level 4)."""
+    from tests import gltf_files as G
+
+    m = load_mesh_file(G.texture_coordinate_test(tmp_path / "a.gltf", [np.full((8, 8, 3), 20, np.uint8)] * 3))
+    uv = m.uvs[np.flatnonzero(m.vertices[:, 0] >= 6 - 1e-9)]
+    assert (uv == uv[0]).all()
+    for level in range(6):
+        lin = _box_level(texture.linear(m.texture), level)
+        h, w = lin.shape[:2]
+        x, y = uv[0, 0] * w - 0.5, uv[0, 1] * h - 0.5
+        i, j = int(np.floor(x)), int(np.floor(y))
+        a, b = x - i, y - j   # the bilinear read at this level (the UV is inside the map: no wrap)
+        got = ((1 - b) * ((1 - a) * lin[j, i] + a * lin[j, (i + 1) % w])
+               + b * ((1 - a) * lin[(j + 1) % h, i] + a * lin[(j + 1) % h, (i + 1) % w]))
+        assert np.allclose(got, 1.0), (level, got)

@@ -37,6 +37,9 @@ _DTYPES = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: 
 _WRAPS = (33071, 33648, _REPEAT)                                   # CLAMP_TO_EDGE, MIRRORED_REPEAT, REPEAT (§5.26)
 _MODES = {0: "points", 1: "lines", 2: "line loop", 3: "line strip", 4: "triangles", 5: "triangle strip",
           6: "triangle fan"}                                       # §3.7.2.1
+WHITE_TILE = 32           # the side of the white tile an atlas gives unpictured primitives: at (0, 0), the atlas's
+                          # sides multiples of it, so its box-filtered mip levels stay white to level 5 (a mipmapping
+                          # engine reading the exported map, or a level forced, does not average in its neighbours)
 MAX_ELEMENTS = 1 << 26     # the most elements of an accessor one file may make (our bound)
 MAX_COPIES = 1_000_000     # the most meshes one file may place (nodes and their EXT_mesh_gpu_instancing copies), as
                            # many as a scene's instances.scatter makes
@@ -735,7 +738,7 @@ def _texture(tree, files, buffer, parts, origin):
     tiles = [(k, *_laid_out(pictures[k], k, spans[k], next(q["shown"] for q in parts if q["picture"] == k)))
              for k in keys]
     if any(q["picture"] is None for q in parts):   # glTF's default base colour: white (§3.9.2)
-        tiles.append((None, np.full((3, 3, 3), 255, np.uint8), (-1, -1)))
+        tiles.append((None, np.full((WHITE_TILE, WHITE_TILE, 3), 255, np.uint8), None))
     atlas, place = _atlas([(k, m) for k, m, _ in tiles], origin)
     h, w = atlas.shape[:2]
     start = {k: s for k, _, s in tiles}
@@ -743,7 +746,7 @@ def _texture(tree, files, buffer, parts, origin):
     for q in parts:
         x, y = place[q["picture"]]
         if q["picture"] is None:
-            uvs.append(np.tile([(x + 1.5) / w, (y + 1.5) / h], (len(q["pos"]), 1)))
+            uvs.append(np.tile([(x + WHITE_TILE / 2) / w, (y + WHITE_TILE / 2) / h], (len(q["pos"]), 1)))
             continue
         picture, (c0, r0) = pictures[q["picture"]], start[q["picture"]]
         uvs.append(np.column_stack([(x + q["uv"][:, 0] * picture.shape[1] - c0) / w,
@@ -786,18 +789,21 @@ def _laid_out(picture: np.ndarray, key, span, shown: str):
 
 
 def _atlas(tiles, origin):
-    """One albedo map holding every tile (key, map) on shelves, tallest first. Returns the map and, per key, the
-    tile's (x, y) in texels."""
+    """One albedo map holding every tile (key, map) on shelves, tallest first; the white tile (key None), where
+    there is one, at (0, 0) and the sides multiples of WHITE_TILE. Returns the map and, per key, the tile's (x, y)
+    in texels."""
+    align = WHITE_TILE if any(key is None for key, _ in tiles) else 1
     widest = max(m.shape[1] for _, m in tiles)
     width = min(max(widest, int(np.ceil(np.sqrt(sum(m.shape[0] * m.shape[1] for _, m in tiles))))), MAX_TEXTURE_SIDE)
+    width = -(-width // align) * align
     x = y = shelf = 0
     spots = []
-    for key, m in sorted(tiles, key=lambda t: -t[1].shape[0]):
+    for key, m in sorted(tiles, key=lambda t: (t[0] is not None, -t[1].shape[0])):
         if x + m.shape[1] > width:
             x, y, shelf = 0, y + shelf, 0
         spots.append((key, m, x, y))
         x, shelf = x + m.shape[1], max(shelf, m.shape[0])
-    height = y + shelf
+    height = -(-(y + shelf) // align) * align
     if width * height > texture.MAX_PIXELS or max(widest, height) > MAX_TEXTURE_SIDE:
         raise InputError(f"{origin}: its {len(tiles)} base-colour pictures make an atlas of {max(widest, width)} x "
                          f"{height} texels (each picture laid out over the UVs that read it, at least with a one-texel "
