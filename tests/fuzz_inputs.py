@@ -675,8 +675,9 @@ def _gltf_albedo(path: Path):
     """The picture a glTF's primitive names as its base colour, decoded from the bytes its image's URI gives (a file
     beside it, the URI percent-decoded as RFC 3986 says; or a data: URI), read without the bake's reader or trimesh
     (which reads neither percent-encoded URIs nor every node tree as glTF 2.0 does): None where the primitive names
-    no texture or has no UVs to read one at, False where this oracle cannot tell (an image in a bufferView, anything
-    unreadable)."""
+    no texture or has no UVs to read one at, False where this oracle cannot tell (an image in a bufferView, a sampler
+    wrapping other than REPEAT, whose picture the reader lays out over its UVs: tests/test_gltf_published.py checks
+    those point by point; anything unreadable)."""
     import urllib.parse
 
     try:
@@ -687,10 +688,12 @@ def _gltf_albedo(path: Path):
         info = tree["materials"][prim["material"]].get("pbrMetallicRoughness", {}).get("baseColorTexture")
         if info is None:
             return None
-        image = tree["images"][tree["textures"][info["index"]]["source"]]
+        texture = tree["textures"][info["index"]]
+        image = tree["images"][texture["source"]]
         if "TEXCOORD_0" not in prim["attributes"]:
             return None
-        if "bufferView" in image:
+        sampler = tree["samplers"][texture["sampler"]] if "sampler" in texture else {}
+        if "bufferView" in image or {sampler.get("wrapS", 10497), sampler.get("wrapT", 10497)} != {10497}:
             return False
         uri = image["uri"]
         data = base64.b64decode(uri.partition(",")[2]) if uri.startswith("data:") else \
