@@ -227,7 +227,8 @@ def compressed_case(draw) -> dict:
     codec = draw(st.sampled_from(["draco", "meshopt"]))
     stream = st.tuples(st.integers(0, 10 ** 6), st.integers(0, 255))
     keys = ["count", "componentType", "type", "id"] if codec == "draco" else ["count", "byteStride", "mode", "filter"]
-    return {"codec": codec, "glb": codec == "draco" and draw(st.booleans()), "bytes": draw(st.lists(stream, max_size=3)),
+    return {"codec": codec, "glb": codec == "draco" and draw(st.booleans()),
+            "bytes": draw(st.lists(stream, max_size=3)),
             "cut": draw(st.none() | st.integers(0, 10 ** 6)),
             "declare": draw(st.none() | st.tuples(st.sampled_from(keys), st.integers(0, 5), st.sampled_from(
                 [0, 1, 2, 4, 15, 17, 54, 5121, 5126, "VEC2", "VEC4", "ATTRIBUTES", "TRIANGLES", "OCTAHEDRAL",

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tests.test_asset_references import gltf_asset
-from tests.test_gltf_read import QUAD, UV, Gltf
+from tests.test_gltf_read import UV, Gltf
 from vdmbake.assets.meshes import load_mesh_file
 from vdmbake.common import texture
 from vdmbake.errors import InputError

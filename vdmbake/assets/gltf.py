@@ -137,8 +137,9 @@ def _meshopt(tree: dict, buffer, added, origin: str) -> None:
             raise InputError(f"{shown}: count {escaped(repr(count))}, byteStride {escaped(repr(stride))}, mode "
                              f"{escaped(repr(mode))}, filter {escaped(repr(filter_))} for a view of "
                              f"{escaped(repr(view.get('byteLength')))} bytes; the extension gives a positive count, "
-                             "ATTRIBUTES of 4 to 256 bytes in fours (filtered or not), TRIANGLES (a count in threes) or "
-                             "INDICES of 2 or 4 bytes unfiltered, and a byteLength of count x byteStride; fix the file.")
+                             "ATTRIBUTES of 4 to 256 bytes in fours (filtered or not), TRIANGLES (a count in threes) "
+                             "or INDICES of 2 or 4 bytes unfiltered, and a byteLength of count x byteStride; fix the "
+                             "file.")
         sizes.append(count * stride)
     budget.check(2 * sum(sizes), f"{origin}: its {len(views)} meshopt-compressed bufferViews, decoded ({sum(sizes)} "
                  "bytes) beside the file,", "simplify the mesh")
@@ -162,8 +163,9 @@ def _meshopt(tree: dict, buffer, added, origin: str) -> None:
 
 def _draco(tree: dict, buffer, added, origin: str) -> None:
     """Every primitive with KHR_draco_mesh_compression decoded by DracoPy and rewritten as a plain one, each
-    attribute the extension names (and the indices) a new accessor over a buffer of its own (`added`), of the component type and type its own accessor declares, which the extension says the decoded data
-    has (the declared accessor stays for its type and count). The declared POSITION counts are held to the memory
+    attribute the extension names (and the indices) a new accessor over a buffer of its own (`added`), of the
+    component type and type its own accessor declares, which the extension says the decoded data has (the declared
+    accessor stays for its type and count). The declared POSITION counts are held to the memory
     budget before anything is decoded; a decoded attribute of another count or width than declared is refused."""
     draco = _draco_primitives(tree)
     if not draco:
@@ -211,16 +213,16 @@ def _draco(tree: dict, buffer, added, origin: str) -> None:
                                  f"of componentType {escaped(repr(ct))}); fix the file.")
             decoded = np.asarray(got["data"]).reshape(len(got["data"]), -1)
             typed = decoded.astype(_DTYPES[ct])
-            if decoded.shape != (a.get("count"), width) or not np.array_equal(typed, decoded):
+            if decoded.shape != (a.get("count"), width) or not np.array_equal(typed, decoded, equal_nan=True):
                 raise InputError(f"{shown}: decodes to {decoded.shape[0]} x {decoded.shape[1]} values of "
                                  f"{decoded.dtype}, where accessor {index} declares {escaped(repr(a.get('count')))} "
                                  f"x {width} of componentType {ct}; fix the file.")
             prim["attributes"][name] = plain(typed, a)
         faces = np.asarray(mesh.faces, np.uint32).ravel()
-        declared = _at(tree, "accessors", prim["indices"], f"{where} indices") if "indices" in prim else {}
-        if declared and declared.get("count") != len(faces):
+        given = _at(tree, "accessors", prim["indices"], f"{where} indices") if "indices" in prim else {}
+        if given and given.get("count") != len(faces):
             raise InputError(f"{where}: decodes to {len(faces)} indices where its indices accessor declares "
-                             f"{escaped(repr(declared.get('count')))}; fix the file.")
+                             f"{escaped(repr(given.get('count')))}; fix the file.")
         prim["indices"] = plain(faces, {"componentType": 5125, "type": "SCALAR", "count": len(faces)})
 
 
