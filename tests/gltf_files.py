@@ -228,11 +228,13 @@ def draco_grid(path, draco=True, glb=False, spoil=None):
     return g.write(path, "glb" if glb else "data")
 
 
-def meshopt_grid(path, spoil=None):
+def meshopt_grid(path, spoil=None, octahedral=False):
     """draco_grid's grid, plain, then each bufferView compressed with EXT_meshopt_compression by the `meshopt`
     package's encoder (ATTRIBUTES for the attributes, COLOR_0 as VEC4 bytes so its rows are 4 bytes; TRIANGLES for
-    the indices), the compressed bytes in buffer 0 and a fallback buffer 1 without data, as gltfpack writes it.
-    `spoil(tree, view_extensions)` edits the JSON; the file's buffer 0 is a data: URI."""
+    the indices), the compressed bytes in buffer 0 and a fallback buffer 1 without data, as gltfpack writes it;
+    `octahedral`: NORMAL as gltfpack's default, normalized bytes in rows of 4 through the OCTAHEDRAL filter (8
+    bits, KHR_mesh_quantization). `spoil(tree, view_extensions)` edits the JSON; the file's buffer 0 is a data:
+    URI."""
     import base64
     import json
 
@@ -247,22 +249,34 @@ def meshopt_grid(path, spoil=None):
     blob += rgba.tobytes()
     view.update(byteOffset=len(blob) - rgba.nbytes, byteLength=rgba.nbytes)
     colour["type"] = "VEC4"
+    filters = {}
+    if octahedral:
+        normal = tree["accessors"][tree["meshes"][0]["primitives"][0]["attributes"]["NORMAL"]]
+        view = tree["bufferViews"][normal["bufferView"]]
+        n = np.frombuffer(blob, "<f4", 3 * normal["count"], view["byteOffset"]).reshape(-1, 3)
+        rows = meshopt.encode_filter_oct(np.column_stack([n, np.ones(len(n))]), 4, 8)
+        blob += rows.tobytes()
+        view.update(byteOffset=len(blob) - rows.nbytes, byteLength=rows.nbytes, byteStride=4)
+        normal.update(componentType=5120, normalized=True)
+        filters[normal["bufferView"]] = "OCTAHEDRAL"
     packed, exts = b"", []
     for v, view in enumerate(tree["bufferViews"]):
         a = next(a for a in tree["accessors"] if a["bufferView"] == v)
-        stride = {5126: 4, 5121: 1, 5123: 2}[a["componentType"]] * int(a["type"][-1] if a["type"] != "SCALAR" else 1)
+        stride = view["byteStride"] if "byteStride" in view else {5126: 4, 5121: 1, 5123: 2}[a["componentType"]] * (
+            int(a["type"][-1]) if a["type"] != "SCALAR" else 1)
         rows = np.frombuffer(blob, np.uint8, view["byteLength"], view["byteOffset"]).reshape(a["count"], stride)
         indices = a["type"] == "SCALAR"
         data = meshopt.encode_gltf_buffer(rows.view(np.uint16).ravel() if indices else rows,
                                           "TRIANGLES" if indices else "ATTRIBUTES")
         packed += b"\0" * (-len(packed) % 4)
         exts.append({"buffer": 0, "byteOffset": len(packed), "byteLength": len(data), "byteStride": stride,
-                     "count": a["count"], "mode": "TRIANGLES" if indices else "ATTRIBUTES"})
+                     "count": a["count"], "mode": "TRIANGLES" if indices else "ATTRIBUTES",
+                     **({"filter": filters[v]} if v in filters else {})})
         packed += data
         view.update(buffer=1, extensions={"EXT_meshopt_compression": exts[-1]})
     tree["buffers"] = [{"byteLength": len(packed)},
                        {"byteLength": len(blob), "extensions": {"EXT_meshopt_compression": {"fallback": True}}}]
-    tree["extensionsUsed"] = tree["extensionsRequired"] = ["EXT_meshopt_compression"]
+    tree["extensionsUsed"] = tree["extensionsRequired"] = ["EXT_meshopt_compression", "KHR_mesh_quantization"]
     if spoil is not None:
         spoil(tree, exts)
     tree["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(packed).decode()
