@@ -20,7 +20,8 @@ from fuzz_inputs import (CACHE_SCENE, SETTINGS, TEXTURES_SETTING, DamagedPart, Q
                          check_composite_bake, check_manifest, check_part, check_scene_data, check_scene_text,
                          check_stats, check_textured_bake, composite_sets, examples, gltf_case, mutated, obj_case,
                          part_case, stats_lines, ADDRESS, check_address_text)
-from fuzz_untrusted import check_node_tree, check_reference, node_tree_case, reference_case
+from fuzz_untrusted import (check_compressed, check_node_tree, check_reference, compressed_case, node_tree_case,
+                            reference_case)
 from test_bad_input import bake, write_scene
 from scenes import TINY_HEAD
 
@@ -353,3 +354,10 @@ def test_fuzz_file_references_are_accepted_plainly_spelt(tmp_path, slot, name):
 @examples(150)
 def test_fuzz_gltf_node_trees(tmp_path_factory, case):
     check_node_tree(tmp_path_factory.mktemp("nodes"), case)
+
+
+@given(case=compressed_case())
+@examples(150)
+def test_fuzz_compressed_gltf(tmp_path_factory, case):
+    """Draco and meshopt streams damaged at random (tests/fuzz_untrusted.py): each loads or is refused in one line."""
+    check_compressed(tmp_path_factory.mktemp("packed"), case)
