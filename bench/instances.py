@@ -33,7 +33,7 @@ from vdmbake.scene import Instances, Scatter
 
 from vdmrender import gl, images, lod, lodmix, refcache, sweep
 from vdmrender.camera import Camera, cameras_for, clip_planes
-from vdmrender.render import BYTES_PER_FACE, BYTES_PER_PIXEL
+from vdmrender.render import BYTES_PER_FACE, reference_bytes_per_pixel
 from vdmrender.techniques import variants
 
 from .interleave import costs, measure
@@ -113,7 +113,7 @@ def run(out: Path, quick: bool, log) -> dict:
                 cams = cameras(np.asarray(entry["centre"]), entry["radius"], n, w, h)
                 chosen = [v for v in variants(copies, entry, bundle, bundle.scene) if v.label not in too_slow]
                 ref8, traced = None, None
-                if budget.fits(faces * n * BYTES_PER_FACE + w * h * BYTES_PER_PIXEL):   # the render's own rule
+                if budget.fits(faces * n * BYTES_PER_FACE + w * h * reference_bytes_per_pixel()):   # the render's own rule
                     t0 = time.perf_counter()
                     ref, _ = refcache.object_reference(copies, entry, bundle, bundle.scene)
                     ref8 = [images.encode(ref.render(c), bundle.scene.render.background) for c in cams]

@@ -13,7 +13,7 @@ from vdmbake.bundle.directory import FORMAT_VERSION
 from vdmbake.cli import main as vdmbake_main
 from vdmbake.errors import InputError
 from vdmrender.cli import main as vdmrender_main
-from vdmrender.render import BYTES_PER_PIXEL, check_memory
+from vdmrender.render import check_memory, reference_bytes_per_pixel
 
 from scenes import CAMERA, RENDER
 
@@ -290,14 +290,14 @@ def test_render_resolution_usage_error(bundle, tmp_path):
 
 def test_check_memory_refuses_above_what_is_available():
     w, h = 640, 480
-    need = w * h * BYTES_PER_PIXEL
+    need = w * h * reference_bytes_per_pixel()
     with pytest.raises(InputError, match=r"640x480.*memory available now"):
         check_memory(w, h, free=need - 1)
 
 
 def test_check_memory_passes_within_the_budget():
     w, h = 640, 480
-    need = w * h * BYTES_PER_PIXEL
+    need = w * h * reference_bytes_per_pixel()
     assert check_memory(w, h, free=need) is None
     assert check_memory(w, h, free=100 * need) is None
 
@@ -307,6 +307,6 @@ def test_check_memory_holds_to_the_budget_however_much_is_free(monkeypatch):
     from vdmbake.bundle import budget
 
     w, h = 640, 480
-    monkeypatch.setattr(budget, "BUDGET", w * h * BYTES_PER_PIXEL - 1)
+    monkeypatch.setattr(budget, "BUDGET", w * h * reference_bytes_per_pixel() - 1)
     with pytest.raises(InputError, match=r"640x480.*vdmbake.bundle.budget.BUDGET"):
         check_memory(w, h, free=1 << 50)

@@ -536,13 +536,13 @@ def test_concurrent_bakes_to_one_output(tmp_path):
 def test_memory_guard_counts_geometry(baked):
     """The guard counts the largest object's faces and quadrics beside the pixels (the issue: a 1e6-atom render
     at a tiny resolution ran out of memory while only the resolution was checked)."""
-    from vdmrender.render import BYTES_PER_FACE, BYTES_PER_PIXEL, check_memory, geometry_bytes
+    from vdmrender.render import BYTES_PER_FACE, check_memory, geometry_bytes, reference_bytes_per_pixel
 
     b = Bundle(baked)
     need, what = geometry_bytes(b)
     faces = b.manifest["parts"][MESH]["faces"] + b.manifest["parts"]["objects/ball/coarse-0.5.ply"]["faces"]
     assert need == faces * BYTES_PER_FACE and "'ball'" in what
-    pixels = 48 * 48 * BYTES_PER_PIXEL
+    pixels = 48 * 48 * reference_bytes_per_pixel()
     with pytest.raises(InputError, match="geometry of object 'ball'"):
         check_memory(48, 48, free=pixels + need - 1, geometry=(need, what))
     assert check_memory(48, 48, free=pixels + need, geometry=(need, what)) is None

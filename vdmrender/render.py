@@ -17,7 +17,8 @@ from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import baseline, change, composite, gl, html, images, lod, lodmix, measure, pricing, refcache, report, scoring, sweep, timing
+from . import (baseline, change, composite, gl, html, images, lod, lodmix, measure, pricing, refcache, reference,
+               report, scoring, sweep, timing)
 from . import device as gpu
 from .camera import cameras_for, framed
 from .metrics import summarise
@@ -26,6 +27,8 @@ from .techniques import variants
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
 # (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
 BYTES_PER_PIXEL = 800
+# tracemalloc: 180 more bytes per pixel per further reference thread (docs/reference.md), with 2x headroom
+BYTES_PER_THREAD_PIXEL = 400
 # Peak memory of an object's geometry (the reference's Embree scene and the uploaded buffers; llvmpipe
 # keeps them in RAM), with about 4x headroom: peak RSS over 80k -> 200k inline spheres (impostor, 48^2)
 # grew 2.15 kB per sphere, over 200k -> 800k mesh faces (mesh, 48^2) 150 bytes per face.
@@ -79,10 +82,15 @@ def filtering(opts: Options, scene) -> Options:
                                antialias=opts.antialias or scene.render.antialias)
 
 
+def reference_bytes_per_pixel() -> int:
+    """Peak working memory of the reference per pixel, on the threads it traces on (reference.workers)."""
+    return BYTES_PER_PIXEL + BYTES_PER_THREAD_PIXEL * (reference.workers() - 1)
+
+
 def check_memory(width: int, height: int, free: int | None = None, geometry: tuple[int, str] = (0, "")) -> None:
     """Refuse resolutions and geometry (bytes, what) whose reference and buffers would not fit the memory budget
     (vdmbake.bundle.budget: one rule for every job), before any work starts."""
-    need = width * height * BYTES_PER_PIXEL
+    need = width * height * reference_bytes_per_pixel()
     memory.check(need + geometry[0], f"resolution {width}x{height} ({need / 2**30:.1f} GiB for the reference)"
                  + (f" and the geometry of {geometry[1]} (about {geometry[0] / 2**30:.1f} GiB)" if geometry[0] else ""),
                  "lower render.resolution or --resolution, or bake fewer or simpler objects", free)
@@ -240,7 +248,8 @@ def filtering_note(opts: Options) -> dict:
     """How the frames and the reference were filtered (report.json's `filtering`)."""
     n = math.isqrt(opts.reference_spp)
     return {"reference_spp": opts.reference_spp, "reference_filter": "box" if n > 1 else "none (pixel centre)",
-            "reference_samples": f"{n} x {n} stratified, jittered within each stratum (seeded)" if n > 1 else "1",
+            "reference_samples": f"{n} x {n} correlated multi-jittered (Kensler 2013), a pattern per pixel (seeded by "
+                                 "its index)" if n > 1 else "1",
             "antialias": opts.antialias,
             "aliased": "aliased_*: the variant's frames without anti-aliasing against the pixel-centre reference "
                        "(one sample per pixel on both sides), beside the error against what a viewer sees"}
