@@ -433,3 +433,51 @@ def test_of_levels_that_cost_the_same_the_coarser_within_the_limits_is_taken():
     assert lod.cheapest([full, coarse])["label"] == "coarse@0.1"
     assert lod.cheapest([full, {**coarse, "median_ms": 4.0}])["label"] == "mesh"
     assert lod.cheapest([full, {**coarse, "technique": "billboards", "label": "boards"}])["label"] == "mesh"
+
+
+MOLECULE = """
+[[objects]]
+name = "atoms"
+spheres = [[0.0, 0.0, 0.0, 0.55], [0.6, 0.2, 0.1, 0.4]]
+techniques = { impostor = { shading = ["direct"] }, tessellated = { levels = [1] } }
+"""
+MESOSTRUCTURE = """
+[[objects]]
+name = "p"
+primitive = "plane"
+params = { size = 2.0, segments = 4 }
+techniques = { pom = { steps = [8] }, bump = {} }
+[objects.mesostructure]
+height = "bricks"
+size = 16
+depth = 0.06
+tiling = [2, 2]
+"""
+
+
+def test_a_molecules_chain_exports_its_quadrics_and_a_mesostructures_is_refused_by_name(tmp_path):
+    """Issue 44's finding: vdmexport on configs/lod-villin.toml's lod.json ended in a KeyError traceback (exit 1),
+    and since issue 39 every villin chain is the impostor. A molecule's impostor and tessellated levels draw from
+    its quadric list, which the sidecar carries (the part copied, verified); a mesostructure's per-pixel techniques
+    draw from maps the export does not describe: exit 2, naming the variant."""
+    from vdmbake.export.cli import main as export_main
+
+    sweep = SWEEP.replace("[48, 16, 6]", "[24, 8]")
+    (tmp_path / "m").mkdir()
+    (tmp_path / "p").mkdir()
+    res, out = bake_and_render(tmp_path / "m", RENDER + sweep + MOLECULE)
+    assert res.exit_code == 0, res.output
+    r = CliRunner().invoke(export_main, [str(tmp_path / "m" / "b.bundle"), "--lod", str(out / "lod.json"), "-o",
+                                         str(tmp_path / "x")])
+    assert r.exit_code == 0, r.output
+    side = json.loads((tmp_path / "x" / "atoms-loose.impostors.json").read_text())
+    (part,) = {f["file"]: f for item in side["impostors"] for f in item["files"]}.values()
+    assert part["kind"] == "quadrics" and part["layout"] == {"spheres": 2, "cylinders": 0}
+    import hashlib
+    assert hashlib.sha256((tmp_path / "x" / part["file"]).read_bytes()).hexdigest() == part["sha256"]
+    res, out = bake_and_render(tmp_path / "p", RENDER + sweep + MESOSTRUCTURE)
+    assert res.exit_code == 0, res.output
+    r = CliRunner().invoke(export_main, [str(tmp_path / "p" / "b.bundle"), "--lod", str(out / "lod.json"), "-o",
+                                         str(tmp_path / "y"), "--chain", "loose"])
+    assert r.exit_code == 2 and "which draws the base mesh with its mesostructure maps per pixel" in r.output, r.output
+    assert not (tmp_path / "y").exists()

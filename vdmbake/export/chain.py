@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..bundle import parts
 from ..bundle.directory import Bundle
 from ..bundle.staging import StagedDir
 from ..common.colour import to_srgb8
@@ -268,6 +269,21 @@ def _gltf(out, bundle, obj, entry, levels: list[dict], stem: str, height: int) -
     return len(ordered), note
 
 
+def rendered_from(tech: str, value, obj, entry: dict) -> dict:
+    """The bundle parts a variant of `tech` renders from, {path: part kind}: those its bake step wrote (its
+    `reads`), or, for a technique that bakes nothing over a molecule's spheres and cylinders (impostor,
+    tessellated), the object's quadric list. Any other variant draws from parts this export does not describe
+    (a mesostructure's maps over its base mesh): refused by name."""
+    if REGISTRY[tech].reads:
+        return REGISTRY[tech].reads(entry["techniques"][tech], value, obj)
+    if entry.get("quadrics"):
+        return {entry["quadrics"]: parts.QUADRICS}
+    raise InputError(f"vdmexport: the chain chose {REGISTRY[tech].label(value)!r} for object {obj.name!r}, which draws "
+                     "the base mesh with its mesostructure maps per pixel; vdmexport writes triangle-mesh levels and "
+                     "impostors only (docs/export.md, what is not exported). Give the chain a limit that this variant "
+                     "does not meet, or export another chain (--chain).")
+
+
 def _sidecar(out, bundle, obj, entry, impostors: list[dict], stem: str, lod: dict) -> str:
     """STEM.impostors.json: per impostor of the chain its band, what it measured, and its parts (copied as
     OBJECT-PART) with the manifest's layout of each; an octahedral atlas also as a PNG to look at."""
@@ -275,7 +291,7 @@ def _sidecar(out, bundle, obj, entry, impostors: list[dict], stem: str, lod: dic
     for e in impostors:
         tech, value = variant_value(obj, e["variant"])
         files = []
-        for rel, kind in REGISTRY[tech].reads(entry["techniques"][tech], value, obj).items():
+        for rel, kind in rendered_from(tech, value, obj, entry).items():
             name = f"{obj.name}-{Path(rel).name}"
             part = _copied(bundle, rel, kind, out.file(name))
             meta = bundle.manifest["parts"][rel]
