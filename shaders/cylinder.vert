@@ -17,6 +17,7 @@ in vec3 in_rgb;
 flat out mat4 v_to_param;   // world -> parameter space (unit cylinder, |z| <= 1)
 flat out mat3 v_frame;      // columns u, v, w: parameter-space normals -> world
 flat out vec3 v_rgb;
+noperspective out vec2 v_ndc;   // the quad's window position (NDC), read per sample under MSAA
 
 void main() {
 #ifdef INSTANCED
@@ -48,6 +49,7 @@ void main() {
              : s0 < 0.0 && s1 < 0.0 ? vec4(2.0)
              : vec4(min(box0.xy, box1.xy), max(box0.zw, box1.zw));
     gl_Position = quad_corner(box, in_corner);
+    v_ndc = gl_Position.xy / gl_Position.w;
     vec3 m = 0.5 * (p0 + p1);
     mat3 scale_inv = mat3(1.0 / r, 0.0, 0.0,  0.0, 1.0 / r, 0.0,  0.0, 0.0, 1.0 / h);
     mat3 rot_t = transpose(mat3(u, v, w));

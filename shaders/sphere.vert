@@ -12,6 +12,7 @@ in vec3 in_rgb;
 #endif
 flat out vec4 v_sphere;
 flat out vec3 v_rgb;
+noperspective out vec2 v_ndc;   // the quad's window position (NDC), read per sample under MSAA
 
 void main() {
 #ifdef INSTANCED
@@ -26,5 +27,6 @@ void main() {
     float r = sphere.w;
     mat4 T = mat4(r, 0.0, 0.0, 0.0,  0.0, r, 0.0, 0.0,  0.0, 0.0, r, 0.0,  sphere.xyz, 1.0);
     gl_Position = quad_corner(quadric_bounds(T), in_corner);
+    v_ndc = gl_Position.xy / gl_Position.w;
     v_sphere = sphere;
 }
