@@ -13,6 +13,19 @@ CAMERA = """
 orbit = { count = 1 }
 """
 TINY_HEAD = RENDER + CAMERA
+# A brick mesostructure on a plane, drawn by the two techniques that bake nothing of their own (object "p").
+BRICK_PLANE = """
+[[objects]]
+name = "p"
+primitive = "plane"
+params = { size = 2.0, segments = 4 }
+techniques = { pom = { steps = [8] }, bump = {} }
+[objects.mesostructure]
+height = "bricks"
+size = 16
+depth = 0.06
+tiling = [2, 2]
+"""
 
 
 def bake_and_render(tmp_path, scene_text: str, *render_args, empty_reference_ok: bool = False):

@@ -7,7 +7,7 @@ import os
 
 from click.testing import CliRunner
 
-from scenes import RENDER, bake_and_render
+from scenes import BRICK_PLANE, RENDER, bake_and_render
 from vdmbake.cli import main as bake_main
 from vdmrender.cli import main as render_main
 
@@ -26,18 +26,7 @@ techniques = { mesh = {}, coarse = { ratios = [0.3] } }
 name = "atoms"
 spheres = [[0.0, 0.0, 0.0, 0.55], [0.6, 0.2, 0.1, 0.4]]
 techniques = { tessellated = { levels = [1] } }
-
-[[objects]]
-name = "p"
-primitive = "plane"
-params = { size = 2.0, segments = 4 }
-techniques = { pom = { steps = [8] }, bump = {} }
-[objects.mesostructure]
-height = "bricks"
-size = 16
-depth = 0.06
-tiling = [2, 2]
-"""
+""" + BRICK_PLANE
 
 
 def test_every_row_is_measured_against_its_full_asset_drawn_the_same_way(tmp_path):

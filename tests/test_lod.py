@@ -13,7 +13,7 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from scenes import RENDER, bake_and_render
+from scenes import BRICK_PLANE, RENDER, bake_and_render
 from vdmbake.bundle.directory import Bundle
 from vdmbake.export.gltf import safe, up_to_y
 from vdmbake.scene import Thresholds
@@ -441,18 +441,6 @@ name = "atoms"
 spheres = [[0.0, 0.0, 0.0, 0.55], [0.6, 0.2, 0.1, 0.4]]
 techniques = { impostor = { shading = ["direct"] }, tessellated = { levels = [1] } }
 """
-MESOSTRUCTURE = """
-[[objects]]
-name = "p"
-primitive = "plane"
-params = { size = 2.0, segments = 4 }
-techniques = { pom = { steps = [8] }, bump = {} }
-[objects.mesostructure]
-height = "bricks"
-size = 16
-depth = 0.06
-tiling = [2, 2]
-"""
 
 
 def test_a_molecules_chain_exports_its_quadrics_and_a_mesostructures_is_refused_by_name(tmp_path):
@@ -475,7 +463,7 @@ def test_a_molecules_chain_exports_its_quadrics_and_a_mesostructures_is_refused_
     assert part["kind"] == "quadrics" and part["layout"] == {"spheres": 2, "cylinders": 0}
     import hashlib
     assert hashlib.sha256((tmp_path / "x" / part["file"]).read_bytes()).hexdigest() == part["sha256"]
-    res, out = bake_and_render(tmp_path / "p", RENDER + sweep + MESOSTRUCTURE)
+    res, out = bake_and_render(tmp_path / "p", RENDER + sweep + BRICK_PLANE)
     assert res.exit_code == 0, res.output
     r = CliRunner().invoke(export_main, [str(tmp_path / "p" / "b.bundle"), "--lod", str(out / "lod.json"), "-o",
                                          str(tmp_path / "y"), "--chain", "loose"])

@@ -69,8 +69,9 @@ class Thresholds:
                                 "flicker between levels (lod.json's switch_px)")
     limit_on: str = setting("change", Choice(*LIMIT_ON), "what the limits bound: `change`, each variant's frames "
                             "against the object's full asset drawn the same way (what a viewer sees change at a "
-                            "switch; the full asset's own error is the floor no variant beats), or `reference`, the "
-                            "error against the reference")
+                            "switch; the full asset's own error against the reference is the floor, what the "
+                            "pipeline costs whatever the representation), or `reference`, the error against the "
+                            "reference")
 
     def limits(self) -> dict:
         """The limits given, by the report field they bound (`iou` a lower bound, the others upper bounds)."""

@@ -19,6 +19,7 @@ from vdmbake.bundle import parts
 from vdmbake.common import geometry
 from vdmbake.scene import LIMIT_ON, REGISTRY
 
+from . import images
 from .metrics import compare, flip_values, pooled
 from .passes.mesostructure import reference_mesh
 from .passes.raster import RasterMesh
@@ -69,9 +70,13 @@ def floor(full: list, refs) -> dict:
             "reference_noise_dluv": refs.noise_dluv}
 
 
-def attach(rows: list[dict], frames: dict, label: str, full: list, refs, flip: bool) -> None:
-    """Each row's change against the full asset (`frames`: each row's sRGB frames by its label; `full`: the full
-    asset's, named `label` in change_against) and the floor of these views (floor)."""
+def attach(rows: list[dict], frames: dict, label: str, build, harness, cams, refs, flip: bool, background) -> None:
+    """Each row's change against the full asset and the floor of these views (floor). `frames`: each row's sRGB
+    frames by its label; the full asset's are those labelled `label` where it was one of the rows, else drawn here
+    by build() as the rows were shipped, untimed (measure.Harness.frames), and put there too."""
+    if label not in frames:
+        frames[label] = [images.encode(f, background) for f in harness.frames(build, cams)]
+    full = frames[label]
     below = floor(full, refs)
     for r in rows:
         r.update(fields(frames[r["label"]], full, flip), change_against=label, **below)

@@ -159,9 +159,7 @@ def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[di
         sheet += [(f"{k}: {label}", enc), (f"{k}: error", heats)]
         log(f"composite {k} ({label}): {scoring.row_line(row)}")
     whole = {o: v.label for o, v in full.items()}   # every object by its full asset (vdmrender.change)
-    if set_label(whole) not in drawn:
-        drawn[set_label(whole)] = [images.encode(f, scene.render.background)
-                                   for f in harness.frames(composed(whole), cams)]
-    change.attach(rows, drawn, set_label(whole), drawn[set_label(whole)], refs, opts.flip)
+    change.attach(rows, drawn, set_label(whole), composed(whole), harness, cams, refs, opts.flip,
+                  scene.render.background)
     images.overview(sheet, out.file(f"{FOLDER}/overview.png"))
     return rows

@@ -55,14 +55,19 @@ def noise(row: dict, error: str) -> float:
     return (row.get("reference_noise_dluv") or 0.0) if error == LIMIT_ON["reference"]["mean_dluv"] else 0.0
 
 
+def tie(a: dict, b: dict, error: str) -> bool:
+    """Two rows' `error`s closer than their noises together (noise): no difference the measurement can show."""
+    return abs(a[error] - b[error]) <= math.hypot(noise(a, error), noise(b, error))
+
+
 def least(rows: list[dict], error: str) -> dict:
-    """The row of least `error` (unmeasured last), where errors closer than their noises together (noise) tie and
-    the cheaper of those is taken, then by label."""
+    """The row of least `error` (unmeasured last), where errors that tie (tie) are decided by cost, then by
+    label."""
     measured = [r for r in rows if r.get(error) is not None]
     if not measured:
         return min(rows, key=lambda r: (r["median_ms"], r["label"]))
     best = min(measured, key=lambda r: r[error])
-    tied = [r for r in measured if r[error] - best[error] <= math.hypot(noise(r, error), noise(best, error))]
+    tied = [r for r in measured if tie(r, best, error)]
     return min(tied, key=lambda r: (r["median_ms"], r["label"]))
 
 
@@ -180,8 +185,7 @@ def floor(rows: list[dict]) -> list[dict]:
         here = [r for r in rows if r["size_px"] == s]
         errs = [r for r in here if r["mean_dluv"] is not None]
         pairs = [(a, b) for i, a in enumerate(errs) for b in errs[i + 1:]]
-        ties = [1 for a, b in pairs if abs(a["mean_dluv"] - b["mean_dluv"]) <= math.hypot(
-            noise(a, "mean_dluv"), noise(b, "mean_dluv"))]
+        ties = [1 for a, b in pairs if tie(a, b, "mean_dluv")]
         out.append({"size_px": s, "full_asset": here[0].get("change_against"), "floor_dluv": here[0].get("floor_dluv"),
                     "floor_p95_dluv": here[0].get("floor_p95_dluv"), "floor_iou": here[0].get("floor_iou"),
                     "reference_noise_dluv": here[0].get("reference_noise_dluv"), "pairs": len(pairs), "ties": len(ties)})

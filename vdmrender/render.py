@@ -291,9 +291,7 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, de
         log(f"{what}: {v.label:>14}  {scoring.row_line(row)}"
             + (f"  empty frames {row['empty_frames']}/{row['frames']}" if row["empty_frames"] else "")
             + (f"  (border {row['border_px']} px, inside {row['inside_px']} px apart)" if "border_px" in row else ""))
-    if full.label not in frames:   # drawn the same way, untimed: what every row's change is against
-        frames[full.label] = [images.encode(f, background) for f in harness.frames(lambda: full.build(harness.ctx), cams)]
-    change.attach(rows, frames, full.label, frames[full.label], refs, opts.flip)
+    change.attach(rows, frames, full.label, lambda: full.build(harness.ctx), harness, cams, refs, opts.flip, background)
     if keep is not None:
         keep.update(frames)
     images.overview(sheet, out.file(f"{prefix}overview/{obj.name}.png"))
