@@ -1,6 +1,6 @@
 #version 430
 // Ray/capped cylinder per fragment in parameter space; side normal (x, y, 0), caps (0, 0, +-1). Under MSAA the
-// coverage is which samples' rays hit (gl_SampleMask), as for spheres (sphere.frag).
+// coverage is which samples' rays hit (impostor_out.glsl: COVER_SAMPLES).
 #include "cost_count.glsl"
 #include "quadric.glsl"
 #include "impostor_out.glsl"
@@ -29,19 +29,7 @@ void main() {
     float mu;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     bool hit = hit_cylinder(p0, seg, p, n, mu);
-    if (gl_NumSamples > 1) {
-        int mask = 0;
-        for (int s = 0; s < gl_NumSamples; ++s) {
-            vec3 q0, qseg, qp, qn;
-            float qmu;
-            ndc_ray(u_inv_view_proj, interpolateAtSample(v_ndc, s), q0, qseg);
-            if (hit_cylinder(q0, qseg, qp, qn, qmu)) {
-                mask |= 1 << s;
-                if (!hit) { p = qp; n = qn; mu = qmu; hit = true; }   // shaded where a sample hits
-            }
-        }
-        gl_SampleMask[0] = mask;
-    }
+    COVER_SAMPLES(hit_cylinder, hit, p, n, mu)
     if (!hit) discard;
     write_hit(p, n, mu, v_rgb);
 }

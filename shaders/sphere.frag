@@ -1,7 +1,6 @@
 #version 430
-// Ray/sphere per fragment in parameter space (the unit sphere), stable quadratic. Under MSAA the quad covers the
-// whole box, so the coverage is which samples' rays hit (gl_SampleMask): a sphere smaller than a pixel covers the
-// samples it covers, not the pixel or nothing as the centre's ray alone would say.
+// Ray/sphere per fragment in parameter space (the unit sphere), stable quadratic; under MSAA covered per sample
+// (impostor_out.glsl: COVER_SAMPLES), so a sphere smaller than a pixel covers the samples it covers.
 #include "cost_count.glsl"
 #include "quadric.glsl"
 #include "impostor_out.glsl"
@@ -30,19 +29,7 @@ void main() {
     float mu;
     pixel_ray(u_inv_view_proj, u_viewport, gl_FragCoord.xy, p0, seg);
     bool hit = hit_sphere(p0, seg, p, n, mu);
-    if (gl_NumSamples > 1) {
-        int mask = 0;
-        for (int s = 0; s < gl_NumSamples; ++s) {
-            vec3 q0, qseg, qp, qn;
-            float qmu;
-            ndc_ray(u_inv_view_proj, interpolateAtSample(v_ndc, s), q0, qseg);
-            if (hit_sphere(q0, qseg, qp, qn, qmu)) {
-                mask |= 1 << s;
-                if (!hit) { p = qp; n = qn; mu = qmu; hit = true; }   // shaded where a sample hits
-            }
-        }
-        gl_SampleMask[0] = mask;
-    }
+    COVER_SAMPLES(hit_sphere, hit, p, n, mu)
     if (!hit) discard;
     write_hit(p, n, mu, v_rgb);
 }
