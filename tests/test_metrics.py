@@ -201,6 +201,26 @@ def test_flip_over_the_union():
     assert np.all(metrics.flip_values(outside, ref, union) == 0.0)
 
 
+
+def test_flip_of_a_small_object_is_the_whole_frame_s():
+    """FLIP is computed over the scored pixels' box and its filters' reach only: at the scored pixels, the values
+    equal the whole frame's, on a textured background that the filters see (a narrower margin would not)."""
+    import flip_evaluator
+
+    rng = np.random.default_rng(7)
+    ref = rng.integers(0, 256, size=(160, 200, 4)).astype(np.uint8)
+    ref[..., 3] = 0
+    ref[70:82, 90:104] = (200, 150, 90, 255)
+    test = ref.copy()
+    test[70:82, 90:104, :3] = rng.integers(0, 256, size=(12, 14, 3)).astype(np.uint8)
+    union = metrics.compare(test, ref)["union"]
+    whole = flip_evaluator.evaluate(*(np.ascontiguousarray(x[..., :3], np.float32) / 255 for x in (ref, test)),
+                                    "LDR", applyMagma=False, computeMeanError=False)[0][..., 0]
+    assert np.array_equal(metrics.flip_values(test, ref, union), np.asarray(whole, np.float64)[union])
+    narrow = flip_evaluator.evaluate(*(np.ascontiguousarray(x[68:84, 88:106, :3], np.float32) / 255 for x in (ref, test)),
+                                     "LDR", applyMagma=False, computeMeanError=False)[0][..., 0]
+    assert not np.array_equal(np.asarray(narrow, np.float64)[union[68:84, 88:106]], np.asarray(whole, np.float64)[union])
+
 # ---------------------------------------------------------------------------------------------
 # sRGB encoding
 # ---------------------------------------------------------------------------------------------

@@ -71,6 +71,11 @@ def compare(frame: np.ndarray, reference: np.ndarray, classes: np.ndarray | None
             "apart_values": dist[union & apart]}
 
 
+# FLIP's widest filter at 67 pixels per degree (Andersson et al. 2020, sec. 4): the colour pipeline's
+# ceil(3 sqrt(b_max / 2 pi^2) ppd) = 10 px with b_max = 0.04, the feature detectors' 3 x 0.5 x 0.082 ppd = 8.2 px
+FLIP_REACH = 16
+
+
 def flip_values(frame: np.ndarray, reference: np.ndarray, scored: np.ndarray) -> np.ndarray:
     """NVIDIA FLIP (Andersson et al. 2020, LDR, default 67 pixels per degree) of the sRGB frame
     against the reference, at the `scored` pixels (those Vichitvejpaisal2005 eq. 2.2 averages over; none where there
@@ -83,9 +88,14 @@ def flip_values(frame: np.ndarray, reference: np.ndarray, scored: np.ndarray) ->
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     import flip_evaluator
 
-    ref, test = (np.ascontiguousarray(x[..., :3], np.float32) / 255 for x in (reference, frame))
+    # FLIP is local: each pixel's value depends on the pixels within its filters' reach, so the scored pixels' box
+    # plus that reach gives the same values as the whole frame (an object far away covers a few pixels of it)
+    ys, xs = np.nonzero(scored)
+    box = (slice(max(ys.min() - FLIP_REACH, 0), ys.max() + FLIP_REACH + 1),
+           slice(max(xs.min() - FLIP_REACH, 0), xs.max() + FLIP_REACH + 1))
+    ref, test = (np.ascontiguousarray(x[box][..., :3], np.float32) / 255 for x in (reference, frame))
     fmap, _, _ = flip_evaluator.evaluate(ref, test, "LDR", applyMagma=False, computeMeanError=False)
-    return np.asarray(fmap, np.float64).reshape(scored.shape)[scored]
+    return np.asarray(fmap, np.float64).reshape(ref.shape[:2])[scored[box]]
 
 
 def _rounded(x, digits: int):
