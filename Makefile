@@ -1,4 +1,4 @@
-# make demo : install, bake configs/default.toml and render it into out/default/
+# make demo : install what the demo needs (no test tools), bake configs/default.toml and render it into out/default/
 # make test : install with test extras and run the test suite
 # make fuzz : the fuzzers (scene files, manifests, textured OBJ/glTF and their references, file references spelt to
 #             leave the scene's folder, glTF node trees, baselines, lod.json, composite sets, octahedral and pyramid
@@ -15,17 +15,27 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+DEMO_STAMP := $(VENV)/.demo
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test docs fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference bench-filtered bench-mipmaps bench-reference sysdeps clean
+.PHONY: demo test docs fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference bench-filtered bench-mipmaps bench-reference sysdeps sysdeps-gl clean
 
 # The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
 GLTF_VALIDATOR := 2.0.0-dev.3.10
 
-# Headless OpenGL needs Mesa's EGL and the llvmpipe driver, the tests Node.js for the glTF validator and Chromium
-# for report.html in a browser (tests/test_report_html.py); install them only if missing.
-sysdeps:
+# Headless OpenGL needs Mesa's EGL and the llvmpipe driver (the demo and the tests); the tests also need Node.js for
+# the glTF validator and Chromium for report.html in a browser (tests/test_report_html.py). Each is installed with
+# apt-get only if missing, so the demo needs no root where Mesa's EGL is present.
+sysdeps-gl:
+	@if ! ldconfig -p | grep -q 'libEGL_mesa.so.0' || ! ls /usr/lib/*/dri/swrast_dri.so >/dev/null 2>&1; then \
+	  echo "installing Mesa EGL/llvmpipe (apt-get)"; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq \
+	    libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 >/dev/null; \
+	fi
+
+sysdeps: sysdeps-gl
 	@if ! command -v chromium >/dev/null; then \
 	  echo "installing Chromium (apt-get)"; \
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
@@ -36,25 +46,28 @@ sysdeps:
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq nodejs npm >/dev/null; \
 	fi
-	@if ! ldconfig -p | grep -q 'libEGL_mesa.so.0' || ! ls /usr/lib/*/dri/swrast_dri.so >/dev/null 2>&1; then \
-	  echo "installing Mesa EGL/llvmpipe (apt-get)"; \
-	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
-	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq \
-	    libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 >/dev/null; \
-	fi
 
-$(STAMP): pyproject.toml Makefile | sysdeps
+# The demo: the runtime dependencies, and the packages that ship the default scene's data (pymeshlab's textured
+# bunny, pdbfixer's villin) without their own dependencies: a scene's pkg:PACKAGE/PATH finds a package's files
+# without importing it.
+$(DEMO_STAMP): pyproject.toml Makefile | sysdeps-gl
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q -e .
+	$(BIN)/pip install -q --no-deps 'pdbfixer>=1.9' 'pymeshlab>=2023.12'
+	@touch $@
+
+# The tests: the test extra on top (real assets, the independent checks, the fuzzer, dask) and the npm engines.
+$(STAMP): $(DEMO_STAMP) | sysdeps
 	$(BIN)/pip install -q -e '.[test]'
 	npm install --silent --no-save --prefix $(VENV)/node gltf-validator@$(GLTF_VALIDATOR) babylonjs@9.28.0 babylonjs-loaders@9.28.0 three@0.187.0
 	@touch $@
 
-demo: $(STAMP)
+demo: $(DEMO_STAMP)
 	$(BIN)/vdmbake $(SCENE) -o out/$(NAME).bundle
 	$(BIN)/vdmrender out/$(NAME).bundle -o out/$(NAME)
-	@echo "report: out/$(NAME)/report.json  out/$(NAME)/report.csv  out/$(NAME)/error_vs_time.png"
-	@echo "frames: out/$(NAME)/frames/   heat maps: out/$(NAME)/heatmaps/   overview: out/$(NAME)/overview/"
+	@echo "open out/$(NAME)/report.html in a browser: each object's chain of variants by screen size, the errors against time, every frame beside its reference"
+	@echo "the tools are in $(BIN)/ (vdmbake, vdmrender, vdmexport): run them as $(BIN)/vdmrender --help, or after source $(BIN)/activate"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

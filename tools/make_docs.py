@@ -49,7 +49,28 @@ def _filtered(doc: dict, key: str) -> str:
     return markdown(["object", "variant", *(f"{px} px" for px in sizes)], ["---"] * (2 + len(sizes)), rows)
 
 
-VIEWS = {"filtered": _filtered}
+def _demo(doc: dict, key: str) -> str:
+    """tools/demo_results.py's demo.json: `default`, every variant at the orbit views; `chains`, each chain's bands."""
+    num = lambda x, f: "-" if x is None else format(x, f)   # noqa: E731
+    if key == "default":
+        rows = [[r["object"], r["variant"],
+                 "-" if r["faces"] is None else f"{r['faces']:,}" + (f" ({r['faces_of']})" if r["faces_of"] else ""),
+                 num(r["median_ms"], ".1f"), num(r["ratio"], ".2f"), f"{r['fetches_px']:.1f} / {r['steps_px']:.1f}",
+                 num(r["mean_dluv"], ".3f"), num(r["p95_dluv"], ".2f"), num(r["iou"], ".4f"), num(r["flip"], ".4f")]
+                for r in doc["rows"]]
+        return markdown(["object", "variant", "faces", "median GPU ms/frame", "time / first variant",
+                         "fetches / steps per px", "mean ΔLuv", "p95 ΔLuv", "IoU", "FLIP"],
+                        ["---", "---", "---:", "---:", "---:", "---", "---:", "---:", "---:", "---:"], rows)
+    rows = [[c["object"], f"{c['chain']} ({', '.join(f'{k} ≤ {v:g}' for k, v in c['limits'].items())})",
+             f"({c['min_px']}, {c['max_px']}]", c["variant"], "yes" if c["meets"] else "no (least change)",
+             num(c["change_dluv"], ".2f"), num(c["mean_dluv"], ".2f"), num(c["floor_dluv"], ".2f"),
+             num(c["median_ms"], ".1f")] for c in doc["chains"]]
+    return markdown(["object", "chain", "band [px]", "ships", "within the limit", "change ΔLuv",
+                     "error ΔLuv", "floor ΔLuv", "median GPU ms/frame"],
+                    ["---", "---", "---", "---", "---", "---:", "---:", "---:", "---:"], rows)
+
+
+VIEWS = {"filtered": _filtered, "demo": _demo}
 
 
 def table(name: str, key: str) -> str:

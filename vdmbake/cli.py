@@ -16,7 +16,7 @@ from .scene import REGISTRY
 
 def _techniques() -> str:
     """The --help epilog: every technique, the objects it draws and what it draws (from the registry)."""
-    lines = ["\b", "Techniques ([objects.techniques] of each object; README lists their settings):"]
+    lines = ["\b", "Techniques ([objects.techniques] of each object; docs/scenes.md lists their settings):"]
     for t in REGISTRY.values():
         lines.append(f"  {t.name:12} ({'/'.join(t.kinds)}{', mesostructure' if t.mesostructure else ''}) "
                      f"{t.summary.split(':')[0]}")
@@ -24,7 +24,7 @@ def _techniques() -> str:
 
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]}, epilog=_techniques())
-@click.argument("scenes", nargs=-1, metavar="SCENE_OR_FOLDER...", type=click.Path(path_type=Path))
+@click.argument("scenes", nargs=-1, metavar="SCENE_OR_FOLDER...", type=click.Path())   # as typed: a trailing slash names a folder
 @click.option("-o", "--output", "out", type=click.Path(path_type=Path),
               help="One scene: the bundle directory to write, e.g. out/default.bundle. Several scenes (or a folder, "
                    "or a glob): the folder that gets OUT/<scene file stem>.bundle for each.")
@@ -51,12 +51,12 @@ def _techniques() -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print the bake statistics as JSON on stdout.")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
-def main(scenes: tuple[Path, ...], out: Path | None, force: bool, jobs: int | None, scheduler: str | None,
+def main(scenes: tuple[str, ...], out: Path | None, force: bool, jobs: int | None, scheduler: str | None,
          cache_dir: Path | None, cache_size: str | None, no_cache: bool, cache_stats: bool, cache_clear: bool,
          cache_verify: bool, verbose: bool, as_json: bool, debug: bool):
     """Bake what each scene's objects need into a bundle.
 
-    A SCENE is a TOML file (see configs/*.toml and README's scene reference): objects (a mesh
+    A SCENE is a TOML file (see configs/*.toml and the scene reference, docs/scenes.md): objects (a mesh
     file, a built-in primitive, a molecule, or inline spheres and cylinders), cameras, light,
     material, and per object the techniques to compare. Only the parts those techniques need
     are baked: what the reference traces (the full mesh, the quadric list, the height field),

@@ -1,5 +1,5 @@
 """The one error type the command-line tools turn into exit code 2, and the wrapper that gives every
-way a command ends its exit code (README "Command-line conventions"). Every message is printed as one
+way a command ends its exit code (README, "Exit codes"). Every message is printed as one
 paragraph, whatever it quotes: a path may hold a newline, and a library's reason (gemmi's parse errors)
 may run over several lines and quote control characters."""
 

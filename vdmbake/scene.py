@@ -3,7 +3,7 @@
 A scene names the objects to bake (a mesh file, a built-in primitive, a molecule or inline
 spheres and cylinders), the cameras, one directional light plus ambient, the material constants
 of the shared shading model, and per object the techniques to render and compare with their
-quality knobs. Each dataclass below is its own schema (vdmbake.schema): README's scene reference
+quality knobs. Each dataclass below is its own schema (vdmbake.schema): the scene reference (docs/scenes.md)
 is generated from it, and every error names the file, the key, the bad value and what is allowed.
 """
 from __future__ import annotations

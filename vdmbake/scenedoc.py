@@ -1,6 +1,6 @@
-"""The scene reference in README.md, generated from the scene's dataclasses and the technique
+"""The scene reference in docs/scenes.md, generated from the scene's dataclasses and the technique
 registry (vdmbake.schema), so that it cannot drift from the code. `python -m vdmbake.scenedoc
-README.md` rewrites the block between the markers; a test checks that the block is current.
+docs/scenes.md` rewrites the block between the markers; a test checks that the block is current.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from .scene import (Cameras, Instances, Light, Material, Mesostructure, Object, 
                     Sweep, Thresholds, Transform)
 from .techniques import REGISTRY
 
-BEGIN = "<!-- scene reference: generated from the code by `python -m vdmbake.scenedoc README.md` -->"
+BEGIN = "<!-- scene reference: generated from the code by `python -m vdmbake.scenedoc docs/scenes.md` -->"
 END = "<!-- end of the generated scene reference -->"
 HEAD = ["| key | allowed | default | meaning |", "|---|---|---|---|"]
 
@@ -79,5 +79,5 @@ def update(readme: Path) -> bool:
 
 
 if __name__ == "__main__":
-    path = Path(sys.argv[1] if len(sys.argv) > 1 else "README.md")
+    path = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/scenes.md")
     print(f"{path}: {'updated' if update(path) else 'already current'}")

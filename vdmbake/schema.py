@@ -1,6 +1,6 @@
 """The scene's typed schema: value types with their ranges, dataclass fields that carry their type
 and documentation, one reader that validates a TOML table against such a dataclass, and the
-markdown reference generated from the same declarations (README's scene reference and --help).
+markdown reference generated from the same declarations (docs/scenes.md and --help).
 
 A dataclass is its own schema: each field is declared with `setting(default, TYPE, "doc")` and
 `read(cls, table)` builds an instance, naming the file, the key, the bad value and what is
@@ -397,7 +397,7 @@ class Technique:
     draws, its settings (a dataclass of `setting` fields, its knob marked), and the bake step that
     writes the bundle parts it needs. Its renderer is vdmrender/techniques/NAME.py."""
     name: str
-    summary: str                      # what it draws, one sentence (README, --help)
+    summary: str                      # what it draws, one sentence (docs/scenes.md, --help)
     kinds: tuple[str, ...]            # object kinds: "surface" (mesh file, primitive), "quadrics"
     options: type                     # dataclass of its settings
     mesostructure: bool = False       # draws the object's [objects.mesostructure] (which it then needs)

@@ -174,10 +174,12 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
     if as_json:
         click.echo(json.dumps(result, indent=1, allow_nan=False))
     elif many:
-        click.echo(escaped(f"combined report: {out / 'report.json'}  runs: {out / 'runs.md'}  ({result['device']})"))
+        click.echo(escaped(f"combined report: {out / 'report.html'} (open it in a browser; report.json, runs.md "
+                           f"beside it)  ({result['device']})"))
     else:
-        click.echo(escaped(f"report: {out / 'report.json'}  plot: {out / 'error_vs_time.png'}  "
-                           f"overview: {out / 'overview'}/  ({result['device']})"))
+        beside = "report.json, lod.md, error_vs_time.png" if (out / "lod.md").exists() else "report.json, error_vs_time.png"
+        click.echo(escaped(f"report: {out / 'report.html'} (open it in a browser; {beside} beside it)  "
+                           f"({result['device']})"))
     rows = result["rows"]
     worst = [r for r in rows if max_error is not None and r["mean_dluv"] is not None and r["mean_dluv"] > max_error]
     for r in worst:

@@ -17,7 +17,7 @@ import re
 from pathlib import Path
 from urllib.parse import quote
 
-# Files a render folder may hold, linked from the header where present (README lists what each is).
+# Files a render folder may hold, linked from the header where present (docs/guide.md lists what each is).
 RAW = ("report.json", "report.csv", "error_vs_time.png", "sweep.csv", "error_vs_size.png", "cost_vs_size.png",
        "lod.json", "lod.md", "lod.png", "baseline.md", "baseline.csv", "composite.md", "runs.md", "overview")
 

@@ -41,10 +41,10 @@ def main(bundle, lod_path, out, chain, debug):
     128 + N stopped by signal N.
 
     \b
-    Example:
-      vdmbake configs/lod-bunny.toml -o out/lod-bunny.bundle
-      vdmrender out/lod-bunny.bundle -o out/lod-bunny
-      vdmexport out/lod-bunny.bundle --lod out/lod-bunny/lod.json -o out/lod-bunny-gltf
+    Example (the demo's scene asks for a chain per object):
+      vdmbake configs/default.toml -o out/default.bundle
+      vdmrender out/default.bundle -o out/default
+      vdmexport out/default.bundle --lod out/default/lod.json -o out/default-export
     """
     result = guarded(lambda: export(bundle, lod_path, out, chain, lambda m: click.echo(escaped(m), err=True)), debug)
     click.echo(escaped(f"exported {len(result['files'])} files to {out}"))

@@ -58,6 +58,8 @@ def expand(args) -> tuple[list[Path], bool]:
             found, batch = [Path(m) for m in sorted(glob.glob(str(a)))], True
             if not found:
                 raise InputError(f"{a}: the pattern matches no file.")
+        elif not p.exists() and str(a).endswith(("/", os.sep)):
+            raise InputError(f"{a}: folder not found (a folder of scene files, *.toml, was named).")
         else:
             found = [p]
         scenes += [f for f in found if f not in scenes]
