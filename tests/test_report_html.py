@@ -223,6 +223,8 @@ def test_many_bundles_one_page(swept, tmp_path):
     assert page.rows == 6
     text = (tmp_path / "all" / "report.html").read_text()
     assert "href='one/report.html'" in text and "<option value='two/ball'>" in text
+    assert (tmp_path / "all" / "one" / "lod.json").is_file()   # each run chose its chain: the verdict says where
+    assert re.search(r"Each run's LOD chains[^<]*<a href='one/report.html'>one</a>, <a href='two/report.html'>", text)
     assert "one/frames/ball/mesh/000.png" in text
 
 
@@ -391,3 +393,20 @@ def test_crowded_plots_keep_their_labels_apart(tmp_path, width):
     assert g["plots"] == 2 and g["overlaps"] == [] and g["outside"] == [], g
     labels = re.findall(r"<text[^>]*>([^<]*#\d+)</text>", text)
     assert 2 <= len(labels) < 12, labels
+
+
+@needs_chromium
+def test_choosing_an_object_narrows_the_verdict_and_sections(plain, tmp_path):
+    """The object chooser shows the chosen object's verdict, table rows and section only."""
+    _, out, _ = plain
+    probe = out / "choose.html"
+    probe.write_text((out / "report.html").read_text().replace("</body>", """<script>
+addEventListener('load', () => { const pick = document.querySelector('#object'), shown = s =>
+  [...document.querySelectorAll(s)].filter(e => !e.hidden).map(e => e.dataset.object);
+  pick.value = 'ring'; pick.dispatchEvent(new Event('change'));
+  document.documentElement.dataset.shown = JSON.stringify([shown('#verdict tbody'), shown('section.obj'),
+                                                           shown('#rows tbody tr')]); });</script></body>"""))
+    run = chromium(probe, "--dump-dom")
+    assert run.returncode == 0, run.stderr
+    verdict, sections, rows = json.loads(html.unescape(re.search(r'data-shown="([^"]*)"', run.stdout)[1]))
+    assert verdict == ["ring"] and sections == ["ring"] and rows == ["ring", "ring"]

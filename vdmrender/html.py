@@ -163,7 +163,7 @@ JS = """
   const pick = $('#object'), search = $('#search');
   function filter() {
     const obj = pick.value, q = search.value.toLowerCase();
-    $$('section.obj').forEach(s => s.hidden = obj !== '*' && s.dataset.object !== obj);
+    $$('section.obj, #verdict tbody').forEach(s => s.hidden = obj !== '*' && s.dataset.object !== obj);
     let shown = 0;
     $$('#rows tbody tr').forEach(tr => {
       tr.hidden = (obj !== '*' && tr.dataset.object !== obj) || !tr.textContent.toLowerCase().includes(q);
@@ -253,7 +253,7 @@ def page(folder: Path, report: dict) -> str:
     rows = report["rows"]
     objects = list(dict.fromkeys(r["object"] for r in rows))
     title = f"vdmrender report: {Path(report.get('bundle') or target(folder)).name}"
-    body = [f"<h1>{esc(title)}</h1>", summary(folder, report), verdict(report, objects), controls(objects),
+    body = [f"<h1>{esc(title)}</h1>", summary(folder, report), controls(objects), verdict(folder, report, objects),
             baseline_section(folder, report), table(rows)]
     if combined(report):
         body.append(runs_table(folder, report["runs"]))
@@ -273,7 +273,7 @@ def summary(folder: Path, report: dict) -> str:
     res, f = report.get("resolution"), report.get("filtering")
     what = [report.get("device") or "–"] + ([f"frame {res[0]} × {res[1]} px"] if res else [])
     if f:
-        what.append(f"reference {f['reference_spp']} spp, frames anti-aliased {f['antialias']}")
+        what.append(f"reference {f['reference_spp']} samples per pixel, frames anti-aliased {f['antialias']}")
     return (f"<p class='muted'>{esc(' · '.join(what))} (more under <a href='#run'>the run</a> at the end)</p>"
             f"<p>raw files: {links(folder)}</p>")
 
@@ -317,11 +317,12 @@ def glossary(keys) -> str:
             + ".</p>")
 
 
-def verdict(report: dict, objects: list[str]) -> str:
+def verdict(folder: Path, report: dict, objects: list[str]) -> str:
     """What the run answers, per object: where the run chose LOD chains, each chain's bands of screen sizes with
     the variant shipped there, its cost and its change against the full asset there (each band judged at its
     largest size) and whether it is within the chain's limits; for an object without a chain, the variants no
-    other beats on both time and error (its Pareto front), fastest first."""
+    other beats on both time and error (its Pareto front), fastest first. A combined page links the runs' own pages
+    for their chains."""
     lod = report.get("lod") or {}
     chained = [o for o in objects if any(o in c["objects"] for c in lod.get("chains", []))]
     out = ["<section id='verdict'><h2>Verdict</h2>"]
@@ -335,8 +336,12 @@ def verdict(report: dict, objects: list[str]) -> str:
                 glossary(("change", "ΔLuv"))]
     rest = [o for o in objects if o not in chained]
     if rest:
-        out += ["<p>" + ("Objects without a chain: " if chained else "") + "the variants no other is both faster "
+        out += ["<p>" + ("Objects without a chain: the" if chained else "The") + " variants no other is both faster "
                 "and closer to the reference than (the Pareto front), fastest first.</p>", front_table(report, rest)]
+    runs = [r["scene"] for r in report.get("runs", []) if (folder / r["scene"] / "lod.json").is_file()]
+    if runs:
+        out.append("<p>Each run's LOD chains, what to ship at each size on screen, are on its own page: "
+                   + ", ".join(f"<a href='{url(s, 'report.html')}'>{esc(s)}</a>" for s in runs) + ".</p>")
         if not chained:
             out.append(glossary(("GPU [ms]", "change", "error", "ΔLuv")))
     return "".join(out) + "</section>"
@@ -372,7 +377,7 @@ def chain_table(lod: dict, objects: list[str]) -> str:
                 first = "" if k else f"<td rowspan='{len(ch['entries'])}'>{esc(c['name'])}: {esc(limit)}</td>"
                 lines.append([first, cells, e["meets"]])
         lines[0][0] = f"<td rowspan='{len(lines)}'><a href='#obj-{quote(obj)}'>{esc(obj)}</a></td>" + lines[0][0]
-        bodies.append("<tbody>" + "".join(f"<tr{'' if meets else ' class=over'}>{a}{b}</tr>"
+        bodies.append(f"<tbody data-object='{esc(obj)}'>" + "".join(f"<tr{'' if meets else ' class=over'}>{a}{b}</tr>"
                                           for a, b, meets in lines) + "</tbody>")
     return f"<table>{head}{''.join(bodies)}</table>"
 
@@ -393,7 +398,7 @@ def front_table(report: dict, objects: list[str]) -> str:
             lines.append(f"<tr>{first}<td>{esc(r['label'])}</td><td class='n'>{num(r['median_ms'], 3)}</td>"
                          f"<td class='n'>{num(r.get('change_dluv'), 3)}</td><td class='n'>{num(r['mean_dluv'], 3)}"
                          f"</td><td class='muted'>{role}</td></tr>")
-        bodies.append("<tbody>" + "".join(lines) + "</tbody>")
+        bodies.append(f"<tbody data-object='{esc(obj)}'>" + "".join(lines) + "</tbody>")
     return f"<table>{head}{''.join(bodies)}</table>"
 
 
