@@ -1,8 +1,10 @@
-"""report.html (vdmrender.html, issue 35): the page of a small real render with a sweep and an LOD chain, of a
---baseline run with a regression, and of a many-bundle run; self-contained (no network address loaded), every
-image it names on disk, a table row per report row; and the page in a real browser (Debian's headless Chromium,
-`make sysdeps`): its script runs without an error, images load, the table and plots are in the DOM, a screenshot
-shows them, images have alt text and the heat-map legend's text is readable (contrast >= 4.5:1)."""
+"""report.html (vdmrender.html, issues 35 and 44): the page of a small real render with a sweep and an LOD chain,
+of one without, of a --baseline run with a regression, and of a many-bundle run; self-contained (no network
+address loaded), every image it names on disk, a table row per report row, the verdict first; and the page in a
+real browser (Debian's headless Chromium, `make sysdeps`): its script runs without an error, images load, the
+table and plots are in the DOM, a screenshot shows them, images have alt text and the heat-map legend's text is
+readable (contrast >= 4.5:1); at 1400 and 1280 px no two text boxes of a plot intersect, the page does not scroll
+sideways and the frame viewer is one row."""
 from __future__ import annotations
 
 import html

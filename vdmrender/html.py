@@ -1,8 +1,10 @@
-"""report.html (issue 35): one self-contained page per render folder, and in the combined folder of many bundles,
-that puts what the folder holds side by side: the header (device, GL, clocks, timing rule, filtering, tool
-version, links to the raw files), per object the error-against-time plot (hover a point: variant, time, error,
-counters; the Pareto front drawn), the sweep plots and LOD chains where present, a sortable and searchable table of
-the rows, and per variant and frame its frame, reference and heat map side by side with a swipe to compare.
+"""report.html (issues 35 and 44): one self-contained page per render folder, and in the combined folder of many
+bundles, read at a glance at 1280 px: first the verdict per object (each LOD chain's bands: the variant shipped,
+its cost and change, within the limit or not; without a chain, the Pareto front), then a sortable and searchable
+table of the rows in column groups, per object the error-against-time plot (hover a point: variant, time, error,
+counters; the Pareto front drawn), the sweep plots and LOD chains where present, and per variant and frame its
+frame, reference, heat map and a swipe side by side; the run's header (device, GL, clocks, timing rule,
+filtering, tool version) last. docs/report.md describes it.
 
 Offline and self-contained: the style and script are inline and hand-written, the plots inline SVG built here, so
 the page opens from the file system with no network. Images are referenced by relative path (they are in the
@@ -307,9 +309,9 @@ def header(report: dict) -> str:
     return f"<h2 id='run'>The run</h2><dl>{dl}</dl>{notes}"
 
 
-def abbr(text: str, key: str | None = None) -> str:
-    """The text with the glossary's words for it on hover."""
-    return f"<abbr title='{esc(GLOSSARY[key or text])}'>{esc(text)}</abbr>"
+def abbr(word: str) -> str:
+    """The word with the glossary's words for it on hover."""
+    return f"<abbr title='{esc(GLOSSARY[word])}'>{esc(word)}</abbr>"
 
 
 def glossary(keys) -> str:
