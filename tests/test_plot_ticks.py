@@ -74,6 +74,9 @@ def check(fig, log_axes: list[str]) -> None:
             assert len(found[where]) >= 2, (where, [t for t, _ in found[where]])
             assert all("×" not in t and "^" not in t for t, _ in found[where]), found[where]   # plain numbers
         assert not any("eq." in t for t, _ in found["titles"]), [t for t, _ in found["titles"]]
+        edge = fig.bbox
+        for t, e in found["titles"]:   # no title or axis label cut off at the figure's edge
+            assert edge.x0 <= e.x0 and e.x1 <= edge.x1 and edge.y0 <= e.y0 and e.y1 <= edge.y1, t
     finally:
         plt.close(fig)
 
@@ -86,6 +89,15 @@ def test_error_against_time_ticks(lo, hi):
 @pytest.mark.parametrize("lo,hi", SPANS)
 def test_cost_against_size_ticks(lo, hi):
     check(sweep.figure(sweep_report(lo, hi), "median_ms", "median GPU time [ms] (log)", True), ["panel 0 y"])
+
+
+def test_error_against_size_labels():
+    """The error plot's axis said in words, and what its lines compare (the reference's samples, the frames'
+    anti-aliasing) in the title, within the figure."""
+    r = {**sweep_report(1.0, 2.0), "filtering": {"reference_spp": 16, "antialias": "msaa4"}}
+    fig = sweep.figure(r, "mean_dluv", report.ERROR_LABEL, False)
+    assert "reference 16 spp, frames AA msaa4" in fig.get_suptitle()
+    check(fig, [])
 
 
 def test_the_lod_legend_names_the_hatch():
