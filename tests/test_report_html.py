@@ -412,3 +412,13 @@ addEventListener('load', () => { const pick = document.querySelector('#object'),
     assert run.returncode == 0, run.stderr
     verdict, sections, rows = json.loads(html.unescape(re.search(r'data-shown="([^"]*)"', run.stdout)[1]))
     assert verdict == ["ring"] and sections == ["ring"] and rows == ["ring", "ring"]
+
+
+def test_the_verdict_names_what_a_field_of_copies_ships():
+    """An object drawn as many copies: its chain's cell says which variant the field's pricing ships."""
+    entry = {"variant": "coarse@0.1", "min_px": 0, "max_px": 64, "meets": True,
+             "measured": [{"size_px": 64, "median_ms": 1.5, "change_dluv": 0.4}]}
+    lod = {"chains": [{"name": "c", "limit_on": "change", "limits": {"change_dluv": 1.0},
+                       "objects": {"field": {"entries": [entry], "field": {"chosen": "lod@c"}}}}]}
+    text = vhtml.chain_table(lod, ["field"])
+    assert "c: change ΔLuv ≤ 1; priced on the field of copies: lod@c ships" in text and "coarse@0.1" in text

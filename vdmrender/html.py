@@ -370,6 +370,8 @@ def chain_table(lod: dict, objects: list[str]) -> str:
                 continue
             shown = LIMIT_ON[c.get("limit_on", "change")]["mean_dluv"]
             limit = limits(c)
+            if "field" in ch:   # an object drawn as many copies: what the field ships (lod.priced_on_field)
+                limit += f"; priced on the field of copies: {ch['field']['chosen']} ships"
             for k, e in enumerate(ch["entries"]):
                 m = e["measured"][0]
                 value = num(m.get(shown), 3) + ("" if shown == CHANGE else " (error)")
@@ -619,11 +621,14 @@ def legend(colour: dict) -> str:
 
 
 def tip(r: dict) -> str:
-    """A point's tooltip: its variant, time, error (against what a viewer sees and point-sampled), counters."""
+    """A point's tooltip: its variant, time, error (against what a viewer sees, and point-sampled where that
+    differs), counters."""
     px = r.get("per_pixel") or {}
+    aliased = r.get("aliased_mean_dluv")
     lines = [r["label"] + (f" @ {r['size_px']} px" if "size_px" in r else ""),
              f"median {num(r['median_ms'], 3)} ms (q1 {num(r.get('q1_ms'), 3)}, q3 {num(r.get('q3_ms'), 3)})",
-             f"mean ΔLuv {num(r['mean_dluv'], 3)}, aliased {num(r.get('aliased_mean_dluv'), 3)}",
+             f"mean ΔLuv {num(r['mean_dluv'], 3)}"
+             + (f", aliased {num(aliased, 3)}" if aliased is not None and aliased != r["mean_dluv"] else ""),
              f"p95 ΔLuv {num(r.get('p95_dluv'), 2)}, IoU {num(r.get('iou'), 4)}"]
     if px.get("fragments") is not None:
         lines.append(f"per px: {px['fragments']:.2f} fragments, {px['fetches']:.1f} fetches, {px['steps']:.1f} steps")
