@@ -146,6 +146,8 @@ def test_a_run_without_a_chain_opens_with_each_objects_front(plain):
                                             and o is not r for o in mine)]
         expect += [r["label"] for r in sorted(front, key=lambda r: r["median_ms"])]
     assert listed == expect and len(expect) >= 2
+    verdict = re.search(r"<section id='verdict'>(.*?)</section>", text, re.S)[1]
+    assert re.search(r"<b>error</b>: a variant(&#x27;|')s frames against the reference", verdict)   # said under it
     assert "aliased (point-sampled)" in text
 
 
