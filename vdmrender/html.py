@@ -340,12 +340,12 @@ def verdict(folder: Path, report: dict, objects: list[str]) -> str:
     if rest:
         out += ["<p>" + ("Objects without a chain: the" if chained else "The") + " variants no other is both faster "
                 "and closer to the reference than (the Pareto front), fastest first.</p>", front_table(report, rest)]
-        if not chained:
-            out.append(glossary(("GPU [ms]", "change", "error", "ΔLuv")))
     runs = [r["scene"] for r in report.get("runs", []) if (folder / r["scene"] / "lod.json").is_file()]
     if runs:
         out.append("<p>Each run's LOD chains, what to ship at each size on screen, are on its own page: "
                    + ", ".join(f"<a href='{url(s, 'report.html')}'>{esc(s)}</a>" for s in runs) + ".</p>")
+    if rest and not chained:
+        out.append(glossary(("GPU [ms]", "change", "error", "ΔLuv")))
     return "".join(out) + "</section>"
 
 
