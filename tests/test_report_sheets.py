@@ -52,8 +52,34 @@ def test_overview_label_column_fits_the_longest_label(tmp_path):
     sheet = np.asarray(Image.open(tmp_path / "o.png"))
     width = ImageDraw.Draw(Image.new("RGB", (1, 1))).textlength(label)
     assert width > 150
-    first_image = sheet.shape[1] - 32
-    assert first_image >= width + 6
-    band = sheet[32:64, :first_image]
+    first_image = sheet.shape[1] - 32 - images.GUTTER
+    assert first_image >= width + 6 and (sheet[images.GUTTER, first_image:first_image + 32] == 255).all()
+    top = 2 * images.GUTTER + 32   # the second row
+    band = sheet[top:top + 32, :first_image]
     text_columns = np.flatnonzero((band > 128).any(axis=(0, 2)))
     assert text_columns.max() < first_image - 2 and text_columns.max() - text_columns.min() >= width - 8
+
+
+def test_overview_cells_apart_and_its_colour_scale_numbered(tmp_path):
+    """Frames that fill their cell to the edge stay GUTTER apart from each other and from the sheet's edges; with
+    heat_max, an inferno bar from 0 to heat_max under the rows with numbers under it."""
+    tile = np.full((32, 32, 4), 255, np.uint8)
+    images.overview([("reference", [tile, tile]), ("mesh error", [tile, tile])], tmp_path / "o.png", tile=32,
+                    heat_max=8.0)
+    sheet = np.asarray(Image.open(tmp_path / "o.png").convert("RGB")).astype(int)
+    g, width = images.GUTTER, sheet.shape[1]
+    x0 = width - 2 * (32 + g)   # the first column of images
+    white = (sheet == 255).all(-1)
+    rows_white = np.flatnonzero(white[:, x0 + 5])
+    assert rows_white.min() == g and rows_white.max() < 2 * 32 + 2 * g + 1
+    assert not white[g + 32:2 * g + 32, x0:].any()            # between the rows
+    assert not white[:, x0 + 32:x0 + 32 + g].any()            # between the columns
+    assert not white[:, width - g:].any() and not white[:g].any()   # around the sheet
+    y = 2 * (32 + g) + g   # the scale's bar: inferno from black to pale yellow, left to right
+    bar = sheet[y + 5, x0:x0 + 2 * 32 + g]
+    ends = images.heatmap(np.array([0.0, 8.0]), 8.0)[:, :3]
+    assert np.abs(bar[0] - ends[0]).max() <= 2 and np.abs(bar[-1] - ends[1]).max() <= 2
+    assert (np.diff(bar.sum(-1)) >= -3).all()   # brightening along the bar
+    numbers = sheet[y + 16:y + 30, x0 - 4:]
+    lit = np.flatnonzero((numbers > 150).all(-1).any(0))
+    assert len(lit) and lit.max() - lit.min() > 2 * 32   # "0" at the start of the bar to "8+" at its end

@@ -161,5 +161,5 @@ def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[di
     whole = {o: v.label for o, v in full.items()}   # every object by its full asset (vdmrender.change)
     change.attach(rows, drawn, set_label(whole), composed(whole), harness, cams, refs, opts.flip,
                   scene.render.background)
-    images.overview(sheet, out.file(f"{FOLDER}/overview.png"))
+    images.overview(sheet, out.file(f"{FOLDER}/overview.png"), heat_max=opts.heat_max)
     return rows

@@ -33,6 +33,7 @@ from vdmbake.scene import LIMIT_ON
 from . import pricing
 from .baseline import POINT
 from .markdown import cell
+from .report import ERROR_LABEL
 
 NOISE = 0.1   # separately timed medians (no interleaved times): a difference below this share is not one in cost
 TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
@@ -325,6 +326,14 @@ def write(folder: Path, lod: dict, sweep_rows: list[dict]) -> None:
 
 
 def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
+    import matplotlib.pyplot as plt
+
+    fig = figure(lod, sweep_rows)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def figure(lod: dict, sweep_rows: list[dict]):
     """lod.png, one panel per chain and object: every variant's mean change (or error, as the chain's limit_on)
     against screen size (thin), the chain's bands shaded and named (hatched: over the limits), its value through
     them (thick), the limit (dashed), the floor (the full asset against the reference, dotted) and the pop at each
@@ -333,6 +342,7 @@ def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
 
     panels = [(c, obj, ch) for c in lod["chains"] for obj, ch in c["objects"].items()]
     fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.6 * len(panels)), squeeze=False)
@@ -371,14 +381,19 @@ def plot(path: Path, lod: dict, sweep_rows: list[dict]) -> None:
         ax.minorticks_off()
         ax.set_xlim(min(lod["sizes_px"]) / 2, max(lod["sizes_px"]) * 1.3)
         ax.set_xlabel("bounding sphere on screen [px] (log)")
-        ax.set_ylabel("mean ΔL*u*v* " + ("against the full asset" if error == CHANGE else "against the reference"))
+        ax.set_ylabel(ERROR_LABEL if error != CHANGE else "mean colour difference per pixel\nagainst the full asset "
+                      "(CIE ΔE*uv)")
         priced = f", priced on the field: {ch['field']['chosen']}" if "field" in ch else ""
         ax.set_title(f"{obj}: chain {c['name']}{priced}", fontsize=9)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+        handles, _ = ax.get_legend_handles_labels()
+        handles.append(Patch(facecolor="grey", alpha=0.25, label="shaded: a band of the chain,\nnamed at its top"))
+        if not all(e["meets"] for e in ch["entries"]):
+            handles.append(Patch(facecolor="none", edgecolor="grey", hatch="//",
+                                 label="hatched: over the limits\n(the least change taken)"))
+        ax.legend(handles=handles, fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     seen = lod.get("error") or POINT
     fig.suptitle(f"LOD chains on {lod['device']}\nreference {seen['reference_spp']} spp, frames AA {seen['antialias']}",
                  fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.4 / fig.get_figheight()))   # room for the two-line title above
+    return fig

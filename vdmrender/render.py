@@ -294,7 +294,7 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, de
     change.attach(rows, frames, full.label, lambda: full.build(harness.ctx), harness, cams, refs, opts.flip, background)
     if keep is not None:
         keep.update(frames)
-    images.overview(sheet, out.file(f"{prefix}overview/{obj.name}.png"))
+    images.overview(sheet, out.file(f"{prefix}overview/{obj.name}.png"), heat_max=opts.heat_max)
     return rows
 
 

@@ -91,6 +91,26 @@ def composite_table(report: dict) -> str:
 
 
 PANEL_COLUMNS = 3   # panels per row of error_vs_time.png: any number of objects stays readable
+# The plots' error axis in words (the mean over covered pixels of the per-pixel CIE L*u*v* colour difference).
+ERROR_LABEL = "mean colour difference per pixel\nagainst the reference (CIE ΔE*uv)"
+
+
+def log_ticks(ax, which: str) -> None:
+    """Readable ticks on a log axis, as plain numbers (20, not 2×10¹): decades where the data span more than two
+    and a half, 1, 2 and 5 per decade where they span one or more, and a few round steps within a narrower span
+    (matplotlib's default labels every minor tick there, and they run together: "2.1×10²2.2×10²…")."""
+    from matplotlib import ticker
+
+    lo, hi = ax.get_xlim() if which == "x" else ax.get_ylim()
+    span = math.log10(hi / lo)
+    axis = ax.xaxis if which == "x" else ax.yaxis
+    if span < 1:
+        axis.set_major_locator(ticker.MaxNLocator(nbins=4, steps=[1, 2, 5, 10]))
+    else:
+        axis.set_major_locator(ticker.LogLocator(10, subs=(1.0, 2.0, 5.0) if span <= 2.5 else (1.0,), numticks=8))
+    axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(ticker.NullFormatter())
+
 
 
 def figure(report: dict):
@@ -125,6 +145,7 @@ def figure(report: dict):
             points += pts
         ax.set_xscale("log")
         ax.margins(x=0.12, y=0.12)
+        log_ticks(ax, "x")
         if points:
             logs = np.log([r["median_ms"] for r in points])
             middle = 0.5 * (logs.min() + logs.max())
@@ -133,7 +154,7 @@ def figure(report: dict):
                 ax.annotate(r["label"], (r["median_ms"], r["mean_dluv"]), textcoords="offset points",
                             xytext=(5 if right else -5, 4), ha="left" if right else "right", fontsize=7)
         ax.set_xlabel("median GPU time per frame, timer queries [ms] (log)")
-        ax.set_ylabel("mean ΔL*u*v* against the reference (eq. 2.2)")
+        ax.set_ylabel(ERROR_LABEL)
         ax.set_title(f"{obj}  {report['resolution'][0]}x{report['resolution'][1]}"
                      + (" (every object in one frame)" if together else ""), fontsize=10)
         ax.grid(True, which="both", alpha=0.3)

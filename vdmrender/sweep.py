@@ -12,6 +12,7 @@ import numpy as np
 
 from .baseline import POINT
 from .camera import Camera, clip_planes
+from .report import ERROR_LABEL, log_ticks
 from .report import flat as report_flat
 
 COLUMNS = ["object", "size_px", "distance_radii", "label", "technique", "value", "median_ms", "spread_ms", "q1_ms",
@@ -48,7 +49,7 @@ def write(folder: Path, report: dict) -> None:
         w.writeheader()
         w.writerows(report_flat(r) for r in rows)   # per-pixel work spelled as report.csv spells it
     for name, field, label, log in (
-            ("error_vs_size.png", "mean_dluv", f"mean ΔL*u*v* against the reference (eq. 2.2)\n{seen(report)}", False),
+            ("error_vs_size.png", "mean_dluv", ERROR_LABEL, False),
             ("cost_vs_size.png", "median_ms", "median GPU time per frame, timer queries [ms] (log)", True)):
         plot(folder / name, report, field, label, log)
 
@@ -61,6 +62,14 @@ def seen(report: dict) -> str:
 
 
 def plot(path: Path, report: dict, field: str, ylabel: str, log_y: bool) -> None:
+    import matplotlib.pyplot as plt
+
+    fig = figure(report, field, ylabel, log_y)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def figure(report: dict, field: str, ylabel: str, log_y: bool):
     """`field` against the object's size on screen, one panel per object, one line per variant; the error
     against what a viewer sees (filtered: report.json's `filtering`) solid, its point-sampled `aliased_` twin
     dashed in the same colour where the two differ."""
@@ -88,13 +97,15 @@ def plot(path: Path, report: dict, field: str, ylabel: str, log_y: bool) -> None
         ax.minorticks_off()
         if log_y:
             ax.set_yscale("log")
+            log_ticks(ax, "y")
         ax.set_xlabel("bounding sphere on screen [px] (log)")
         ax.set_ylabel(ylabel)
         ax.set_title(f"{obj}  frame {report['resolution'][0]}x{report['resolution'][1]}", fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(textwrap.fill(f"{'error' if field == 'mean_dluv' else 'cost'} against screen size on "
-                               f"{report['device']}", 60 * len(objects)), fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    title = textwrap.fill(f"{'error' if field == 'mean_dluv' else 'cost'} against screen size on "
+                          f"{report['device']}", 60 * len(objects))
+    title += f"\n{seen(report)}" if field == "mean_dluv" else ""   # what the solid and dashed lines compare
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.14 * title.count("\n") / fig.get_figheight()))   # room for its lines
+    return fig
