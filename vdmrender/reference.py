@@ -45,12 +45,24 @@ def _depth(shape, hit: np.ndarray, view_depth: np.ndarray) -> np.ndarray:
     return out.reshape(shape)
 
 
+def facing_the_light(normals: np.ndarray, light) -> np.ndarray:
+    """(N,) where the shading normals face the light: only there may a shadow ray change the pixel (shade lights
+    none other), so only there is one cast."""
+    return np.einsum("ij,j->i", normals, np.asarray(light.direction, float)) > 0
+
+
+def _towards(light, rays: np.ndarray) -> np.ndarray:
+    """The light's direction for each of the rays where `rays` is True: (count, 3)."""
+    return np.broadcast_to(np.asarray(light.direction, float), (int(rays.sum()), 3))
+
+
 class MeshReference:
     """Traces one triangle mesh; the Embree scene is built once and reused for every camera."""
 
     def __init__(self, mesh, light, material):
         self.mesh, self.light, self.material = mesh, light, material
         self.scene = RayScene(mesh.vertices, mesh.faces)
+        self.local = mesh.vertices - self.scene.anchor   # about the anchor: keeps the shadow offset's digits
         self.eps = SHADOW_EPSILON * mesh.bounding_sphere()[1]
 
     def occluded(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
@@ -69,18 +81,18 @@ class MeshReference:
         tri = self.mesh.faces[hits.prim[hit]]
         w = np.stack([1 - hits.u[hit] - hits.v[hit], hits.u[hit], hits.v[hit]], 1)
         # einsum: the corners' weighted sum without the (N, 3, 3) product (3x faster, the same sums)
-        local = np.einsum("ij,ijk->ik", w, (self.mesh.vertices - self.scene.anchor)[tri])   # about the anchor: keeps
-        p = local + self.scene.anchor                                   # the shadow offset's digits far from the origin
+        local = np.einsum("ij,ijk->ik", w, self.local[tri])
+        p = local + self.scene.anchor
         n = safe_normalize(np.einsum("ij,ijk->ik", w, self.mesh.normals[tri]))
         dh = d[hit]
         ng = hits.ng[hit]
         back = np.einsum("ij,ij->i", ng, dh) > 0          # seen from behind: flip to face the viewer
         n[back], ng[back] = -n[back], -ng[back]
         to_eye = safe_normalize(camera.eye - p)
-        L = np.broadcast_to(np.asarray(self.light.direction), p.shape)
-        lit = ~self.scene.occluded(local + ng * self.eps, L, relative=True)
+        lit = facing_the_light(n, self.light)
+        lit[lit] = ~self.scene.occluded((local + ng * self.eps)[lit], _towards(self.light, lit), relative=True)
         for o in others:
-            lit &= ~o.occluded(p + ng * self.eps, L)
+            lit[lit] = ~o.occluded((p + ng * self.eps)[lit], _towards(self.light, lit))
         albedo = surface_albedo(self.mesh, hits.prim[hit], w, self.material.albedo)
         shape = _shape(camera, pixels)
         frame = _frame(shape, hit, shade(albedo, n, to_eye, lit, self.light, self.material))
@@ -240,12 +252,10 @@ class QuadricReference:
         p = camera.eye + du[hit] * t[hit, None]
         n = n[hit]
         n = np.where((np.einsum("ij,ij->i", n, du[hit]) > 0)[:, None], -n, n)  # face the viewer
-        L = np.broadcast_to(np.asarray(self.light.direction, float), p.shape)
-        ts, _, _ = self.tracer.first_hit(p + n * self.eps, np.ascontiguousarray(L), np.zeros(len(p)),
-                                         np.full(len(p), np.inf), stop_at_any=True)
-        lit = ~np.isfinite(ts)
+        lit = facing_the_light(n, self.light)
+        lit[lit] = ~self.occluded((p + n * self.eps)[lit], _towards(self.light, lit))
         for o in others:
-            lit &= ~o.occluded(p + n * self.eps, L)
+            lit[lit] = ~o.occluded((p + n * self.eps)[lit], _towards(self.light, lit))
         shape = _shape(camera, pixels)
         frame = _frame(shape, hit, shade(self.rgb[idx[hit]], n, safe_normalize(camera.eye - p), lit,
                                          self.light, self.material))
