@@ -318,7 +318,7 @@ class Pattern:
     with the scene's."""
 
     def __init__(self, camera, spp: int):
-        self.n, self.width = math.isqrt(spp), camera.width
+        self.n = math.isqrt(spp)
         self.p = np.arange(1, camera.height * camera.width + 1, dtype=np.uint32).reshape(camera.height, camera.width)
         self._sub = {}
 
