@@ -190,6 +190,8 @@ def test_filtered_error_falls_with_screen_size(tmp_path):
     assert r.exit_code == 0, r.output
     report = json.loads((tmp_path / "o" / "report.json").read_text())
     assert report["filtering"]["reference_spp"] == 64 and report["filtering"]["antialias"] == "ssaa4"
+    # adaptive: every pixel its first 8 samples, only the pixels that need them all 64 (25.5 on average here)
+    assert 8 < report["filtering"]["reference_mean_spp"] < 48
     rows = {row["size_px"]: row for row in report["sweep"]["rows"]}
     filtered = rows[16]["mean_dluv"] / rows[512]["mean_dluv"]
     aliased = rows[16]["aliased_mean_dluv"] / rows[512]["aliased_mean_dluv"]
