@@ -3,18 +3,22 @@
 The scanned Stanford bunny (pymeshfix's, 100k faces), one directional light, Lambert only (no ambient, no highlight,
 so that Mitsuba's `direct` integrator with one emitter sample renders the same picture from the same rays: a primary
 ray and, where it hits, one shadow ray), two orbit cameras, square frames. Variants:
-  before     the reference as it was (main at 62f9cd8), kept here so the gain stays visible: N x N jittered strata,
-             one thread;
-  ours-1     vdmrender.reference.filtered on one thread (correlated multi-jittered samples);
+  before     the reference's sampling as it was (main at 62f9cd8), kept here so the gain stays visible: N x N
+             jittered strata, one thread (on today's tracer: its per-ray gains count for it too);
+  uniform    vdmrender.reference.filtered with every sample for every pixel (adaptive=False: correlated
+             multi-jittered, every core), as it was before adaptive sampling;
+  ours-1     vdmrender.reference.filtered on one thread (adaptive: N samples first, the rest where they disagree;
+             spp is the budget of the hardest pixels, `mean_spp` what it traced);
   ours       the same on every core;
   mitsuba-1  Mitsuba 3 `scalar_rgb`, `direct` integrator (1 emitter sample, no BSDF sample), `multijitter` sampler,
              box filter, one thread;
   mitsuba    the same on every core.
 Timing: at 480 x 480 and 16 and 64 spp, each round every variant in turn (the order rotating by round), wall and
 CPU seconds (the process's, every thread), medians over the rounds. Error: at 400, 96, 48 and 24 px across, mean
-ΔLuv of each at 4, 16 and 64 spp against each renderer's own 256-spp frame and against Mitsuba's (the renderers
-agree within their noise), and the seconds each needs to reach Mitsuba's 16-spp error (log-log interpolation of
-error against wall time, on every core). Profile: where `ours` spends a 16-spp frame on one thread.
+ΔLuv of each at 4, 16 and 64 spp (ours also at a budget of 256, against Mitsuba's only: where it traces every
+sample they are the truth's) against each renderer's own 256-spp frame (ours: uniform's) and against Mitsuba's (the renderers agree within their noise), and the seconds each needs to reach
+Mitsuba's 16-spp error, and ours to reach uniform's 64-spp error (log-log interpolation of error against wall time,
+on every core). Profile: where a 16-spp frame's time goes on one thread.
 
     python -m bench.reference -o out/bench [--quick] [--rounds 3]
 
@@ -45,6 +49,7 @@ from tools.make_docs import markdown
 MESH = "pkg:pymeshfix/examples/StanfordBunny.ply"
 TIMING_PX, TIMING_SPP = 480, (16, 64)
 ERROR_PX, ERROR_SPP, TRUTH_SPP = (400, 96, 48, 24), (4, 16, 64), 256
+OURS_SPP = (*ERROR_SPP, TRUTH_SPP)   # adaptive: a budget of 256 costs less than uniform's 64 where few pixels need it
 BACKGROUND = np.array([0.1, 0.1, 0.1])
 
 
@@ -145,29 +150,38 @@ def timed(fn):
 
 
 def variants(ref, mitsuba, cores: int) -> dict:
-    """name -> frame(camera, spp)."""
-    return {"before": lambda c, spp: before(ref.render, c, spp),
-            "ours-1": lambda c, spp: reference.filtered(ref.render, c, spp, 1)[0],
-            "ours": lambda c, spp: reference.filtered(ref.render, c, spp, cores)[0],
-            "mitsuba-1": lambda c, spp: mitsuba.render(c, spp, 1),
-            "mitsuba": lambda c, spp: mitsuba.render(c, spp, cores)}
+    """name -> frame(camera, spp) -> (premultiplied frame, samples traced per pixel or None)."""
+    def ours(threads, adaptive=True):
+        def frame(c, spp):
+            f, halves = reference.filtered(ref.render, c, spp, threads, adaptive)
+            return f, None if halves is None else halves.traced
+        return frame
+
+    return {"before": lambda c, spp: (before(ref.render, c, spp), None),
+            "uniform": ours(cores, adaptive=False), "ours-1": ours(1), "ours": ours(cores),
+            "mitsuba-1": lambda c, spp: (mitsuba.render(c, spp, 1), None),
+            "mitsuba": lambda c, spp: (mitsuba.render(c, spp, cores), None)}
 
 
-def interleaved(fns: dict, cams, spps, rounds: int, ref) -> tuple[dict, dict]:
-    """Each round, every variant in turn (rotated by round) over every camera: {(name, spp): {wall_s, cpu_s, rays}}
-    (medians over the rounds; rays of ours), and the first round's frames {(name, spp): [frame per camera]}."""
-    names, times, frames = list(fns), {}, {}
+def interleaved(fns: dict, cams, spps: dict, rounds: int, ref) -> tuple[dict, dict]:
+    """Each round, every variant in turn (rotated by round) over every camera, at each of its samples per pixel
+    (spps: name -> spp list): {(name, spp): {wall_s, cpu_s, rays, mean_spp}} (medians over the rounds; rays of
+    ours; mean_spp, the samples per pixel ours traced), and the first round's frames {(name, spp): [frame]}."""
+    names, times, frames, traced = list(fns), {}, {}, {}
     for r in range(rounds):
-        for spp in spps:
-            for name in names[r % len(names):] + names[:r % len(names)]:
+        for spp in sorted({s for v in spps.values() for s in v}):
+            for name in [n for n in names[r % len(names):] + names[:r % len(names)] if spp in spps[n]]:
                 rays0 = ref.scene.rays_cast
                 out, wall, cpu = timed(lambda: [fns[name](c, spp) for c in cams])
                 times.setdefault((name, spp), []).append((wall, cpu, ref.scene.rays_cast - rays0))
-                frames.setdefault((name, spp), out)
+                frames.setdefault((name, spp), [f for f, _ in out])
+                if out[0][1] is not None:
+                    traced[name, spp] = round(float(np.mean([n.mean() for _, n in out])), 3)
                 click.echo(f"  round {r + 1} {name} {spp} spp: {wall:.2f} s wall, {cpu:.2f} s CPU", err=True)
     return ({k: {"wall_s": round(statistics.median(t[0] for t in v), 3),
                  "cpu_s": round(statistics.median(t[1] for t in v), 3), "rays": v[0][2],
-                 "wall_runs_s": [round(t[0], 3) for t in v]} for k, v in times.items()}, frames)
+                 "mean_spp": traced.get(k, k[1]), "wall_runs_s": [round(t[0], 3) for t in v]}
+             for k, v in times.items()}, frames)
 
 
 def error(frames, truths) -> float:
@@ -190,7 +204,7 @@ def seconds_to(target: float, points: list[tuple[float, float]]) -> float | None
 
 def profile(ref, frame, cam, spp: int) -> dict:
     """Where frame(camera, spp) spends its time (on one thread): Embree's own ray loops against the rest (Python
-    and numpy)."""
+    and numpy); the samples (primary rays) and rays (with the shadow rays) it traced per second."""
     scene, spent = ref.scene._scene, {"intersect": 0.0, "occluded": 0.0}
 
     class Clocked:
@@ -204,51 +218,62 @@ def profile(ref, frame, cam, spp: int) -> dict:
     rays0 = ref.scene.rays_cast
     ref.scene._scene = Clocked()
     try:
-        _, wall, cpu = timed(lambda: frame(cam, spp))
+        (_, traced), wall, cpu = timed(lambda: frame(cam, spp))
     finally:
         ref.scene._scene = scene
     rays = ref.scene.rays_cast - rays0
+    samples = spp * cam.width * cam.height if traced is None else int(traced.sum())
     embree = spent["intersect"] + spent["occluded"]
     return {"size": cam.width, "spp": spp, "wall_s": round(wall, 3), "cpu_s": round(cpu, 3), "rays": rays,
-            "embree_intersect_s": round(spent["intersect"], 3), "embree_occluded_s": round(spent["occluded"], 3),
-            "rest_s": round(wall - embree, 3), "rays_per_s": round(rays / wall), "embree_rays_per_s": round(rays / embree)}
+            "samples": samples, "embree_intersect_s": round(spent["intersect"], 3),
+            "embree_occluded_s": round(spent["occluded"], 3), "rest_s": round(wall - embree, 3),
+            "samples_per_cpu_s": round(samples / cpu), "rays_per_cpu_s": round(rays / cpu),
+            "embree_rays_per_s": round(rays / embree)}
 
 
 def tables(doc: dict) -> dict:
     def t(header, rows):
         return {"header": header, "align": ["---"] + ["---:"] * (len(header) - 1), "rows": rows}
 
+    def s(x):
+        return "-" if x is None else f"{x:.2f}"
+
     tm = doc["timing"]
     rows = []
-    for name in ("before", "ours-1", "ours", "mitsuba-1", "mitsuba"):
+    for name in ("before", "uniform", "ours-1", "ours", "mitsuba-1", "mitsuba"):
         cells = [name]
         for spp in TIMING_SPP:
             r, m = tm[f"{name}@{spp}"], tm[f"mitsuba@{spp}"]
-            cells += [f"{r['wall_s']:.2f}", f"{r['cpu_s']:.2f}", f"{r['wall_s'] / m['wall_s']:.2f}"]
+            cells += [f"{r['wall_s']:.2f}", f"{r['cpu_s']:.2f}", f"{r['mean_spp']:.1f}", f"{r['wall_s'] / m['wall_s']:.2f}"]
         rows.append(cells)
-    timing = t(["variant", *(f"{h} {spp} spp" for spp in TIMING_SPP for h in ("wall s", "CPU s", "wall / mitsuba"))],
-               rows)
+    timing = t(["variant", *(f"{h} {spp} spp" for spp in TIMING_SPP
+                             for h in ("wall s", "CPU s", "samples traced", "wall / mitsuba"))], rows)
     err = doc["error"]
     rows = []
-    for name in ("before", "ours", "mitsuba"):
-        for spp in ERROR_SPP:
-            rows.append([f"{name} {spp} spp", *(f"{err[str(px)][name][str(spp)]['own']:.3f} · "
-                                                f"{err[str(px)][name][str(spp)]['mitsuba']:.3f}" for px in doc["error_px"])])
+    for name in ("before", "uniform", "ours", "mitsuba"):
+        for spp in (OURS_SPP if name == "ours" else ERROR_SPP):
+            e = [err[str(px)][name][str(spp)] for px in doc["error_px"]]
+            rows.append([f"{name} {spp} spp", *(("-" if x["own"] is None else f"{x['own']:.3f}") + f" · {x['mitsuba']:.3f}"
+                                                + (f" ({x['mean_spp']:.1f})" if name == "ours" else "") for x in e)])
     errors = t(["variant", *(f"{px} px" for px in doc["error_px"])], rows)
-    rows = []
+    rows, goal = [], []
     for px in doc["error_px"]:
         e = doc["equal_error"][str(px)]
-        rows.append([f"{px} px", f"{e['target']:.3f}", *(("-" if e[n] is None else f"{e[n]:.2f}")
-                                                        for n in ("before", "ours", "mitsuba")),
+        rows.append([f"{px} px", f"{e['target']:.3f}", *(s(e[n]) for n in ("before", "uniform", "ours", "mitsuba")),
                      "-" if e["ours"] is None else f"{e['ours'] / e['mitsuba']:.2f}"])
-    equal = t(["size", "Mitsuba's 16-spp error", "before s", "ours s", "mitsuba s", "ours / mitsuba"], rows)
+        g = doc["goal"][str(px)]
+        goal.append([f"{px} px", f"{g['uniform_16_s']:.2f}", f"{g['target']:.3f}", s(g["ours_s"]),
+                     "-" if g["ours_s"] is None else f"{g['ours_s'] / g['uniform_16_s']:.2f}"])
+    equal = t(["size", "Mitsuba's 16-spp error", "before s", "uniform s", "ours s", "mitsuba s", "ours / mitsuba"], rows)
+    goal = t(["size", "uniform 16 spp s", "uniform 64-spp error", "ours s to it", "ours / uniform 16"], goal)
     p = doc["profile"]
-    rows = [[name, f"{r['wall_s']:.2f}", f"{r['embree_intersect_s']:.2f}", f"{r['embree_occluded_s']:.2f}",
-             f"{r['rest_s']:.2f}", f"{r['rays_per_s'] / 1e6:.2f}", f"{r['embree_rays_per_s'] / 1e6:.2f}"]
+    rows = [[name, f"{r['wall_s']:.2f}", f"{r['cpu_s']:.2f}", f"{r['embree_intersect_s']:.2f}",
+             f"{r['embree_occluded_s']:.2f}", f"{r['rest_s']:.2f}", f"{r['samples'] / 1e6:.2f}",
+             f"{r['samples_per_cpu_s'] / 1e6:.2f}", f"{r['rays_per_cpu_s'] / 1e6:.2f}", f"{r['embree_rays_per_s'] / 1e6:.2f}"]
             for name, r in p.items()]
-    prof = t(["variant (one thread)", "wall s", "Embree intersect s", "Embree occluded s", "the rest s",
-              "Mrays/s", "Embree alone Mrays/s"], rows)
-    return {"timing": timing, "error": errors, "equal-error": equal, "profile": prof}
+    prof = t(["variant (one thread)", "wall s", "CPU s", "Embree intersect s", "Embree occluded s", "the rest s",
+              "M samples", "M samples / CPU s", "M rays / CPU s", "Embree alone M rays/s"], rows)
+    return {"timing": timing, "error": errors, "equal-error": equal, "goal": goal, "profile": prof}
 
 
 @click.command()
@@ -260,6 +285,7 @@ def main(out: Path, rounds: int, quick: bool, docs: bool):
     import mitsuba
 
     out.mkdir(parents=True, exist_ok=True)
+    load_before = os.getloadavg()[0]
     mesh = load_mesh_file(resolve_path(MESH, Path(".")))
     lit = light()
     ref = reference.MeshReference(mesh, lit, MATERIAL)
@@ -268,33 +294,40 @@ def main(out: Path, rounds: int, quick: bool, docs: bool):
     timing_px, error_px, rounds = (96, (48, 24), 1) if quick else (TIMING_PX, ERROR_PX, rounds)
     fns = variants(ref, mi, cores)
     click.echo(f"timing at {timing_px} px", err=True)
-    times, _ = interleaved(fns, cameras(mesh, timing_px), TIMING_SPP, rounds, ref)
-    errors, equal = {}, {}
+    times, _ = interleaved(fns, cameras(mesh, timing_px), {n: TIMING_SPP for n in fns}, rounds, ref)
+    errors, equal, goal = {}, {}, {}
     for px in error_px:
         cams = cameras(mesh, px)
         click.echo(f"error at {px} px", err=True)
-        own = {"ours": [reference.filtered(ref.render, c, TRUTH_SPP)[0] for c in cams],
+        own = {"uniform": [reference.filtered(ref.render, c, TRUTH_SPP, adaptive=False)[0] for c in cams],
                "mitsuba": [mi.render(c, TRUTH_SPP, cores, seed=1) for c in cams]}
-        own["before"] = own["ours"]
-        sub = {n: fns[n] for n in ("before", "ours", "mitsuba")}
-        t, frames = interleaved(sub, cams, ERROR_SPP, rounds, ref)
-        errors[str(px)] = {n: {str(spp): {"own": error(frames[n, spp], own[n]),
+        own["before"] = own["ours"] = own["uniform"]
+        sub = {n: fns[n] for n in ("before", "uniform", "ours", "mitsuba")}
+        t, frames = interleaved(sub, cams, {n: OURS_SPP if n == "ours" else ERROR_SPP for n in sub}, rounds, ref)
+        # ours at 256 shares the truth's samples where it traced them all: only Mitsuba's truth is independent of it
+        errors[str(px)] = {n: {str(spp): {"own": None if (n, spp) == ("ours", TRUTH_SPP) else error(frames[n, spp], own[n]),
                                          "mitsuba": error(frames[n, spp], own["mitsuba"]),
-                                         "wall_s": t[n, spp]["wall_s"], "cpu_s": t[n, spp]["cpu_s"]}
-                              for spp in ERROR_SPP} for n in sub}
-        errors[str(px)]["truths_agree"] = error(own["ours"], own["mitsuba"])
-        target = errors[str(px)]["mitsuba"]["16"]["own"]
-        equal[str(px)] = {"target": target, **{n: seconds_to(target, [(e["wall_s"], e["own"])
-                                                                      for e in errors[str(px)][n].values()])
-                                               for n in sub}}
+                                         "wall_s": t[n, spp]["wall_s"], "cpu_s": t[n, spp]["cpu_s"],
+                                         "mean_spp": t[n, spp]["mean_spp"]}
+                                  for spp in (OURS_SPP if n == "ours" else ERROR_SPP)} for n in sub}
+        errors[str(px)]["truths_agree"] = error(own["uniform"], own["mitsuba"])
+        e = errors[str(px)]
+        curve = {n: [(x["wall_s"], x["own"]) for x in e[n].values() if x["own"] is not None] for n in sub}
+        target = e["mitsuba"]["16"]["own"]
+        equal[str(px)] = {"target": target, **{n: seconds_to(target, curve[n]) for n in sub}}
+        goal[str(px)] = {"uniform_16_s": e["uniform"]["16"]["wall_s"], "target": e["uniform"]["64"]["own"],
+                         "ours_s": seconds_to(e["uniform"]["64"]["own"], curve["ours"])}
     prof = {n: profile(ref, fns[n], cameras(mesh, timing_px)[0], 16) for n in ("before", "ours-1")}
+    prof["uniform-1"] = profile(ref, lambda c, spp: (reference.filtered(ref.render, c, spp, 1, adaptive=False)[0], None),
+                                cameras(mesh, timing_px)[0], 16)
     doc = {"about": "make bench-reference (bench/reference.py): the filtered reference beside Mitsuba 3, interleaved",
            "measured_by": "python -m bench.reference -o out/bench" + (" --quick" if quick else "") + f" --rounds {rounds}",
            "when": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-           "device": device(), "load_before": os.getloadavg()[0], "mitsuba": mitsuba.__version__, "cores": cores,
+           "device": device(), "load_before": load_before, "load_after": os.getloadavg()[0],
+           "mitsuba": mitsuba.__version__, "cores": cores,
            "timing_px": timing_px, "error_px": list(error_px), "rounds": rounds,
            "timing": {f"{n}@{spp}": v for (n, spp), v in times.items()}, "error": errors, "equal_error": equal,
-           "profile": prof}
+           "goal": goal, "profile": prof}
     doc["tables"] = tables(doc)
     (out / "reference.json").write_text(json.dumps(doc, indent=1) + "\n")
     md = [f"# The reference beside Mitsuba 3 ({doc['device']}, {doc['when']})", ""]

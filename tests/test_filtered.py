@@ -62,10 +62,10 @@ def test_one_sample_is_the_pixel_centre():
 
 
 def test_the_noise_estimate_from_two_halves_of_the_strata_is_the_true_error():
-    """The reference's own noise (scoring.noise, from two halves of its strata) against its true error, the
-    filtered frame against the sphere's exact coverage (both encoded over the background, mean ΔLuv over the pixels
-    either covers): within 30% of it at 16, 36 and 64 spp, falling as the samples grow; 0 for a frame whose every
-    sample agrees (the inside of the silhouette)."""
+    """The reference's own noise (scoring.noise, from two halves of its strata, each pixel by its own counts: the
+    samples are adaptive) against its true error, the filtered frame against the sphere's exact coverage (both
+    encoded over the background, mean ΔLuv over the pixels either covers): within 30% of it at 16, 36 and 64 spp,
+    falling as the samples grow; 0 for a frame whose every sample agrees (the inside of the silhouette)."""
     from vdmrender import metrics, scoring
 
     ref, cam, exact = sphere_reference(), camera(), coverage()
@@ -74,13 +74,14 @@ def test_the_noise_estimate_from_two_halves_of_the_strata_is_the_true_error():
     estimated, true = {}, {}
     for spp in (16, 36, 64):
         f, half = reference.filtered(ref.render, cam, spp)
-        estimated[spp] = scoring.noise([f], [half], spp, bg)
+        estimated[spp] = scoring.noise([f], [half], bg)
         true[spp] = metrics.compare(images.encode(f, bg), truth)["mean"]
         assert estimated[spp] == pytest.approx(true[spp], rel=0.3), (spp, estimated[spp], true[spp])
     assert estimated[16] > estimated[36] > estimated[64] > 0
     inside = np.zeros((cam.height, cam.width, 4), np.float32)
     inside[15:25, 15:25] = (0.5, 0.5, 0.5, 1.0)
-    assert scoring.noise([inside], [inside], 16, bg) == 0.0
+    counts = np.full(inside.shape[:2], 16)
+    assert scoring.noise([inside], [reference.Halves(inside, counts, counts // 2)], bg) == 0.0
 
 
 def test_filtered_reference_is_coverage_times_radiance():
@@ -189,6 +190,8 @@ def test_filtered_error_falls_with_screen_size(tmp_path):
     assert r.exit_code == 0, r.output
     report = json.loads((tmp_path / "o" / "report.json").read_text())
     assert report["filtering"]["reference_spp"] == 64 and report["filtering"]["antialias"] == "ssaa4"
+    # adaptive: every pixel its first 8 samples, only the pixels that need them all 64 (25.5 on average here)
+    assert 8 < report["filtering"]["reference_mean_spp"] < 48
     rows = {row["size_px"]: row for row in report["sweep"]["rows"]}
     filtered = rows[16]["mean_dluv"] / rows[512]["mean_dluv"]
     aliased = rows[16]["aliased_mean_dluv"] / rows[512]["aliased_mean_dluv"]

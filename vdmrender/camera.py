@@ -50,14 +50,20 @@ class Camera:
         return np.array([[f / a, 0, 0, 0], [0, f, 0, 0],
                          [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)], [0, 0, -1, 0]])
 
-    def pixel_rays(self, offset: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def pixel_rays(self, offset: np.ndarray | None = None,
+                   pixels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """World-space directions through every pixel centre, scaled so that one unit of the ray
         parameter is one unit of view depth (camera-space z = -1); (H*W, 3) float64, row-major.
         offset: (H, W, 2) positions within each pixel, (x right, y down) in [0, 1), instead of its centre
-        (the filtered reference's samples: reference.filtered)."""
+        (the filtered reference's samples: reference.filtered). pixels: (P,) row-major pixel indices, a pixel
+        as often as it is sampled: only their rays, (P, 3), offset then (P, 2)."""
         t = np.tan(np.radians(self.fov_deg) / 2)
         a = self.width / self.height
-        X, Y = np.meshgrid(np.arange(self.width, dtype=float), np.arange(self.height, dtype=float))
+        if pixels is None:
+            X, Y = np.meshgrid(np.arange(self.width, dtype=float), np.arange(self.height, dtype=float))
+        else:
+            Y, X = np.divmod(np.asarray(pixels), self.width)
+            X, Y = X.astype(float), Y.astype(float)
         if offset is None:
             X, Y = X + 0.5, Y + 0.5
         else:
@@ -65,7 +71,9 @@ class Camera:
         X = (X / self.width * 2 - 1) * t * a
         Y = (1 - Y / self.height * 2) * t
         d_cam = np.stack([X, Y, -np.ones_like(X)], -1).reshape(-1, 3)
-        return np.broadcast_to(self.eye, d_cam.shape), d_cam @ self.basis()
+        # einsum, not @: a BLAS product of a frame's rays runs on BLAS's own threads, which spin against the
+        # reference's (reference.filtered) and doubled its CPU time per frame
+        return np.broadcast_to(self.eye, d_cam.shape), np.einsum("ij,jk->ik", d_cam, self.basis())
 
 
 def pixel_ray(inv_view_proj: np.ndarray, viewport, frag_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

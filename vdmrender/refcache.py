@@ -74,8 +74,16 @@ def object_reference(obj, entry, bundle, scene):
     return reference.QuadricReference(q, scene.light, obj.material), None
 
 
+def _halves(layers: dict) -> reference.Halves | None:
+    """A cached frame's Halves (reference.filtered): layers `half` and `samples`; None at 1 spp."""
+    if "half" not in layers:
+        return None
+    return reference.Halves(np.stack([layers["half"][c] for c in "RGBA"], -1),
+                            layers["samples"]["N"].astype(np.int32), layers["samples"]["A"].astype(np.int32))
+
+
 def cached_reference(out, folder: str, key: str, count: int):
-    """The previous run's reference frames, their first halves (reference.filtered; None at 1 spp) and classes in
+    """The previous run's reference frames, their Halves (reference.filtered; None at 1 spp) and classes in
     `folder` if they were made under `key`, else None."""
     prev_key = out.previous(f"{folder}/key.txt")
     names = [f"{folder}/{k:03d}" for k in range(count)]
@@ -83,32 +91,45 @@ def cached_reference(out, folder: str, key: str, count: int):
             and all(out.previous(n + ".exr").is_file() for n in names)):
         return None
     cached = [exr.read(out.previous(n + ".exr")) for n in names]
-    return ([np.stack([p["reference"][c] for c in "RGBA"], -1) for p in cached],
-            [np.stack([p["half"][c] for c in "RGBA"], -1) if "half" in p else None for p in cached],
+    return ([np.stack([p["reference"][c] for c in "RGBA"], -1) for p in cached], [_halves(p) for p in cached],
             [p["classes"]["C"].astype(np.uint8) if "classes" in p else None for p in cached])
 
 
 def save_reference(out, folder: str, key: str, frames, halves, classes, background) -> None:
-    """The reference frames as EXR (the cache) and PNG, with their first halves (layer `half`) and the pixel
-    classes where there are some, and the key."""
+    """The reference frames as EXR (the cache) and PNG, with their Halves (layers `half`: the first half's mean,
+    and `samples`: each pixel's samples N, of which A in the first half) and the pixel classes where there are
+    some, and the key."""
     for k, (f, h, c) in enumerate(zip(frames, halves, classes)):
         n = f"{folder}/{k:03d}"
         layers = {"reference": {ch: f[..., i] for i, ch in enumerate("RGBA")}}
-        if h is not None:   # the first half of the strata: the frame's noise (vdmrender.scoring.noise)
-            layers["half"] = {ch: h[..., i] for i, ch in enumerate("RGBA")}
+        if h is not None:   # the frame's noise (vdmrender.scoring.noise)
+            layers["half"] = {ch: h.first[..., i] for i, ch in enumerate("RGBA")}
+            layers["samples"] = {"N": h.traced.astype(np.float32), "A": h.in_first.astype(np.float32)}
         if c is not None:   # which pixels see an open border or the inside (vdmrender.borders), as a mask too
             layers["classes"] = {"C": c.astype(np.float32)}
             images.save_rgb(out.file(n + "-classes.png"), np.dstack([borders.COLOURS[c], np.full(c.shape, 255, np.uint8)]))
         exr.write(out.file(n + ".exr"), layers)
         images.save_rgb(out.file(n + ".png"), images.encode(f, background))
+    if halves and halves[0] is not None:   # what the run's filtering block reports (samples_traced)
+        out.file(f"{folder}/samples.json").write_text(json.dumps(
+            {"pixels": sum(h.traced.size for h in halves), "samples": sum(int(h.traced.sum()) for h in halves)}) + "\n")
     out.file(f"{folder}/key.txt").write_text(key + "\n")
+
+
+def samples_traced(root) -> dict:
+    """The samples per pixel the filtered references under `root` (a run's output folder) actually traced
+    (reference.filtered's adaptive sampling), pooled over every pixel of every frame: report.json's
+    filtering.reference_mean_spp; empty where no reference was filtered."""
+    counts = [json.loads(p.read_text()) for p in sorted(root.glob("**/samples.json"))]
+    pixels = sum(c["pixels"] for c in counts)
+    return {"reference_mean_spp": round(sum(c["samples"] for c in counts) / pixels, 3)} if pixels else {}
 
 
 def load_or_trace(out, folder: str, key: str, cams, trace, background, what: str, log) -> tuple[list, list, dict]:
     """The reference frames in `folder` (linear RGBA float32) and their pixel classes (None where not
-    classified): the previous run's where made under `key`, else traced by `trace(cams)` -> (frames, first
-    halves, classes, rays cast); saved (the next run's cache) and logged as WHAT. info["halves"]: each frame's
-    first half (reference.filtered), None at 1 spp."""
+    classified): the previous run's where made under `key`, else traced by `trace(cams)` -> (frames, Halves,
+    classes, rays cast); saved (the next run's cache) and logged as WHAT. info["halves"]: each frame's Halves
+    (reference.filtered), None at 1 spp."""
     cached = cached_reference(out, folder, key, len(cams))
     if cached is not None:
         frames, halves, classes = cached

@@ -4,12 +4,15 @@ with the numpy twin of the shared model. Meshes are traced by Embree; spheres an
 float64."""
 from __future__ import annotations
 
+import functools
 import math
 import os
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 
+from vdmbake.common.colour import srgb_encode
 from vdmbake.common.embree import RayScene
 from vdmbake.common.texture import surface_albedo
 
@@ -18,22 +21,39 @@ from .shading import safe_normalize, shade
 
 SHADOW_EPSILON = 1e-5  # shadow-ray origin offset along the geometric normal, in bounding radii
 CELL_PER_BOX = 1.0     # QuadricTracer: grid cell edge, in median quadric box edges
+COLOUR_SPREAD = 1 / 255  # filtered: samples (or neighbouring pixels) more than an sRGB8 level apart disagree
 
 
-def _frame(camera, hit: np.ndarray, radiance: np.ndarray) -> np.ndarray:
-    """(H, W, 4) float32, row 0 at the top: linear RGB of the hit pixels, and coverage."""
-    out = np.zeros((camera.height * camera.width, 4))
+def _shape(camera, pixels) -> tuple[int, ...]:
+    """What a render returns per ray: (H, W), row 0 at the top, or (P,) for the rays of chosen pixels."""
+    return (camera.height, camera.width) if pixels is None else (len(pixels),)
+
+
+def _frame(shape, hit: np.ndarray, radiance: np.ndarray) -> np.ndarray:
+    """shape + (4,) float32 (_shape): linear RGB of the hit rays, and coverage."""
+    out = np.zeros((hit.size, 4))
     out[hit, :3] = radiance
     out[hit, 3] = 1.0
-    return out.reshape(camera.height, camera.width, 4).astype(np.float32)
+    return out.reshape(*shape, 4).astype(np.float32)
 
 
-def _depth(camera, hit: np.ndarray, view_depth: np.ndarray) -> np.ndarray:
-    """(H, W) float64 view depth of the hit pixels (inf elsewhere), row 0 at the top: what composite frames
-    compare to find each pixel's nearest object (every reference casts the camera's same pixel rays)."""
-    out = np.full(camera.height * camera.width, np.inf)
+def _depth(shape, hit: np.ndarray, view_depth: np.ndarray) -> np.ndarray:
+    """shape (_shape) float64 view depth of the hit rays (inf elsewhere): what composite frames compare to find
+    each pixel's nearest object (every reference casts the camera's same pixel rays)."""
+    out = np.full(hit.size, np.inf)
     out[hit] = view_depth
-    return out.reshape(camera.height, camera.width)
+    return out.reshape(shape)
+
+
+def facing_the_light(normals: np.ndarray, light) -> np.ndarray:
+    """(N,) where the shading normals face the light: only there may a shadow ray change the pixel (shade lights
+    none other), so only there is one cast."""
+    return np.einsum("ij,j->i", normals, np.asarray(light.direction, float)) > 0
+
+
+def _towards(light, rays: np.ndarray) -> np.ndarray:
+    """The light's direction for each of the rays where `rays` is True: (count, 3)."""
+    return np.broadcast_to(np.asarray(light.direction, float), (int(rays.sum()), 3))
 
 
 class MeshReference:
@@ -42,38 +62,41 @@ class MeshReference:
     def __init__(self, mesh, light, material):
         self.mesh, self.light, self.material = mesh, light, material
         self.scene = RayScene(mesh.vertices, mesh.faces)
+        self.local = mesh.vertices - self.scene.anchor   # about the anchor: keeps the shadow offset's digits
         self.eps = SHADOW_EPSILON * mesh.bounding_sphere()[1]
 
     def occluded(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         """Shadow rays from other objects (composite frames): (N,) True where this mesh blocks them."""
         return self.scene.occluded(origins, dirs)
 
-    def render(self, camera, others=(), depth: bool = False, offset=None):
+    def render(self, camera, others=(), depth: bool = False, offset=None, pixels=None):
         """(H, W, 4) float32: linear RGB and coverage, row 0 at the top. others: references whose
         objects also block this one's shadow rays (composite frames); depth: also return each pixel's view
-        depth (_depth); offset: each pixel's ray through this point of it (Camera.pixel_rays), not its centre."""
-        eye, d = camera.pixel_rays(offset)
+        depth (_depth); offset: each pixel's ray through this point of it (Camera.pixel_rays), not its centre;
+        pixels: only these pixels' rays (Camera.pixel_rays), (P, 4)."""
+        eye, d = camera.pixel_rays(offset, pixels)
         # Start on the near plane and stop at the far plane, as the rasteriser clips (d has view depth 1).
         hits = self.scene.intersect(eye + d * camera.near, d, camera.far - camera.near)
         hit = hits.prim >= 0
         tri = self.mesh.faces[hits.prim[hit]]
         w = np.stack([1 - hits.u[hit] - hits.v[hit], hits.u[hit], hits.v[hit]], 1)
         # einsum: the corners' weighted sum without the (N, 3, 3) product (3x faster, the same sums)
-        local = np.einsum("ij,ijk->ik", w, (self.mesh.vertices - self.scene.anchor)[tri])   # about the anchor: keeps
-        p = local + self.scene.anchor                                   # the shadow offset's digits far from the origin
+        local = np.einsum("ij,ijk->ik", w, self.local[tri])
+        p = local + self.scene.anchor
         n = safe_normalize(np.einsum("ij,ijk->ik", w, self.mesh.normals[tri]))
         dh = d[hit]
         ng = hits.ng[hit]
         back = np.einsum("ij,ij->i", ng, dh) > 0          # seen from behind: flip to face the viewer
         n[back], ng[back] = -n[back], -ng[back]
         to_eye = safe_normalize(camera.eye - p)
-        L = np.broadcast_to(np.asarray(self.light.direction), p.shape)
-        lit = ~self.scene.occluded(local + ng * self.eps, L, relative=True)
+        lit = facing_the_light(n, self.light)
+        lit[lit] = ~self.scene.occluded((local + ng * self.eps)[lit], _towards(self.light, lit), relative=True)
         for o in others:
-            lit &= ~o.occluded(p + ng * self.eps, L)
+            lit[lit] = ~o.occluded((p + ng * self.eps)[lit], _towards(self.light, lit))
         albedo = surface_albedo(self.mesh, hits.prim[hit], w, self.material.albedo)
-        frame = _frame(camera, hit, shade(albedo, n, to_eye, lit, self.light, self.material))
-        return (frame, _depth(camera, hit, camera.near + hits.t[hit])) if depth else frame
+        shape = _shape(camera, pixels)
+        frame = _frame(shape, hit, shade(albedo, n, to_eye, lit, self.light, self.material))
+        return (frame, _depth(shape, hit, camera.near + hits.t[hit])) if depth else frame
 
 
 _BOX = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
@@ -219,9 +242,9 @@ class QuadricReference:
                                         np.zeros(len(origins)), np.full(len(origins), np.inf), stop_at_any=True)
         return np.isfinite(t)
 
-    def render(self, camera, others=(), depth: bool = False, offset=None):
+    def render(self, camera, others=(), depth: bool = False, offset=None, pixels=None):
         """As MeshReference.render."""
-        eye, d = camera.pixel_rays(offset)
+        eye, d = camera.pixel_rays(offset, pixels)
         scale = np.linalg.norm(d, axis=1)         # d has view depth 1: near/far become distances
         du = d / scale[:, None]
         t, n, idx = self.tracer.first_hit(np.ascontiguousarray(eye), du, camera.near * scale, camera.far * scale)
@@ -229,15 +252,14 @@ class QuadricReference:
         p = camera.eye + du[hit] * t[hit, None]
         n = n[hit]
         n = np.where((np.einsum("ij,ij->i", n, du[hit]) > 0)[:, None], -n, n)  # face the viewer
-        L = np.broadcast_to(np.asarray(self.light.direction, float), p.shape)
-        ts, _, _ = self.tracer.first_hit(p + n * self.eps, np.ascontiguousarray(L), np.zeros(len(p)),
-                                         np.full(len(p), np.inf), stop_at_any=True)
-        lit = ~np.isfinite(ts)
+        lit = facing_the_light(n, self.light)
+        lit[lit] = ~self.occluded((p + n * self.eps)[lit], _towards(self.light, lit))
         for o in others:
-            lit &= ~o.occluded(p + n * self.eps, L)
-        frame = _frame(camera, hit, shade(self.rgb[idx[hit]], n, safe_normalize(camera.eye - p), lit,
-                                          self.light, self.material))
-        return (frame, _depth(camera, hit, t[hit] / scale[hit])) if depth else frame
+            lit[lit] = ~o.occluded((p + n * self.eps)[lit], _towards(self.light, lit))
+        shape = _shape(camera, pixels)
+        frame = _frame(shape, hit, shade(self.rgb[idx[hit]], n, safe_normalize(camera.eye - p), lit,
+                                         self.light, self.material))
+        return (frame, _depth(shape, hit, t[hit] / scale[hit])) if depth else frame
 
 
 class CompositeReference:
@@ -252,8 +274,9 @@ class CompositeReference:
     def rays_cast(self) -> int:
         return sum(r.scene.rays_cast for r in self.refs)
 
-    def render(self, camera, offset=None) -> np.ndarray:
-        out = [r.render(camera, [o for o in self.refs if o is not r], depth=True, offset=offset) for r in self.refs]
+    def render(self, camera, offset=None, pixels=None) -> np.ndarray:
+        out = [r.render(camera, [o for o in self.refs if o is not r], depth=True, offset=offset, pixels=pixels)
+               for r in self.refs]
         depth = np.stack([d for _, d in out])
         nearest = depth.argmin(0)[None, ..., None]            # ties go to the first object of the scene
         return np.take_along_axis(np.stack([f for f, _ in out]), nearest, 0)[0]
@@ -286,31 +309,65 @@ def _unit(i: int, p: np.ndarray) -> np.ndarray:
     return i / 4294967808.0
 
 
-def strata(camera, spp: int):
+class Pattern:
     """The N x N sample points of every pixel (spp = N^2), sample k in stratum (k mod N, k div N) of an N x N grid
     of the pixel: correlated multi-jittered (Kensler 2013, listing 5), so that the N samples of each row and of each
     column of strata also fall in N different sub-columns (sub-rows), a Latin hypercube besides the strata: edges
-    along the axes converge as 1/N^2, not 1/N. Each pixel has its own pattern (p, its index from 1: 0 would give x and y one permutation), so a run's reference
-    is deterministic and neighbouring pixels share no pattern to alias with the scene's. Yields (H, W, 2) offsets
-    (Camera.pixel_rays)."""
-    n = math.isqrt(spp)
-    if n == 1:
-        yield None   # the pixel centre: the point-sampled reference, as every GL frame without AA samples
-        return
-    p = np.arange(1, camera.height * camera.width + 1, dtype=np.uint32).reshape(camera.height, camera.width)
-    # the permutations depend on a sample's column (row) of strata only: N of each, not N^2
-    sx = [_permute(np.full(p.shape, i, np.uint32), n, p * np.uint32(0xa511e9b3)) for i in range(n)]
-    sy = [_permute(np.full(p.shape, j, np.uint32), n, p * np.uint32(0x63d83595)) for j in range(n)]
-    for k in range(spp):
+    along the axes converge as 1/N^2, not 1/N. Each pixel has its own pattern (p, its index from 1: 0 would give x
+    and y one permutation), so a run's reference is deterministic and neighbouring pixels share no pattern to alias
+    with the scene's."""
+
+    def __init__(self, camera, spp: int):
+        self.n = math.isqrt(spp)
+        self.p = np.arange(1, camera.height * camera.width + 1, dtype=np.uint32).reshape(camera.height, camera.width)
+        self._sub = {}
+
+    def _sub_cell(self, axis: int, i: int) -> np.ndarray:
+        """Every pixel's sub-column (axis 0) or sub-row (1) of the samples in row (column) i of strata: a
+        permutation depends on that index only, N of each per pixel, not N^2; made once."""
+        if (axis, i) not in self._sub:
+            salt = np.uint32((0xa511e9b3, 0x63d83595)[axis])
+            self._sub[axis, i] = _permute(np.full(self.p.shape, i, np.uint32), self.n, self.p * salt)
+        return self._sub[axis, i]
+
+    def at(self, k: int, pixels: np.ndarray | None = None) -> np.ndarray | None:
+        """Sample k's offsets within the pixels (Camera.pixel_rays): (H, W, 2), or (P, 2) for row-major pixel
+        indices; None at 1 spp: the pixel centre, the point-sampled reference, as every GL frame without AA."""
+        n = self.n
+        if n == 1:
+            return None
+        p, sx, sy = self.p, self._sub_cell(0, k % n), self._sub_cell(1, k // n)
+        if pixels is not None:
+            p, sx, sy = p.ravel()[pixels], sx.ravel()[pixels], sy.ravel()[pixels]
         jx, jy = _unit(k, p * np.uint32(0xa399d265)), _unit(k, p * np.uint32(0x711ad6a5))
-        yield np.stack([(k % n + (sy[k // n] + jx) / n) / n, (k // n + (sx[k % n] + jy) / n) / n], -1)
+        return np.stack([(k % n + (sy + jx) / n) / n, (k // n + (sx + jy) / n) / n], -1)
 
 
-def first_half(spp: int) -> int:
-    """How many of the N x N strata make the first half of a filtered reference (the checkerboard's cells with
-    i + j even; the second half is the others): half of them, the larger half where N is odd."""
-    n = math.isqrt(spp)
-    return sum((k % n + k // n) % 2 == 0 for k in range(spp))
+def in_first_half(k: int, n: int) -> bool:
+    """Whether sample k of N x N belongs to the first half of the strata: the checkerboard's cells (i + j even).
+    The two halves are two estimates of the pixel, from which its noise is estimated (vdmrender.scoring.noise)."""
+    return (k % n + k // n) % 2 == 0
+
+
+@functools.lru_cache
+def first_pass(n: int) -> tuple[int, ...]:
+    """The N samples of N x N that every pixel gets before the rest are decided (filtered): one in each column and
+    each row of strata (so N sub-columns and sub-rows apart, the pattern's Latin hypercube), placed greedily each as
+    far (on the torus) from those before it as it can be, half of them in each checkerboard half (in_first_half)
+    so that a pixel that stops here still has two estimates; at N = 4, one in each quadrant of the pixel."""
+    rows, free = [], list(range(n))
+    for i in range(n):
+        firsts = sum(in_first_half(c + r * n, n) for c, r in enumerate(rows))
+
+        def spread(j):
+            d = [min(abs(i - c), n - abs(i - c)) ** 2 + min(abs(j - r), n - abs(j - r)) ** 2 for c, r in enumerate(rows)]
+            return min(d, default=0)
+
+        want = 2 * firsts <= len(rows)   # the first half has no more than the second: the next goes there
+        j = min(free, key=lambda j: (in_first_half(i + j * n, n) != want, -spread(j), j))
+        rows.append(j)
+        free.remove(j)
+    return tuple(i + j * n for i, j in enumerate(rows))
 
 
 def workers() -> int:
@@ -333,26 +390,114 @@ def _in_order(pool, fn, items, ahead: int):
         yield p.result()
 
 
-def filtered(render, camera, spp: int, threads: int | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-    """The box-filtered frame of `render(camera, offset=...)` (a reference's render): the mean over the pixel's
-    stratified samples (strata) of linear RGB times coverage, and of coverage, i.e. premultiplied colour and the
-    fraction of the pixel the object covers; what a viewer sees of the pixel over the background is then
-    rgb + (1 - coverage) background (images.encode). With it, the same mean over the first half of the strata
-    (first_half: a checkerboard of them), an independent estimate of the pixel beside the other half's, from which
-    the frame's own sampling noise is estimated (vdmrender.scoring.noise); None at one sample per pixel.
-    The strata are traced on `threads` threads (workers(): every core; Embree and numpy's large loops release the
-    GIL), each a whole frame, and summed in their own order: the same bytes whatever the thread count."""
+@dataclass
+class Halves:
+    """What a filtered reference keeps of each pixel for its noise (vdmrender.scoring.noise): `first`, the mean
+    (premultiplied RGB, coverage) of its samples in the first half of the strata (in_first_half), and how many
+    samples it got, `traced`, of which `in_first` in that half: (H, W) each."""
+    first: np.ndarray
+    traced: np.ndarray
+    in_first: np.ndarray
+
+
+class Agreement:
+    """Whether a pixel's samples so far agree (filtered's first pass), kept per pixel as they come: the coverage
+    seen, and the least, greatest and summed sRGB colour of the samples that cover it."""
+
+    def __init__(self, shape):
+        self.some, self.every = np.zeros(shape, bool), np.ones(shape, bool)
+        self.lo, self.hi, self.sum = np.full((*shape, 3), np.inf), np.full((*shape, 3), -np.inf), np.zeros((*shape, 3))
+
+    def add(self, rgba: np.ndarray) -> None:
+        """One sample of every pixel: linear RGB, coverage 0 or 1."""
+        cover = rgba[..., 3] > 0
+        self.some |= cover
+        self.every &= cover
+        c = srgb_encode(np.clip(rgba[..., :3], 0.0, 1.0))
+        self.lo = np.where(cover[..., None], np.minimum(self.lo, c), self.lo)
+        self.hi = np.where(cover[..., None], np.maximum(self.hi, c), self.hi)
+        self.sum += np.where(cover[..., None], c, 0.0)
+
+    def disagree(self, count: int) -> np.ndarray:
+        """Where the `count` samples disagree, so that more of them may change the pixel: some cover it and some do
+        not, or the colours of those that cover it are more than COLOUR_SPREAD apart in some sRGB channel (a
+        shadow's edge is such a colour); and the pixels beside those (4-neighbours), and both pixels of a pair that
+        agree within but not with each other (wholly covered beside empty, or COLOUR_SPREAD apart): an edge that
+        crosses a pixel between its few samples mostly shows in a neighbour (on the torus of
+        tests/test_reference_sampling at 32 px and 16 spp, without them 14 of 109 silhouette pixels, some a
+        quarter covered, kept their first pass, and the silhouette's error grew 28%)."""
+        out = (self.some != self.every) | (self.every & ((self.hi - self.lo).max(-1) > COLOUR_SPREAD))
+        mean = np.where(self.every[..., None], self.sum / count, -1.0)   # -1: not wholly covered
+        near = out.copy()
+        for a, b in ((np.s_[1:], np.s_[:-1]), (np.s_[:, 1:], np.s_[:, :-1])):   # each pixel and the one below, right
+            edge = out[a] | out[b] | (np.abs(mean[a] - mean[b]).max(-1) > COLOUR_SPREAD)
+            near[a] |= edge
+            near[b] |= edge
+        return near
+
+
+def first_samples(spp: int, adaptive: bool = True) -> tuple[int, ...]:
+    """The samples every pixel of a filtered reference gets: first_pass's N when adaptive, at N > 2 (two samples on
+    a diagonal of 2 x 2 strata leave no second half), else all N^2."""
     n = math.isqrt(spp)
-    total, half = np.zeros((camera.height, camera.width, 4)), np.zeros((camera.height, camera.width, 4))
-    threads = threads or workers()
+    return first_pass(n) if adaptive and n > 2 else tuple(range(spp))
+
+
+def filtered(render, camera, spp: int, threads: int | None = None,
+             adaptive: bool = True) -> tuple[np.ndarray, Halves | None]:
+    """The box-filtered frame of `render(camera, offset=..., pixels=...)` (a reference's render): the mean over each
+    pixel's samples (Pattern) of linear RGB times coverage, and of coverage, i.e. premultiplied colour and the
+    fraction of the pixel the object covers; what a viewer sees of the pixel over the background is then
+    rgb + (1 - coverage) background (images.encode). With it, the Halves the frame's own sampling noise is estimated
+    from (vdmrender.scoring.noise); None at one sample per pixel.
+
+    Adaptive (PBRT-v4's adaptive sampling, on the samples' agreement rather than their variance): every pixel first
+    gets the N samples of first_pass, and only pixels whose samples disagree (Agreement: coverage, colour, an edge
+    beside them) get the other N^2 - N, so `spp` is the budget of the hardest pixels; a pixel that gets them all has
+    the same samples as without `adaptive` (first_samples: at N <= 2 every pixel gets them all).
+
+    The samples are traced on `threads` threads (workers(): every core; Embree and numpy's large loops release the
+    GIL), a whole frame or about a frame's rays at a time, and summed in the samples' own order: the same bytes
+    whatever the thread count."""
+    n, size = math.isqrt(spp), camera.height * camera.width
+    if n == 1:
+        f = render(camera).astype(np.float64)
+        f[..., :3] *= f[..., 3:]
+        return f.astype(np.float32), None
+    pattern, threads = Pattern(camera, spp), threads or workers()
+    first = first_samples(spp, adaptive)
+    total, half = np.zeros((size, 4)), np.zeros((size, 4))
+    traced, in_first = np.zeros(size, np.int32), np.zeros(size, np.int32)
+
+    def add(k: int, f: np.ndarray, at) -> None:
+        f = f.reshape(-1, 4).astype(np.float64)
+        f[:, :3] *= f[:, 3:]
+        total[at] += f
+        traced[at] += 1
+        if in_first_half(k, n):
+            half[at] += f
+            in_first[at] += 1
+
+    rest = [k for k in range(spp) if k not in first]
+    seen = Agreement((camera.height, camera.width))
     with ThreadPoolExecutor(threads) as pool:
-        frames = _in_order(pool, lambda offset: render(camera, offset=offset), strata(camera, spp), threads)
-        for k, f in enumerate(frames):
-            f = f.astype(np.float64)
-            f[..., :3] *= f[..., 3:]
-            total += f
-            if (k % n + k // n) % 2 == 0:
-                half += f
-    if spp == 1:
-        return total.astype(np.float32), None
-    return (total / spp).astype(np.float32), (half / first_half(spp)).astype(np.float32)
+        for k, f in zip(first, _in_order(pool, lambda offset: render(camera, offset=offset),
+                                         (pattern.at(k) for k in first), threads)):
+            add(k, f, slice(None))
+            if rest:
+                seen.add(f)
+        pixels = np.flatnonzero(seen.disagree(len(first))) if rest else np.zeros(0, np.int64)
+        per = max(1, size // max(len(pixels), 1))   # samples per batch: about a frame's rays
+        batches = [rest[i:i + per] for i in range(0, len(rest), per)] if len(pixels) else []
+
+        def trace(ks):
+            return render(camera, offset=np.concatenate([pattern.at(k, pixels) for k in ks]),
+                          pixels=np.tile(pixels, len(ks)))
+
+        for ks, f in zip(batches, _in_order(pool, trace, batches, threads)):
+            for k, fk in zip(ks, f.reshape(len(ks), len(pixels), 4)):
+                add(k, fk, pixels)
+    shape = (camera.height, camera.width)
+    return ((total / traced[:, None]).reshape(*shape, 4).astype(np.float32),
+            Halves((half / in_first[:, None]).reshape(*shape, 4).astype(np.float32),
+                   traced.reshape(shape), in_first.reshape(shape)))

@@ -208,7 +208,8 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                   "change": CHANGE,
                   "flip": "NVIDIA FLIP (LDR, 67 pixels per degree) of the sRGB frames, averaged over the same "
                           "pixels as the error (flip_mean pools a variant's frames like mean_dluv)" if opts.flip else "not computed",
-                  "heatmap_max_dluv": opts.heat_max, "filtering": filtering_note(opts), "rows": rows}
+                  "heatmap_max_dluv": opts.heat_max, "rows": rows,
+                  "filtering": {**filtering_note(opts), **refcache.samples_traced(out.tmp)}}
         if composite_rows:   # render.composite: every object in one frame, per variant set (vdmrender.composite)
             result["composite"] = composite_rows
         result.update(sized)
@@ -248,8 +249,10 @@ def filtering_note(opts: Options) -> dict:
     """How the frames and the reference were filtered (report.json's `filtering`)."""
     n = math.isqrt(opts.reference_spp)
     return {"reference_spp": opts.reference_spp, "reference_filter": "box" if n > 1 else "none (pixel centre)",
-            "reference_samples": f"{n} x {n} correlated multi-jittered (Kensler 2013), a pattern per pixel (seeded by "
-                                 "its index)" if n > 1 else "1",
+            "reference_samples": f"up to {n} x {n} correlated multi-jittered (Kensler 2013), a pattern per pixel "
+                                 f"(seeded by its index); adaptive: {len(reference.first_samples(n * n))} first, the rest only "
+                                 "where they disagree (coverage, colour, an edge beside), reference_mean_spp the mean "
+                                 "traced" if n > 1 else "1",
             "antialias": opts.antialias,
             "aliased": "aliased_*: the variant's frames without anti-aliasing against the pixel-centre reference "
                        "(one sample per pixel on both sides), beside the error against what a viewer sees"}

@@ -2,14 +2,12 @@
 frames and heat maps, and the one line per measured row that vdmrender logs."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import images, progress
 from .metrics import compare, flip_values, pooled
-from .reference import first_half
 
 
 @dataclass
@@ -34,7 +32,7 @@ class References:
             return cls(filtered, classes, filtered, info["cached"])
         point, _, point_info = load(1, f"{folder}/point")
         return cls(filtered, classes, [images.encode(f, background) for f in point],
-                   info["cached"] and point_info["cached"], noise(frames, info["halves"], spp, background))
+                   info["cached"] and point_info["cached"], noise(frames, info["halves"], background))
 
     def aliased(self, frames, shipped, background, scores) -> dict:
         """The `aliased_*` fields of a row: its point-sampled frames (measure.Harness) against the pixel-centre
@@ -47,20 +45,23 @@ class References:
         return {f"aliased_{k}": v for k, v in pooled(cs).items()}
 
 
-def noise(frames: list, halves: list, spp: int, background) -> float | None:
-    """The filtered reference's own sampling noise as a mean ΔLuv, estimated from its two halves of strata
-    (reference.filtered): each is an independent estimate of the pixel, A over a of the n = spp samples, B over the
-    other b, and the frame F = (a A + b B) / n, so F's deviation from the pixel's true value is sd(A - B) sqrt(a b)
-    / n (half the halves' difference for a = b). Pooled over every pixel either half covers, as a row's mean ΔLuv
-    is pooled; 0 where every sample of every pixel agrees, None where neither half covers a pixel."""
-    a = first_half(spp)
-    b = spp - a
-    cs = []
+def noise(frames: list, halves: list, background) -> float | None:
+    """The filtered reference's own sampling noise as a mean ΔLuv, estimated per pixel from its two halves of
+    samples (reference.filtered's Halves): each an independent estimate of the pixel, A over the a samples of the
+    first half, B over the other b of the n the pixel got (adaptive sampling gives pixels different n), and the
+    pixel F = (a A + b B) / n, so F's deviation from its true value is sd(A - B) sqrt(a b) / n (half the halves'
+    difference for a = b): each pixel's ΔLuv between A and B, times its own sqrt(a b) / n, pooled over every pixel
+    either half covers, as a row's mean ΔLuv is pooled; 0 where every sample of every pixel agrees, None where
+    neither half covers a pixel."""
+    values = []
     for f, h in zip(frames, halves):
-        other = np.maximum((spp * f.astype(np.float64) - a * h.astype(np.float64)) / b, 0.0)
-        cs.append(compare(images.encode(h, background), images.encode(other.astype(np.float32), background)))
-    d = pooled(cs)["mean_dluv"]
-    return None if d is None else round(d * math.sqrt(a * b) / spp, 4)
+        n, a = h.traced.astype(np.float64), h.in_first.astype(np.float64)
+        b = n - a
+        other = np.maximum((n[..., None] * f - a[..., None] * h.first) / b[..., None], 0.0)
+        c = compare(images.encode(h.first, background), images.encode(other.astype(np.float32), background))
+        values.append(c["values"] * (np.sqrt(a * b) / n)[c["scored"]])
+    d = np.concatenate(values)
+    return round(float(d.mean()), 4) if d.size else None
 
 
 def score_frames(frames, ref8, classes, out, frame_dir: str, heat_dir: str, heat_max, background, flip, desc: str):

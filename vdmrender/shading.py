@@ -14,7 +14,7 @@ def shade(albedo, normals, to_eye, lit, light, material) -> np.ndarray:
     L = np.asarray(light.direction)
     albedo = np.broadcast_to(np.asarray(albedo, float), normals.shape)
     c = np.asarray(light.ambient) * albedo
-    ndl = normals @ L
+    ndl = np.einsum("ij,j->i", normals, L)   # not @: BLAS's threads spin against the reference's (camera.pixel_rays)
     on = lit & (ndl > 0)
     h = L + to_eye
     H = h / np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-8)
