@@ -109,8 +109,9 @@ class Render:
                                "the reference traces every object together")
     sweep: Sweep | None = setting(None, Table(Sweep), "[render.sweep]: error and cost against screen size, and LOD "
                                   "chains from them (`vdmrender --sizes` too)")
-    reference_spp: int = setting(1, Square(MAX_SPP), "samples per pixel of the reference, N x N stratified and "
-                                 "box-filtered in linear colour (what a viewer sees of the pixel; 1: the pixel centre "
+    reference_spp: int = setting(1, Square(MAX_SPP), "samples per pixel of the reference at most (the budget "
+                                 "of the hardest pixels): N of the N x N stratified samples everywhere, the rest where "
+                                 "they disagree (an edge, a shadow, texture), box-filtered in linear colour (what a viewer sees of the pixel; 1: the pixel centre "
                                  "only); every row also keeps the error against the pixel-centre reference "
                                  "(`aliased_*`); `vdmrender --reference-spp`")
     antialias: str = setting("none", Choice(*ANTIALIAS), "how each variant's frames are anti-aliased, as shipped: "

@@ -82,8 +82,9 @@ def _sizes(ctx, param, value):
                    "projected diameter; the camera moves, the frame stays), e.g. 512,128,32: error and cost against "
                    "screen size (sweep.csv, error_vs_size.png, cost_vs_size.png); overrides render.sweep.sizes.")
 @click.option("--reference-spp", type=click.Choice([str(n * n) for n in range(1, 17) if n * n <= MAX_SPP]),
-              metavar="N", help="Samples per pixel of the reference (a square: 1, 4, 9, 16, ... 256): N x N stratified, "
-                                "box-filtered in linear colour, what a viewer sees of each pixel; the error that decides "
+              metavar="N", help="Samples per pixel of the reference (a square: 1, 4, 9, 16, ... 256): at most N x N stratified (N "
+                                "everywhere, the rest where they disagree: edges, shadows, texture), box-filtered in "
+                                "linear colour, what a viewer sees of each pixel; the error that decides "
                                 "(sweeps, LOD chains) is against it, and every row keeps the error against the pixel "
                                 "centres beside it (aliased_*). Overrides render.reference_spp (default 1).")
 @click.option("--antialias", type=click.Choice(ANTIALIAS),
