@@ -56,20 +56,65 @@ def _towards(light, rays: np.ndarray) -> np.ndarray:
     return np.broadcast_to(np.asarray(light.direction, float), (int(rays.sum()), 3))
 
 
-class MeshReference:
+class Confined:
+    """A reference's render traced only where its rays may meet the object: the pixels within the screen box of its
+    bounding sphere and one pixel around it (a sweep's small sizes cover a few hundred of a frame's pixels); every
+    other pixel is empty, as its ray would have found it, so the frame is the same to the bit. `sphere` is the
+    (centre, radius) of everything the reference traces; `_render` traces the rays it is given."""
+
+    def render(self, camera, others=(), depth: bool = False, offset=None, pixels=None):
+        """As MeshReference._render."""
+        rays = np.arange(camera.width * camera.height) if pixels is None else np.asarray(pixels)
+        keep = may_meet(camera, *self.sphere, rays)
+        if keep is None or keep.all():
+            return self._render(camera, others, depth, offset, pixels)
+        some = None if offset is None else np.asarray(offset).reshape(-1, 2)[keep]
+        got = self._render(camera, others, depth, some, rays[keep])
+        shape = _shape(camera, pixels)
+        frame = np.zeros((rays.size, 4), np.float32)
+        frame[keep] = got[0] if depth else got
+        if not depth:
+            return frame.reshape(*shape, 4)
+        view_depth = np.full(rays.size, np.inf)
+        view_depth[keep] = got[1]
+        return frame.reshape(*shape, 4), view_depth.reshape(shape)
+
+
+def may_meet(camera, centre, radius: float, rays: np.ndarray) -> np.ndarray | None:
+    """(P,) True for the row-major pixels `rays` within the screen box of the sphere and a pixel around it; None
+    where the sphere reaches the eye's plane (or cannot be measured) and any pixel may see it. The box is that of
+    the projected corners of the camera-aligned cube around the sphere, which encloses the sphere's projection."""
+    x, y, z = camera.basis() @ (np.asarray(centre, float) - camera.eye)
+    depth = -z
+    if not (np.isfinite(radius) and depth - radius > 0):
+        return None
+    t = np.tan(np.radians(camera.fov_deg) / 2)
+    a = camera.width / camera.height
+    depths = np.array([depth - radius, depth + radius])
+    across = np.concatenate([(x + s * radius) / depths for s in (-1, 1)]) / (t * a)   # NDC x of the corners
+    up = np.concatenate([(y + s * radius) / depths for s in (-1, 1)]) / t
+    col = (across + 1) / 2 * camera.width
+    row = (1 - up) / 2 * camera.height
+    r, c = np.divmod(rays, camera.width)
+    return ((c >= np.floor(col.min()) - 1) & (c <= np.ceil(col.max()) + 1)
+            & (r >= np.floor(row.min()) - 1) & (r <= np.ceil(row.max()) + 1))
+
+
+class MeshReference(Confined):
     """Traces one triangle mesh; the Embree scene is built once and reused for every camera."""
 
     def __init__(self, mesh, light, material):
         self.mesh, self.light, self.material = mesh, light, material
         self.scene = RayScene(mesh.vertices, mesh.faces)
         self.local = mesh.vertices - self.scene.anchor   # about the anchor: keeps the shadow offset's digits
-        self.eps = SHADOW_EPSILON * mesh.bounding_sphere()[1]
+        self.sphere = mesh.bounding_sphere()
+        self.eps = SHADOW_EPSILON * self.sphere[1]
 
     def occluded(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         """Shadow rays from other objects (composite frames): (N,) True where this mesh blocks them."""
         return self.scene.occluded(origins, dirs)
 
-    def render(self, camera, others=(), depth: bool = False, offset=None, pixels=None):
+    def _render(self, camera, others=(), depth: bool = False, offset=None, pixels=None):
         """(H, W, 4) float32: linear RGB and coverage, row 0 at the top. others: references whose
         objects also block this one's shadow rays (composite frames); depth: also return each pixel's view
         depth (_depth); offset: each pixel's ray through this point of it (Camera.pixel_rays), not its centre;
@@ -226,7 +271,7 @@ class QuadricTracer:
         return best_t, best_n, best_i
 
 
-class QuadricReference:
+class QuadricReference(Confined):
     """Traces spheres and capped cylinders exactly (float64), with one shadow ray per hit."""
 
     def __init__(self, q, light, material):
@@ -234,7 +279,8 @@ class QuadricReference:
         self.tracer = QuadricTracer(q)
         self.scene = self.tracer.scene  # its rays_cast counts every traversal step
         self.rgb = np.concatenate([q.sphere_rgb, q.cylinder_rgb]).astype(np.float64)
-        self.eps = SHADOW_EPSILON * q.bounding_sphere()[1]
+        self.sphere = q.bounding_sphere()
+        self.eps = SHADOW_EPSILON * self.sphere[1]
 
     def occluded(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         """Shadow rays from other objects (composite frames): (N,) True where a quadric blocks them."""
@@ -242,8 +288,8 @@ class QuadricReference:
                                         np.zeros(len(origins)), np.full(len(origins), np.inf), stop_at_any=True)
         return np.isfinite(t)
 
-    def render(self, camera, others=(), depth: bool = False, offset=None, pixels=None):
-        """As MeshReference.render."""
+    def _render(self, camera, others=(), depth: bool = False, offset=None, pixels=None):
+        """As MeshReference._render."""
         eye, d = camera.pixel_rays(offset, pixels)
         scale = np.linalg.norm(d, axis=1)         # d has view depth 1: near/far become distances
         du = d / scale[:, None]
