@@ -209,6 +209,16 @@ def recover(path: Path, marker: str) -> list[tuple[str, str, int, str, str]]:
             if k != "lease" and (p == restored or not p.exists())]
 
 
+def clear(path: Path) -> None:
+    """Remove every hidden sibling at `path`, whoever wrote it and whether or not it still runs: for the owner
+    of the folder they are in (its own staging folder), once every writer it started there has finished."""
+    for _, _, _, p in _siblings(Path(path)):
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            p.unlink(missing_ok=True)
+
+
 class StagedDir:
     def __init__(self, path: Path, marker: str, what: str):
         """`marker` is the file that identifies a folder this tool may replace; `what` names it in errors."""

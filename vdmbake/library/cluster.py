@@ -181,21 +181,41 @@ def run_tasks(client, address: str, fn, tasks: list, needs, failed, done, wait_s
               name: str = "task") -> tuple[list[dict], str | None]:
     """fn(task) for every task on the cluster; `needs(task)` -> (paths to read, folders to write into) on the
     worker; `failed(task, reason)` is the row of one that could not run; `done(row)` hears each row as it
-    comes. Returns the rows in task order and, when the run stopped early (the scheduler lost, or no worker for
+    comes. A task handed back goes to the workers that have not handed it back, waiting up to `wait_s` for one to
+    join. Returns the rows in task order and, when the run stopped early (the scheduler lost, or no worker for
     `wait_s`), why: the tasks not finished then are failed with that reason."""
     *_, as_completed = _dask()
     run = uuid.uuid4().hex[:8]
     refused: list[list[tuple[str, str]]] = [[] for _ in tasks]     # per task, (worker, why) of who handed it back
+    futures, parked = {}, {}              # future: task; task handed back by every worker there is: since when
+    pending = as_completed()
+    rows: list[dict | None] = [None] * len(tasks)
 
     def submit(i, workers=None):
-        return client.submit(on_worker, fn, tasks[i], *needs(tasks[i]), key=f"{name}-{run}-{i}-{len(refused[i])}",
-                             pure=False, workers=workers, allow_other_workers=False)
+        fut = client.submit(on_worker, fn, tasks[i], *needs(tasks[i]), key=f"{name}-{run}-{i}-{len(refused[i])}",
+                            pure=False, workers=workers, allow_other_workers=False)
+        futures[fut] = i
+        pending.add(fut)
 
-    futures = {submit(i): i for i in range(len(tasks))}
-    pending = as_completed(list(futures))
-    rows: list[dict | None] = [None] * len(tasks)
+    def finish(i, row):
+        if refused[i]:
+            row["handed_back"] = [f"{w} ({why})" for w, why in refused[i]]
+        rows[i] = row
+        done(row)
+
+    for i in range(len(tasks)):
+        submit(i)
     stopped, alone_since = None, None
-    while futures and stopped is None:
+    while (futures or parked) and stopped is None:
+        for i, since in list(parked.items()):     # a worker that may see the shared folders joined, or none in time
+            others = sorted(set(_workers(client)) - {w for w, _ in refused[i]})
+            if others or time.monotonic() - since > wait_s:
+                del parked[i]
+                if others:
+                    submit(i, others)
+                else:
+                    finish(i, failed(tasks[i], "no worker could read its inputs or write its output: "
+                                     + "; ".join(f"{w} {why}" for w, why in refused[i])))
         if not pending.has_ready():
             stopped, alone_since = _alone(client, address, wait_s, alone_since)
             time.sleep(POLL_S)
@@ -213,24 +233,14 @@ def run_tasks(client, address: str, fn, tasks: list, needs, failed, done, wait_s
             row = failed(tasks[i], f"on the cluster: {type(e).__name__}: {e}")
         finally:
             fut.release()               # finished: a worker lost later does not make the scheduler run it again
-        if HAND_BACK in row:            # this worker cannot see the shared folders: the others may
+        if HAND_BACK in row:            # this worker cannot see the shared folders: another may
             refused[i].append((row["worker"], row[HAND_BACK]))
-            others = sorted(set(_workers(client)) - {w for w, _ in refused[i]})
-            if others:
-                fut = submit(i, others)
-                futures[fut] = i
-                pending.add(fut)
-                continue
-            row = failed(tasks[i], "no worker could read its inputs or write its output: "
-                         + "; ".join(f"{w} {why}" for w, why in refused[i]))
-        if refused[i]:
-            row["handed_back"] = [f"{w} ({why})" for w, why in refused[i]]
-        rows[i] = row
-        done(row)
+            parked[i] = time.monotonic()
+            continue
+        finish(i, row)
     for i, row in enumerate(rows):
         if row is None:                 # stopped: what had not finished is named as such
-            rows[i] = failed(tasks[i], f"not finished: {stopped}")
-            done(rows[i])
+            finish(i, failed(tasks[i], f"not finished: {stopped}"))
     return rows, stopped
 
 
