@@ -2,20 +2,17 @@
 within seconds, one where another service answers refused as no scheduler, one without workers refused after
 --workers-wait (exit 2, one paragraph); a scheduler lost mid-run ends in the closing table with the scenes not
 finished named, no traceback (exit 2), and its workers stop their tasks (issue 41)."""
-import contextlib
-import json
-import os
 import signal
 import socket
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
+from bench.cluster import ENV, scheduler, stop, worker
 from test_batch import SLOW, SMALL, _wait_for_staging, hidden, write
 from vdmbake.cli import main as bake_main
 from vdmbake.library import cluster
@@ -82,41 +79,6 @@ def test_another_service_is_no_scheduler(tmp_path):
         server.close()
     assert r.exit_code == 2 and "Traceback" not in r.output, r.output
     assert "--scheduler tcp://127.0.0.1:" in r.output and "Dask scheduler" in r.output, r.output
-
-
-ENV = {k: v for k, v in os.environ.items() if k != "VDM_CACHE"}
-
-
-@contextlib.contextmanager
-def scheduler(tmp_path: Path):
-    """A `dask scheduler` on the loopback, without workers: (its address, its process); killed after."""
-    info = tmp_path / "scheduler.json"
-    sched = subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                              "--scheduler-file", str(info)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                             env=ENV)
-    try:
-        for _ in range(300):
-            if info.is_file() and info.stat().st_size:
-                break
-            time.sleep(0.1)
-        address = json.loads(info.read_text())["address"]
-        assert address.startswith("tcp://127.0.0.1:"), address                  # on the loopback only
-        yield address, sched
-    finally:
-        stop(sched)
-
-
-def worker(address: str, *wrapper: str) -> subprocess.Popen:
-    """A `dask worker` of one thread at `address` (its command run under `wrapper`, if any)."""
-    return subprocess.Popen([*wrapper, str(BIN / "dask"), "worker", address, "--host", "127.0.0.1", "--nthreads", "1",
-                             "--nworkers", "1", "--no-dashboard"], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, env=ENV)
-
-
-def stop(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        proc.kill()
-        proc.wait()
 
 
 def test_no_worker_within_the_wait_is_refused(tmp_path):

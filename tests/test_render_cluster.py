@@ -1,26 +1,22 @@
 """`vdmrender --scheduler` (vdmrender/cluster.py, issue 41): bundles rendered on Dask workers write what a run on
 one machine writes, apart from the timings; a worker killed mid-render costs only its bundle's retry; the faults
 (no worker, the scheduler lost, a worker that cannot see the bundles) end bounded and named."""
-import csv
 import json
 import os
-import re
 import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
 from scenes import BRICK_PLANE, TINY_HEAD
+from bench.cluster import ENV, blind, differences, rendering, scheduler, stop, worker
 from test_batch import _ancestors
-from test_cluster_trust import ENV, scheduler, stop, worker
 from vdmbake.bundle import staging
 from vdmbake.cli import main as bake_main
-from vdmrender.cli import main as render_main
 
 pytest.importorskip("distributed")
 pytestmark = pytest.mark.gl
@@ -29,10 +25,6 @@ SCENES = {"ball": TINY_HEAD + '[[objects]]\nname = "ball"\nprimitive = "sphere"\
                               'techniques = { mesh = {}, coarse = { ratios = [0.2] } }\n',
           "cone": TINY_HEAD + '[[objects]]\nname = "cone"\nprimitive = "cone"\ntechniques = { mesh = {} }\n',
           "plane": TINY_HEAD + BRICK_PLANE}
-# What a run measures in time, or where it ran: the only fields a cluster's run may change.
-TIMED = re.compile(r".*_ms|.*_s|ratio_to_baseline|samples|spread_warning|warmup_frames|steady|saturated|seconds|worker|nvml")
-# Files that hold times (their other content is compared through report.json and report.csv).
-TIMING_FILES = {"report.html", "error_vs_time.png", "runs.md"}
 
 
 @pytest.fixture
@@ -51,29 +43,6 @@ def _render(library, out, *more, **popen):
                           capture_output=True, text=True, env=ENV, timeout=600, **popen)
 
 
-def untimed(x):
-    if isinstance(x, dict):
-        return {k: untimed(v) for k, v in x.items() if not TIMED.fullmatch(k)}
-    if isinstance(x, list):
-        return [untimed(v) for v in x]
-    return x
-
-
-def assert_same_apart_from_times(a: Path, b: Path) -> None:
-    """Every file of folder `b` is folder `a`'s: byte for byte, or for the reports once their times are left out."""
-    names = lambda d: sorted(p.relative_to(d).as_posix() for p in d.rglob("*") if p.is_file())  # noqa: E731
-    assert names(a) == names(b)
-    for rel in names(a):
-        x, y = a / rel, b / rel
-        if x.name == "report.json":
-            assert untimed(json.loads(x.read_text())) == untimed(json.loads(y.read_text())), rel
-        elif x.name == "report.csv":
-            rows = lambda p: [untimed(r) for r in csv.DictReader(p.open())]  # noqa: E731
-            assert rows(x) == rows(y), rel
-        elif x.name not in TIMING_FILES:
-            assert x.read_bytes() == y.read_bytes(), rel
-
-
 def test_a_local_cluster_renders_what_one_machine_renders(library, tmp_path):
     """Three bundles on a local cluster of two workers: every frame, reference, heat map and overview the same
     bytes as a run on one machine, every report row and count the same apart from the times; each run names the
@@ -84,27 +53,12 @@ def test_a_local_cluster_renders_what_one_machine_renders(library, tmp_path):
     r = _render(library, two, "--scheduler", "local:2")
     assert r.returncode == 0, r.stderr[-3000:]
     assert "rendering 3 bundles into" in r.stderr and "Dask scheduler tcp://127.0.0.1:" in r.stderr
-    assert_same_apart_from_times(one, two)
+    assert differences(one, two) == []
     report = json.loads((two / "report.json").read_text())
     assert len(report["rows"]) == 5 and all(row["mean_dluv"] is not None for row in report["rows"])
     for run in report["runs"]:
         assert run["status"] == "rendered" and run["worker"].startswith("tcp://127.0.0.1:"), run
         assert run["device"] == report["device"]
-
-
-def _pid_rendering(out: Path, scene: str, proc, timeout: float = 300) -> tuple[int, Path]:
-    """The worker process rendering `scene`: the one whose run folder's staging sibling (OUT's staging folder's
-    `.SCENE.tmp-HOST-PID`) names it; waited for."""
-    pattern = re.compile(rf"\.{scene}\.tmp-{re.escape(staging.host())}-(\d+)")
-    t0 = time.time()
-    while time.time() - t0 < timeout:
-        for outer in out.parent.glob(f".{out.name}.tmp-*"):
-            for p in list(outer.iterdir()) if outer.is_dir() else []:
-                if m := pattern.fullmatch(p.name):
-                    return int(m[1]), p
-        assert proc.poll() is None, proc.communicate()
-        time.sleep(0.01)
-    raise AssertionError(f"no render of {scene} started")
 
 
 def test_a_worker_killed_mid_render_is_redone_elsewhere(library, tmp_path):
@@ -114,7 +68,7 @@ def test_a_worker_killed_mid_render_is_redone_elsewhere(library, tmp_path):
     out = tmp_path / "two"
     p = subprocess.Popen([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip", "--sample-s", "2",
                           "--scheduler", "local:2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
-    pid, folder = _pid_rendering(out, "ball", p)
+    pid, folder = rendering(out, "ball", p)
     assert pid != p.pid and p.pid in _ancestors(pid), (pid, p.pid)          # a worker of this run
     os.kill(pid, signal.SIGKILL)
     stdout, stderr = p.communicate(timeout=600)
@@ -125,7 +79,7 @@ def test_a_worker_killed_mid_render_is_redone_elsewhere(library, tmp_path):
     one = tmp_path / "one"
     r = _render(library / "ball.bundle", one, "--sample-s", "2")
     assert r.returncode == 0, r.stderr[-3000:]
-    assert_same_apart_from_times(one, out / "ball")
+    assert differences(one, out / "ball") == []
 
 
 def test_no_worker_within_the_wait(library, tmp_path):
@@ -152,7 +106,7 @@ def test_a_scheduler_lost_mid_render(library, tmp_path):
             while "ball: rendered" not in said:                   # one bundle finished, its row on the client
                 said += p.stderr.readline()
                 assert p.poll() is None, (said, p.communicate())
-            _pid_rendering(out, "cone", p)
+            rendering(out, "cone", p)
             sched.send_signal(signal.SIGKILL)
             stdout, stderr = p.communicate(timeout=120)
             stderr = said + stderr
@@ -175,10 +129,8 @@ def test_a_worker_that_cannot_see_the_bundles_hands_them_back(library, tmp_path)
     if not (shutil.which("unshare") and subprocess.run(["unshare", "-m", "true"]).returncode == 0):
         pytest.skip("needs unshare -m (root) to hide a folder from one worker")
     out = tmp_path / "out"
-    blind = ["unshare", "-m", "--propagation", "private", "sh", "-c",
-             f"mount -t tmpfs none {library} && exec \"$@\"", "sh"]
     with scheduler(tmp_path) as (address, _):
-        workers = [worker(address, *blind)]
+        workers = [worker(address, *blind(library))]
         try:
             p = subprocess.Popen([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip",
                                   "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
