@@ -61,6 +61,19 @@ def test_a_local_cluster_renders_what_one_machine_renders(library, tmp_path):
         assert run["device"] == report["device"]
 
 
+def test_one_bundle_renders_on_a_worker(library, tmp_path):
+    """One bundle given alone renders on one worker into OUT as without a cluster; its bad input is refused as
+    on one machine (exit 2, one paragraph), though found on the worker."""
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert _render(library / "cone.bundle", one).returncode == 0
+    r = _render(library / "cone.bundle", two, "--scheduler", "local:1")
+    assert r.returncode == 0 and "cone.bundle: rendered on tcp://127.0.0.1:" in r.stderr, r.stderr[-3000:]
+    assert differences(one, two) == []
+    r = _render(library / "cone.bundle", tmp_path / "three", "--scheduler", "local:1", "-t", "vdm")
+    assert r.returncode == 2 and "--technique 'vdm': no object of this bundle's scene names it" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "three").exists()
+
+
 def test_a_worker_killed_mid_render_is_redone_elsewhere(library, tmp_path):
     """Fault test: the worker process rendering `ball` is killed (SIGKILL) mid-render; the scheduler runs the bundle
     again on a worker, the run completes (exit 0) with every bundle rendered, nothing hidden is left in OUT, and

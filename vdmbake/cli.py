@@ -34,7 +34,7 @@ def _techniques() -> str:
                    "this process may use).")
 @click.option("--scheduler", metavar="ADDRESS",
               help="Send each scene's bake to a Dask cluster: tcp://HOST:8786 (a running `dask scheduler`), or "
-                   "local:N for N worker processes here. Needs the `cluster` extra (docs/library.md).")
+                   "local:N for N worker processes here. Needs the `cluster` extra (docs/cluster.md).")
 @click.option("--workers-wait", type=click.FloatRange(0, 86400), default=60.0, show_default=True, metavar="SECONDS",
               help="With --scheduler: how long the scheduler may have no worker (before the first scene or later) "
                    "before the run stops (exit 2, naming the scheduler and what finished).")
@@ -200,7 +200,7 @@ def _many(scenes: list[Path], out: Path, many: bool, force: bool, jobs: int | No
     wall = time.perf_counter() - t0
     failed = [r for r in rows if r["status"] == "failed"]
     if as_json:
-        click.echo(json.dumps({"scenes": rows, "wall_s": round(wall, 3), "workers": about,
+        click.echo(json.dumps({"scenes": rows, "wall_s": round(wall, 3), "workers": about, "stopped": stopped,
                                "cache": cache.stats() if cache else None}, indent=1))
     else:
         click.echo(batch.table(rows, wall))
