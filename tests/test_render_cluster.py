@@ -44,21 +44,35 @@ def _render(library, out, *more, **popen):
 
 
 def test_a_local_cluster_renders_what_one_machine_renders(library, tmp_path):
-    """Three bundles on a local cluster of two workers: every frame, reference, heat map and overview the same
-    bytes as a run on one machine, every report row and count the same apart from the times; each run names the
-    worker it ran on and its device."""
+    """Three bundles and a broken one on a local cluster of two workers: every frame, reference, heat map and
+    overview the same bytes as a run on one machine, every report row, count and error the same apart from the
+    times; each run names the worker it ran on and its device."""
+    (library / "zzz.bundle").mkdir()
+    (library / "zzz.bundle" / "manifest.json").write_text("{}")
     one, two = tmp_path / "one", tmp_path / "two"
     r = _render(library, one)
-    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.returncode == 1 and "1 of 4 bundles failed: zzz" in r.stderr, r.stderr[-3000:]
     r = _render(library, two, "--scheduler", "local:2")
-    assert r.returncode == 0, r.stderr[-3000:]
-    assert "rendering 3 bundles into" in r.stderr and "Dask scheduler tcp://127.0.0.1:" in r.stderr
+    assert r.returncode == 1 and "1 of 4 bundles failed: zzz" in r.stderr, r.stderr[-3000:]
+    assert "rendering 4 bundles into" in r.stderr and "Dask scheduler tcp://127.0.0.1:" in r.stderr
     assert differences(one, two) == []
     report = json.loads((two / "report.json").read_text())
     assert len(report["rows"]) == 5 and all(row["mean_dluv"] is not None for row in report["rows"])
     for run in report["runs"]:
-        assert run["status"] == "rendered" and run["worker"].startswith("tcp://127.0.0.1:"), run
-        assert run["device"] == report["device"]
+        assert run["worker"].startswith("tcp://127.0.0.1:"), run
+        assert run["status"] == "failed" if run["scene"] == "zzz" else run["device"] == report["device"], run
+
+
+def test_times_from_several_devices_are_not_compared():
+    """Runs on workers with different devices make a combined report whose device names them all: a baseline from
+    any one device does not compare its times with it (nor it with another one), unless --compare-devices."""
+    from vdmrender import baseline, many
+
+    gpu = {"time": "gpu", "device": "NVIDIA H200"}
+    assert many.device(["NVIDIA H200", "NVIDIA H200"]) == "NVIDIA H200"
+    both = {"time": "gpu", "device": many.device(["NVIDIA H200", "llvmpipe"])}
+    assert baseline.times_comparable(gpu, both) and baseline.times_comparable(both, gpu)
+    assert baseline.times_comparable(gpu, both, across_devices=True) is None
 
 
 def test_one_bundle_renders_on_a_worker(library, tmp_path):

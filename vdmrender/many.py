@@ -118,12 +118,8 @@ def _combine(done: list[dict], staged: StagedDir, opts, old) -> dict:
     folder with runs.md and the page."""
     runs = [d["run"] for d in done]
     rows = [r for d in done for r in d["rows"]]
-    devices = list(dict.fromkeys(d["device"] for d in done if "device" in d))
     filterings = [d["filtering"] for d in done if "filtering" in d]
-    # one device names the report; runs on several (a cluster's workers) name them all, so that --baseline
-    # compares no times across devices unless --compare-devices (vdmrender.baseline.times_comparable)
-    device = devices[0] if len(devices) == 1 else f"several devices: {'; '.join(devices)}" if devices else None
-    combined = {"tool_version": __version__, "device": device, "time": "gpu",
+    combined = {"tool_version": __version__, "device": device([d["device"] for d in done if "device" in d]), "time": "gpu",
                 "resolution": runs_resolution(runs), "runs": runs, "rows": rows,
                 "how": __doc__.split("\n\n")[0].replace("\n", " ")}
     if filterings and all(f == filterings[0] for f in filterings):   # what every run's errors are against
@@ -137,6 +133,14 @@ def _combine(done: list[dict], staged: StagedDir, opts, old) -> dict:
     (staged.tmp / "runs.md").write_text(table(runs))
     html.write(staged.tmp, combined)
     return combined
+
+
+def device(devices: list[str]) -> str | None:
+    """The combined report's device: the runs' one, or, for runs on several (a cluster's workers), every one named,
+    so that --baseline compares no times across devices unless --compare-devices
+    (vdmrender.baseline.times_comparable)."""
+    devices = list(dict.fromkeys(devices))
+    return devices[0] if len(devices) == 1 else f"several devices: {'; '.join(devices)}" if devices else None
 
 
 def runs_resolution(runs) -> list:
