@@ -56,15 +56,21 @@ def scheduler(folder: Path):
 
 
 def worker(address: str, *wrapper: str) -> subprocess.Popen:
-    """A `dask worker` of one thread at `address` (its command run under `wrapper`, if any)."""
+    """A `dask worker` of one thread at `address` (its command run under `wrapper`, if any), in a process group of
+    its own (the nanny and its worker process: stop() ends both)."""
     return subprocess.Popen([*wrapper, str(BIN / "dask"), "worker", address, "--host", "127.0.0.1", "--nthreads", "1",
                              "--nworkers", "1", "--no-dashboard"], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, env=ENV)
+                            stderr=subprocess.DEVNULL, env=ENV, start_new_session=True)
 
 
 def stop(proc: subprocess.Popen) -> None:
+    """SIGKILL to the process and, where it leads a process group of its own, to the group."""
     if proc.poll() is None:
-        proc.kill()
+        with contextlib.suppress(ProcessLookupError):
+            if os.getpgid(proc.pid) == proc.pid:
+                os.killpg(proc.pid, signal.SIGKILL)
+            else:
+                proc.kill()
         proc.wait()
 
 

@@ -21,10 +21,10 @@ pytest.importorskip("distributed")
 BIN = Path(sys.executable).parent
 
 
-def _bake(tmp_path, address, *more):
+def _bake(tmp_path, address):
     write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"))
-    return CliRunner().invoke(bake_main, [str(tmp_path / "s"), "-o", str(tmp_path / "out"), "--scheduler", address,
-                                          *more], env={"VDM_CACHE": None})
+    return CliRunner().invoke(bake_main, [str(tmp_path / "s"), "-o", str(tmp_path / "out"), "--scheduler", address],
+                              env={"VDM_CACHE": None})
 
 
 def test_local_n_is_bounded_as_jobs(tmp_path):
@@ -83,12 +83,35 @@ def test_another_service_is_no_scheduler(tmp_path):
 
 def test_no_worker_within_the_wait_is_refused(tmp_path):
     """Failed before the fix: a scheduler without workers made vdmbake wait forever. Now --workers-wait bounds the
-    wait: exit 2, the scheduler named, nothing baked."""
+    wait: exit 2, the scheduler named, nothing baked. (A process of its own, as a user runs it: a Dask client made
+    in this test process after the earlier tests' can fail its handshake.)"""
+    write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"))
     with scheduler(tmp_path) as (address, _):
-        r = _bake(tmp_path, address, "--workers-wait", "1")
-    assert r.exit_code == 2 and f"--scheduler {address}: no Dask worker joined the scheduler within 1 s" in r.output, \
-        r.output
+        r = subprocess.run([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(tmp_path / "out"), "--scheduler",
+                            address, "--workers-wait", "1"], capture_output=True, text=True, env=ENV, timeout=120)
+    assert r.returncode == 2 and f"--scheduler {address}: no Dask worker joined the scheduler within 1 s" in r.stderr, \
+        r.stderr
     assert not (tmp_path / "out" / "a.bundle").exists()
+
+
+def test_every_worker_lost_mid_run_ends_after_the_wait(tmp_path):
+    """The only worker (its nanny and process) killed mid-bake: the scheduler has none for --workers-wait seconds,
+    and the run stops there (exit 2) with the scenes not finished named, instead of waiting forever."""
+    with scheduler(tmp_path) as (address, _):
+        w = worker(address)
+        try:
+            write(tmp_path / "s", **{f"slow{i}": SLOW for i in range(2)})
+            out = tmp_path / "out"
+            p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--scheduler", address,
+                                  "--workers-wait", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 env=ENV)
+            _wait_for_staging(out, p, timeout=120)
+        finally:
+            stop(w)
+        stdout, stderr = p.communicate(timeout=120)
+    assert p.returncode == 2, (stdout, stderr)
+    assert f"not finished: no Dask worker on the scheduler {address} for 2 s (--workers-wait)" in stdout, stdout
+    assert "error: the run stopped: no Dask worker on the scheduler" in stderr and "Traceback" not in stderr, stderr
 
 
 def test_a_scheduler_lost_mid_run_ends_in_the_closing_table(tmp_path):

@@ -13,8 +13,8 @@ that a later run at that target removes (vdmbake.bundle.staging: its process gon
 
 Faults are bounded. The address is input: `local:N` is bounded as --jobs is; an address where nothing
 listens is refused within CONNECT_S (a plain TCP connect first: Dask's own would retry for its 30 s
-timeout); one where something else answers is refused as no Dask scheduler; a scheduler without workers
-for --workers-wait seconds (before the first task or later) is refused too (InputError, exit 2). A worker
+timeout); one where something else answers is refused as no Dask scheduler; so is a scheduler without
+workers for --workers-wait seconds (InputError, exit 2), and later in the run such a wait stops it. A worker
 that cannot read a task's inputs or write its output folder hands the task back, and it runs on the other
 workers (the row names who handed it back). A scheduler lost mid-run ends the run with what finished and
 what did not in the closing table (`stopped`), and each worker, which closes when it loses its scheduler,
@@ -130,18 +130,15 @@ def connected(address: str, wait_s: float = WAIT_S):
         try:
             client.wait_for_workers(1, timeout=wait_s)
         except Exception:                       # dask's TimeoutError, or the scheduler gone meanwhile
-            raise InputError(_no_workers(address, wait_s, "joined")) from None
+            raise InputError(f"--scheduler {escaped(address)}: no Dask worker joined the scheduler within {wait_s:g} s "
+                             f"(--workers-wait); start workers with `dask worker {escaped(address)}` "
+                             "(docs/cluster.md).") from None
         workers = client.scheduler_info(n_workers=-1).get("workers", {})
         yield client, f"Dask scheduler {client.scheduler.address}, {len(workers)} workers"
     finally:
         client.close(timeout=CONNECT_S)
         if cluster is not None:
             cluster.close()
-
-
-def _no_workers(address: str, wait_s: float, how: str) -> str:
-    return (f"--scheduler {escaped(address)}: no Dask worker {how} the scheduler within {wait_s:g} s "
-            f"(--workers-wait); start workers with `dask worker {escaped(address)}` (docs/cluster.md).")
 
 
 # ------------------------------------------------------------------------------------------ on a worker
