@@ -12,7 +12,7 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from vdmbake.bundle import parts
+from vdmbake.bundle import parts, staging
 from vdmbake.bundle.directory import Bundle
 from vdmbake.cli import main as bake_main
 
@@ -94,7 +94,7 @@ def test_glob_folder_and_usage_errors(tmp_path):
 
 
 def _wait_for_staging(folder: Path, proc, timeout: float = 120) -> int:
-    """The pid in the first hidden staging folder `.NAME.tmp-PID` that appears in `folder`: the process baking."""
+    """The pid in the first hidden staging folder `.NAME.tmp-HOST-PID` that appears in `folder`: the process baking."""
     t0 = time.time()
     while time.time() - t0 < timeout:
         for name in hidden(folder):
@@ -107,8 +107,8 @@ def _wait_for_staging(folder: Path, proc, timeout: float = 120) -> int:
 
 def _announced(folder: Path, stem: str, proc, timeout: float = 120) -> int:
     """The pid of the process baking scene `stem`, as the scene's own bake announces it: its bundle's staging
-    folder `.STEM.bundle.tmp-PID` (vdmbake.bundle.staging names it after the writing process), waited for."""
-    pattern = re.compile(rf"\.{re.escape(stem)}\.bundle\.tmp-(\d+)")
+    folder `.STEM.bundle.tmp-HOST-PID` (vdmbake.bundle.staging names it after the writing process), waited for."""
+    pattern = re.compile(rf"\.{re.escape(stem)}\.bundle\.tmp-{re.escape(staging.host())}-(\d+)")
     t0 = time.time()
     while time.time() - t0 < timeout:
         for name in hidden(folder):
@@ -133,11 +133,11 @@ def kill_the_baker(folder: Path, stem: str, proc) -> tuple[int, Path]:
     still there (the bake not finished); the process must be a worker under `proc`, not `proc` itself. Returns
     the pid killed and the staging folder it left."""
     pid = _announced(folder, stem, proc)
-    staging = folder / f".{stem}.bundle.tmp-{pid}"
+    folder = staging.sibling(folder / f"{stem}.bundle", "tmp", pid)
     assert pid != proc.pid and proc.pid in _ancestors(pid), (pid, proc.pid)      # a worker of this run
-    assert staging.is_dir()                                                       # still baking `stem`
+    assert folder.is_dir()                                                        # still baking `stem`
     os.kill(pid, signal.SIGKILL)
-    return pid, staging
+    return pid, folder
 
 
 def files(bundle: Path) -> dict:

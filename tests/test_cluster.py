@@ -1,7 +1,9 @@
 """`vdmbake --scheduler` (vdmbake/cluster.py, issue 24) on a Dask LocalCluster: the same bundles as the local
-pool; a worker killed mid-task costs only that task's retry (the run completes, no torn cache entry)."""
+pool; a worker killed mid-task costs only that task's retry (the run completes, no torn cache entry); a worker
+that cannot see the scenes hands them back (issue 41)."""
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -9,6 +11,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from bench.cluster import ENV, blind, scheduler, stop, worker
 from test_batch import SLOW, SMALL, files, kill_the_baker, redone_elsewhere, whole, write
 from vdmbake.library.cache import PartCache
 from vdmbake.cli import main as bake_main
@@ -61,3 +64,31 @@ def test_worker_killed_mid_task_is_retried(tmp_path):
                            env={"VDM_CACHE": None})
     assert r.exit_code == 0, r.output
     assert whole(out / "slow.bundle") == files(tmp_path / "pool.bundle")
+
+
+def test_a_worker_that_cannot_see_the_scenes_hands_them_back(tmp_path):
+    """A worker in its own mount namespace with the scenes' folder hidden hands each scene back; they are baked
+    by the worker that joins later, and the closing table names who handed them back (exit 0)."""
+    if not (shutil.which("unshare") and subprocess.run(["unshare", "-m", "true"]).returncode == 0):
+        pytest.skip("needs unshare -m (root) to hide a folder from one worker")
+    write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"), b=SMALL.format(name="b", prim="torus"))
+    with scheduler(tmp_path) as (address, _):
+        workers = [worker(address, *blind(tmp_path / "s"))]
+        try:
+            p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(tmp_path / "out"),
+                                  "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 env=ENV)
+            said = ""
+            while "baking 2 scenes" not in said:              # submitted, to the blind worker alone
+                said += p.stderr.readline()
+                assert p.poll() is None, (said, p.communicate())
+            workers.append(worker(address))
+            stdout, stderr = p.communicate(timeout=300)
+        finally:
+            for w in workers:
+                stop(w)
+    assert p.returncode == 0, stderr
+    for stem in "ab":
+        line = next(x for x in stdout.splitlines() if x.startswith(f"{stem}.toml"))
+        assert " baked " in line and f"(cannot read {tmp_path / 's' / stem}.toml)" in line, stdout
+        whole(tmp_path / "out" / f"{stem}.bundle")

@@ -1,20 +1,19 @@
 """A scheduler address is input (issue 32): local:N bounded as --jobs; an address where nothing listens refused
-within seconds, one where another service answers refused as no scheduler (exit 2, one paragraph); a scheduler
-lost mid-run ends in the closing table with the scenes not finished named, no traceback (exit 1)."""
-import json
-import os
+within seconds, one where another service answers refused as no scheduler, one without workers refused after
+--workers-wait (exit 2, one paragraph); a scheduler lost mid-run ends in the closing table with the scenes not
+finished named, no traceback (exit 2), and its workers stop their tasks (issue 41)."""
 import signal
 import socket
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
-from test_batch import SLOW, SMALL, _wait_for_staging, write
+from bench.cluster import ENV, scheduler, stop, worker
+from test_batch import SLOW, SMALL, _wait_for_staging, hidden, write
 from vdmbake.cli import main as bake_main
 from vdmbake.library import cluster
 
@@ -82,38 +81,63 @@ def test_another_service_is_no_scheduler(tmp_path):
     assert "--scheduler tcp://127.0.0.1:" in r.output and "Dask scheduler" in r.output, r.output
 
 
-def test_a_scheduler_lost_mid_run_ends_in_the_closing_table(tmp_path):
-    """Failed before the fix: 'Client lost the connection' once per scene and a traceback. Now the scenes not
-    finished are named in the closing table, exit 1, no traceback."""
-    env = {k: v for k, v in os.environ.items() if k != "VDM_CACHE"}
-    info = tmp_path / "scheduler.json"
-    sched = subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                              "--scheduler-file", str(info)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                             env=env)
-    worker = None
-    try:
-        for _ in range(300):
-            if info.is_file() and info.stat().st_size:
-                break
-            time.sleep(0.1)
-        address = json.loads(info.read_text())["address"]
-        assert address.startswith("tcp://127.0.0.1:"), address                  # on the loopback only
-        worker = subprocess.Popen([str(BIN / "dask"), "worker", address, "--host", "127.0.0.1", "--nthreads", "1",
-                                   "--nworkers", "1", "--no-dashboard"], stdout=subprocess.DEVNULL,
-                                  stderr=subprocess.DEVNULL, env=env)
-        write(tmp_path / "s", **{f"slow{i}": SLOW for i in range(4)})
-        out = tmp_path / "out"
-        p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--scheduler", address],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-        _wait_for_staging(out, p, timeout=120)
-        sched.send_signal(signal.SIGKILL)
+def test_no_worker_within_the_wait_is_refused(tmp_path):
+    """Failed before the fix: a scheduler without workers made vdmbake wait forever. Now --workers-wait bounds the
+    wait: exit 2, the scheduler named, nothing baked. (A process of its own, as a user runs it: a Dask client made
+    in this test process after the earlier tests' can fail its handshake.)"""
+    write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"))
+    with scheduler(tmp_path) as (address, _):
+        r = subprocess.run([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(tmp_path / "out"), "--scheduler",
+                            address, "--workers-wait", "1"], capture_output=True, text=True, env=ENV, timeout=120)
+    assert r.returncode == 2 and f"--scheduler {address}: no Dask worker joined the scheduler within 1 s" in r.stderr, \
+        r.stderr
+    assert not (tmp_path / "out" / "a.bundle").exists()
+
+
+def test_every_worker_lost_mid_run_ends_after_the_wait(tmp_path):
+    """The only worker (its nanny and process) killed mid-bake: the scheduler has none for --workers-wait seconds,
+    and the run stops there (exit 2) with the scenes not finished named, instead of waiting forever."""
+    with scheduler(tmp_path) as (address, _):
+        w = worker(address)
+        try:
+            write(tmp_path / "s", **{f"slow{i}": SLOW for i in range(2)})
+            out = tmp_path / "out"
+            p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--scheduler", address,
+                                  "--workers-wait", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 env=ENV)
+            _wait_for_staging(out, p, timeout=120)
+        finally:
+            stop(w)
         stdout, stderr = p.communicate(timeout=120)
-    finally:
-        for q in (sched, worker):
-            if q is not None and q.poll() is None:
-                q.kill()
-                q.wait()
-    assert p.returncode == 1, (stdout, stderr)
+    assert p.returncode == 2, (stdout, stderr)
+    assert f"not finished: no Dask worker on the scheduler {address} for 2 s (--workers-wait)" in stdout, stdout
+    assert "error: the run stopped: no Dask worker on the scheduler" in stderr and "Traceback" not in stderr, stderr
+
+
+def test_a_scheduler_lost_mid_run_ends_in_the_closing_table(tmp_path):
+    """Failed before the fix: 'Client lost the connection' once per scene and a traceback; then, exit 1 and the
+    worker baking on for the nanny's 30 s. Now the scenes not finished are named in the closing table, exit 2, no
+    traceback; and the worker stops the bake it holds (without the stop it would finish it: a worker closes when
+    its scheduler is lost, but the task's thread runs on until the nanny kills the process 30 s later): no scene
+    not finished has a bundle, and no staging folder is left."""
+    with scheduler(tmp_path) as (address, sched):
+        w = worker(address)
+        try:
+            write(tmp_path / "s", **{f"slow{i}": SLOW.replace("resolution = 96", "resolution = 512") for i in range(4)})
+            out = tmp_path / "out"
+            p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(out), "--scheduler", address],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+            _wait_for_staging(out, p, timeout=120)
+            sched.send_signal(signal.SIGKILL)
+            stdout, stderr = p.communicate(timeout=120)
+            w.wait(timeout=120)
+        finally:
+            stop(w)
+    assert p.returncode == 2, (stdout, stderr)
     assert "Traceback" not in stderr and "Traceback" not in stdout, stderr[-3000:]
     assert "not finished: the connection to the Dask scheduler" in stdout, stdout
+    assert "error: the run stopped: the connection to the Dask scheduler" in stderr, stderr[-3000:]
     assert "4 scenes:" in stdout and stderr.count("Client lost the connection") == 0, stderr[-3000:]
+    assert [n for n in hidden(out) if ".tmp-" in n] == [], hidden(out)
+    lost = [line.split()[0] for line in stdout.splitlines() if "not finished" in line]
+    assert lost and not [s for s in lost if (out / s.replace(".toml", ".bundle")).exists()], (lost, stdout)

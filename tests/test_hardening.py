@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from vdmbake.formats import exr, ply
-from vdmbake.bundle import parts
+from vdmbake.bundle import parts, staging
 from vdmbake.bundle.directory import Bundle
 from vdmbake.errors import InputError
 
@@ -369,7 +369,7 @@ def _default_signals() -> None:
 def _signal_when_staging(cmd, out: Path, sig: int) -> subprocess.CompletedProcess:
     """Start cmd, send `sig` once its staging folder exists (plus a moment), return its result."""
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_default_signals)
-    tmp = out.parent / f".{out.name}.tmp-{p.pid}"
+    tmp = staging.sibling(out, "tmp", p.pid)
     t0 = time.monotonic()
     while not tmp.exists() and p.poll() is None and time.monotonic() - t0 < 60:
         time.sleep(0.01)

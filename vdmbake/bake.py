@@ -182,10 +182,11 @@ def bake(scene_path: Path, out: Path, force: bool = False, log=lambda msg: None,
 
 def _recover(out: Path, log) -> None:
     """What an interrupted run left at `out` put right (vdmbake.bundle.staging.recover); each staging folder of a
-    bake whose process no longer runs that this removed, or put back as the bundle, is named in the log."""
-    for did, kind, pid, name in staging.recover(out, MANIFEST):
+    bake whose writer is gone (vdmbake.bundle.staging: its process no longer runs, or on another machine its lease
+    went stale) that this removed, or put back as the bundle, is named in the log."""
+    for did, kind, pid, name, why in staging.recover(out, MANIFEST):
         if kind == "tmp":
-            log(f"{out}: {did} {name}, left by a bake that did not finish (process {pid} no longer runs)")
+            log(f"{out}: {did} {name}, left by a bake that did not finish ({why})")
 
 
 def _write(scene: Scene, scene_path: Path, out: Path, digest: str, code: str, inputs: dict, log,

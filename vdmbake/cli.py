@@ -34,7 +34,10 @@ def _techniques() -> str:
                    "this process may use).")
 @click.option("--scheduler", metavar="ADDRESS",
               help="Send each scene's bake to a Dask cluster: tcp://HOST:8786 (a running `dask scheduler`), or "
-                   "local:N for N worker processes here. Needs the `cluster` extra (docs/library.md).")
+                   "local:N for N worker processes here. Needs the `cluster` extra (docs/cluster.md).")
+@click.option("--workers-wait", type=click.FloatRange(0, 86400), default=60.0, show_default=True, metavar="SECONDS",
+              help="With --scheduler: how long the scheduler may have no worker (before the first scene or later) "
+                   "before the run stops (exit 2, naming the scheduler and what finished).")
 @click.option("--cache", "cache_dir", type=click.Path(path_type=Path), envvar="VDM_CACHE", show_envvar=True,
               help="Part cache folder, shared by scenes, processes and machines (a shared file system): each bake "
                    "step's parts are stored under the hash of its inputs, settings and code, and taken from there "
@@ -52,7 +55,7 @@ def _techniques() -> str:
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
 def main(scenes: tuple[str, ...], out: Path | None, force: bool, jobs: int | None, scheduler: str | None,
-         cache_dir: Path | None, cache_size: str | None, no_cache: bool, cache_stats: bool, cache_clear: bool,
+         workers_wait: float, cache_dir: Path | None, cache_size: str | None, no_cache: bool, cache_stats: bool, cache_clear: bool,
          cache_verify: bool, verbose: bool, as_json: bool, debug: bool):
     """Bake what each scene's objects need into a bundle.
 
@@ -74,8 +77,9 @@ def main(scenes: tuple[str, ...], out: Path | None, force: bool, jobs: int | Non
     part cache (--cache DIR or VDM_CACHE), a step whose inputs, settings and code were baked
     before, by any scene, process or machine sharing DIR, is read from it (checked by sha256)
     instead of baked. Exit codes: 0 every scene done, 1 some scenes failed (each named), 2 bad
-    usage or bad input (also under --debug, which adds the traceback), 128 + N stopped by
-    signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP).
+    usage or bad input (also under --debug, which adds the traceback), or a --scheduler run
+    stopped by its cluster (the scheduler lost, or no worker for --workers-wait; the closing
+    table says what finished), 128 + N stopped by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP).
 
     \b
     Examples:
@@ -123,7 +127,7 @@ def main(scenes: tuple[str, ...], out: Path | None, force: bool, jobs: int | Non
         if not many and scheduler is None:
             _one(found[0], out, force, cache, as_json, debug)
         else:
-            code = _many(found, out, many, force, jobs, scheduler, cache, verbose, as_json, debug)
+            code = _many(found, out, many, force, jobs, scheduler, workers_wait, cache, verbose, as_json, debug)
     if cache_stats:
         st = guarded(cache.stats, debug)
         if as_json and not scenes:
@@ -150,10 +154,10 @@ def _one(scene: Path, out: Path, force: bool, cache, as_json: bool, debug: bool)
                    f"{stats['bytes'] / 1e6:.2f} MB in {stats['bake_s']:.2f} s")
 
 
-def _many(scenes: list[Path], out: Path, many: bool, force: bool, jobs: int | None, scheduler: str | None, cache,
-          verbose: bool, as_json: bool, debug: bool) -> int:
+def _many(scenes: list[Path], out: Path, many: bool, force: bool, jobs: int | None, scheduler: str | None,
+          workers_wait: float, cache, verbose: bool, as_json: bool, debug: bool) -> int:
     """Several scenes (or one on a cluster): the pool or the cluster, the progress, the closing table; the exit
-    code (0 all done, 1 some failed)."""
+    code (0 all done, 1 some failed, 2 the cluster stopped the run: its scheduler lost, or no worker)."""
     from . import signals
     from .errors import InputError, fail
 
@@ -181,9 +185,9 @@ def _many(scenes: list[Path], out: Path, many: bool, force: bool, jobs: int | No
     try:
         if scheduler is not None:
             from .library.cluster import run_dask
-            rows, about = run_dask(tasks, scheduler, progress)
+            rows, about, stopped = run_dask(tasks, scheduler, progress, workers_wait)
         else:
-            rows, about = batch.run_local(tasks, jobs, progress), where
+            rows, about, stopped = batch.run_local(tasks, jobs, progress), where, None
     except InputError as e:
         progress.close()
         fail(e, debug)
@@ -196,14 +200,16 @@ def _many(scenes: list[Path], out: Path, many: bool, force: bool, jobs: int | No
     wall = time.perf_counter() - t0
     failed = [r for r in rows if r["status"] == "failed"]
     if as_json:
-        click.echo(json.dumps({"scenes": rows, "wall_s": round(wall, 3), "workers": about,
+        click.echo(json.dumps({"scenes": rows, "wall_s": round(wall, 3), "workers": about, "stopped": stopped,
                                "cache": cache.stats() if cache else None}, indent=1))
     else:
         click.echo(batch.table(rows, wall))
     if failed:
         click.echo(f"{len(failed)} of {len(rows)} scenes failed: " + ", ".join(escaped(r["scene"]) for r in failed),
                    err=True)
-    return 1 if failed else 0
+    if stopped:
+        click.echo(escaped(f"error: the run stopped: {stopped}"), err=True)
+    return 2 if stopped else 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ import click
 
 from vdmbake import __version__
 from vdmbake.errors import InputError, escaped, fail, guarded
+from vdmbake.library.cluster import check_address
 from vdmbake.scene import ANTIALIAS, MAX_SIDE, MAX_SPP, REGISTRY
 
 from . import gl
@@ -91,11 +92,19 @@ def _sizes(ctx, param, value):
               help="Render every variant as it would be shipped: msaaN (GL multisampling) or ssaaK (K x K larger, "
                    "box-filtered down on the GPU); its time and counters include the resolve pass. Overrides "
                    "render.antialias (default none).")
+@click.option("--scheduler", metavar="ADDRESS",
+              help="Render on a Dask cluster: tcp://HOST:8786 (a running `dask scheduler`, its workers each with their "
+                   "own GL device), or local:N for N worker processes here; one task per bundle, every file but the "
+                   "timings as on one machine. Needs the `cluster` extra (docs/cluster.md).")
+@click.option("--workers-wait", type=click.FloatRange(0, 86400), default=60.0, show_default=True, metavar="SECONDS",
+              help="With --scheduler: how long the scheduler may have no worker (before the first bundle or later) "
+                   "before the run stops (exit 2, naming the scheduler and what finished).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
 def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample_s, device, max_error, baseline, max_error_increase,
-         max_slowdown, compare_devices, counters, flip, heat_max, sizes, reference_spp, antialias, as_json, debug):
+         max_slowdown, compare_devices, counters, flip, heat_max, sizes, reference_spp, antialias, scheduler, workers_wait,
+         as_json, debug):
     """Render each BUNDLE (made by vdmbake) into OUTPUT and report error against run time.
 
     For every object, each technique variant (a technique at one value of its quality
@@ -134,14 +143,16 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
                                              hysteresis; for copies, priced on their field
 
     Several bundles, or a folder of them: each into OUTPUT/<bundle name without .bundle>/ as
-    alone, one after another on the GPU; OUTPUT/report.json, report.csv and error_vs_time.png
+    alone, one after another on the GPU (or with --scheduler each on a cluster worker, with its
+    own GPU); OUTPUT/report.json, report.csv and error_vs_time.png
     combine their rows (object spelled SCENE/OBJECT, so --baseline compares combined reports),
     OUTPUT/runs.md lists each bundle's status; a bundle that fails does not stop the others.
 
     Exit codes: 0 done; 1 done but a threshold was exceeded (--max-error, --max-error-increase,
     --max-slowdown) or some of several bundles failed (each named); 2 bad usage or bad input, or a variant or composite set with no covered pixel in
-    any frame (unless its objects set expect_empty = true), also under --debug, which adds the traceback;
-    128 + N stopped by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). --debug also makes GL strict: a uniform or
+    any frame (unless its objects set expect_empty = true), also under --debug, which adds the traceback,
+    or a --scheduler run stopped by its cluster (the scheduler lost, or no worker for --workers-wait:
+    the closing table says what finished); 128 + N stopped by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). --debug also makes GL strict: a uniform or
     vertex attribute a shader does not have is an error instead of being skipped.
 
     \b
@@ -153,6 +164,7 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
       vdmrender out/lod-bunny.bundle -o out/lod-bunny --sizes 512,256,128,64,32,16 \\
           --reference-spp 16 --antialias ssaa2
       vdmrender out/library/bundles -o out/library/renders --baseline old/report.json --max-error-increase 0.1
+      vdmrender out/library/bundles -o /shared/renders --scheduler tcp://farm-head:8786
     """
     if (max_error_increase is not None or max_slowdown is not None) and baseline is None:
         fail(InputError("--max-error-increase and --max-slowdown compare with an earlier run; give its "
@@ -167,11 +179,16 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
     if debug:
         gl.STRICT = True
     found, many = guarded(lambda: many_bundles.bundles(bundles), debug)
+    if scheduler is not None:
+        from . import cluster
+        guarded(lambda: check_address(scheduler), debug)
     if many:
-        result = guarded(lambda: many_bundles.run_many(found, out, opts, log), debug)
+        result = guarded(lambda: many_bundles.run_many(found, out, opts, log) if scheduler is None else
+                         cluster.run_many(found, out, opts, log, scheduler, workers_wait), debug)
         click.echo(many_bundles.table(result["runs"]), err=True)
     else:
-        result = guarded(lambda: run(found[0], out, opts, log), debug)
+        result = guarded(lambda: run(found[0], out, opts, log) if scheduler is None else
+                         cluster.run_one(found[0], out, opts, log, scheduler, workers_wait), debug)
     if as_json:
         click.echo(json.dumps(result, indent=1, allow_nan=False))
     elif many:
@@ -203,7 +220,9 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
     failed = [r["scene"] for r in result.get("runs", []) if r["status"] == "failed"]
     if failed:
         click.echo(escaped(f"{len(failed)} of {len(result['runs'])} bundles failed: {', '.join(failed)}"), err=True)
-    sys.exit(2 if empty else 1 if worst or failed or (block and block["failed"]) else 0)
+    if result.get("stopped"):
+        click.echo(escaped(f"error: the run stopped: {result['stopped']}"), err=True)
+    sys.exit(2 if empty or result.get("stopped") else 1 if worst or failed or (block and block["failed"]) else 0)
 
 
 if __name__ == "__main__":

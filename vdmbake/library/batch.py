@@ -270,11 +270,16 @@ def _status(row: dict) -> str:
     return f"baked {row['parts']} parts ({row['from_cache']} from cache) in {row['seconds']:.2f} s"
 
 
+def handed_back(row: dict) -> str:
+    """Which cluster workers handed the task back, unable to read its inputs (vdmbake.library.cluster)."""
+    return f"handed back by {', '.join(row['handed_back'])}" if row.get("handed_back") else ""
+
+
 def table(rows: list[dict], wall_s: float) -> str:
     """The closing table: scene, status, parts baked / from cache, seconds, the reason of a failure; then totals."""
     head = ("scene", "status", "baked", "cached", "seconds", "reason")
     body = [(escaped(Path(r["scene"]).name), r["status"], str(r.get("baked", 0)), str(r.get("from_cache", 0)),
-             f"{r['seconds']:.2f}", escaped(r.get("reason") or "")) for r in rows]
+             f"{r['seconds']:.2f}", escaped(r.get("reason") or handed_back(r))) for r in rows]
     widths = [max(len(x[i]) for x in [head, *body]) for i in range(5)]
     fmt = lambda r: "  ".join(c.ljust(w) if i in (0, 1) else c.rjust(w)  # noqa: E731
                               for i, (c, w) in enumerate(zip(r[:5], widths))) + (f"  {r[5]}" if r[5] else "")

@@ -1,0 +1,181 @@
+"""`vdmrender --scheduler` (vdmrender/cluster.py, issue 41): bundles rendered on Dask workers write what a run on
+one machine writes, apart from the timings; a worker killed mid-render costs only its bundle's retry; the faults
+(no worker, the scheduler lost, a worker that cannot see the bundles) end bounded and named."""
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from scenes import BRICK_PLANE, TINY_HEAD
+from bench.cluster import ENV, blind, differences, rendering, scheduler, stop, worker
+from test_batch import _ancestors
+from vdmbake.bundle import staging
+from vdmbake.cli import main as bake_main
+
+pytest.importorskip("distributed")
+pytestmark = pytest.mark.gl
+BIN = Path(sys.executable).parent
+SCENES = {"ball": TINY_HEAD + '[[objects]]\nname = "ball"\nprimitive = "sphere"\n'
+                              'techniques = { mesh = {}, coarse = { ratios = [0.2] } }\n',
+          "cone": TINY_HEAD + '[[objects]]\nname = "cone"\nprimitive = "cone"\ntechniques = { mesh = {} }\n',
+          "plane": TINY_HEAD + BRICK_PLANE}
+
+
+@pytest.fixture
+def library(tmp_path):
+    (tmp_path / "scenes").mkdir()
+    for name, text in SCENES.items():
+        (tmp_path / "scenes" / f"{name}.toml").write_text(text)
+    r = CliRunner().invoke(bake_main, [str(tmp_path / "scenes"), "-o", str(tmp_path / "bundles"), "--jobs", "1"],
+                           env={"VDM_CACHE": None})
+    assert r.exit_code == 0, r.output
+    return tmp_path / "bundles"
+
+
+def _render(library, out, *more, **popen):
+    return subprocess.run([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip", *more],
+                          capture_output=True, text=True, env=ENV, timeout=600, **popen)
+
+
+def test_a_local_cluster_renders_what_one_machine_renders(library, tmp_path):
+    """Three bundles and a broken one on a local cluster of two workers: every frame, reference, heat map and
+    overview the same bytes as a run on one machine, every report row, count and error the same apart from the
+    times; each run names the worker it ran on and its device."""
+    (library / "zzz.bundle").mkdir()
+    (library / "zzz.bundle" / "manifest.json").write_text("{}")
+    one, two = tmp_path / "one", tmp_path / "two"
+    r = _render(library, one)
+    assert r.returncode == 1 and "1 of 4 bundles failed: zzz" in r.stderr, r.stderr[-3000:]
+    r = _render(library, two, "--scheduler", "local:2")
+    assert r.returncode == 1 and "1 of 4 bundles failed: zzz" in r.stderr, r.stderr[-3000:]
+    assert "rendering 4 bundles into" in r.stderr and "Dask scheduler tcp://127.0.0.1:" in r.stderr
+    assert differences(one, two) == []
+    report = json.loads((two / "report.json").read_text())
+    assert len(report["rows"]) == 5 and all(row["mean_dluv"] is not None for row in report["rows"])
+    for run in report["runs"]:
+        assert run["worker"].startswith("tcp://127.0.0.1:"), run
+        assert run["status"] == "failed" if run["scene"] == "zzz" else run["device"] == report["device"], run
+
+
+def test_times_from_several_devices_are_not_compared():
+    """Runs on workers with different devices make a combined report whose device names them all: a baseline from
+    any one device does not compare its times with it (nor it with another one), unless --compare-devices."""
+    from vdmrender import baseline, many
+
+    gpu = {"time": "gpu", "device": "NVIDIA H200"}
+    assert many.device(["NVIDIA H200", "NVIDIA H200"]) == "NVIDIA H200"
+    both = {"time": "gpu", "device": many.device(["NVIDIA H200", "llvmpipe"])}
+    assert baseline.times_comparable(gpu, both) and baseline.times_comparable(both, gpu)
+    assert baseline.times_comparable(gpu, both, across_devices=True) is None
+
+
+def test_one_bundle_renders_on_a_worker(library, tmp_path):
+    """One bundle given alone renders on one worker into OUT as without a cluster; its bad input is refused as
+    on one machine (exit 2, one paragraph), though found on the worker."""
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert _render(library / "cone.bundle", one).returncode == 0
+    r = _render(library / "cone.bundle", two, "--scheduler", "local:1")
+    assert r.returncode == 0 and "cone.bundle: rendered on tcp://127.0.0.1:" in r.stderr, r.stderr[-3000:]
+    assert differences(one, two) == []
+    r = _render(library / "cone.bundle", tmp_path / "three", "--scheduler", "local:1", "-t", "vdm")
+    assert r.returncode == 2 and "--technique 'vdm': no object of this bundle's scene names it" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "three").exists()
+
+
+def test_a_worker_killed_mid_render_is_redone_elsewhere(library, tmp_path):
+    """Fault test: the worker process rendering `ball` is killed (SIGKILL) mid-render; the scheduler runs the bundle
+    again on a worker, the run completes (exit 0) with every bundle rendered, nothing hidden is left in OUT, and
+    ball's files are a run on one machine's."""
+    out = tmp_path / "two"
+    p = subprocess.Popen([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip", "--sample-s", "2",
+                          "--scheduler", "local:2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    pid, folder = rendering(out, "ball", p)
+    assert pid != p.pid and p.pid in _ancestors(pid), (pid, p.pid)          # a worker of this run
+    os.kill(pid, signal.SIGKILL)
+    stdout, stderr = p.communicate(timeout=600)
+    assert p.returncode == 0, stderr[-3000:]
+    runs = {r["scene"]: r for r in json.loads((out / "report.json").read_text())["runs"]}
+    assert {r["status"] for r in runs.values()} == {"rendered"}, runs
+    assert not [q for q in out.rglob(".*")], list(out.rglob(".*"))
+    one = tmp_path / "one"
+    r = _render(library / "ball.bundle", one, "--sample-s", "2")
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert differences(one, out / "ball") == []
+
+
+def test_no_worker_within_the_wait(library, tmp_path):
+    """A scheduler without workers: exit 2 after --workers-wait, the scheduler named, no output folder."""
+    with scheduler(tmp_path) as (address, _):
+        r = _render(library, tmp_path / "out", "--scheduler", address, "--workers-wait", "1")
+    assert r.returncode == 2, r.stderr[-3000:]
+    assert f"--scheduler {address}: no Dask worker joined the scheduler within 1 s (--workers-wait)" in r.stderr
+    assert not (tmp_path / "out").exists() and staging.recover(tmp_path / "out", "runs.md") == []
+
+
+def test_a_scheduler_lost_mid_render(library, tmp_path):
+    """The scheduler killed while a worker renders: the command exits 2 with the closing table (what finished, and
+    the rest `not finished: the connection ... was lost`) and the combined report of what finished; the worker
+    stops the render it holds and exits."""
+    out = tmp_path / "out"
+    with scheduler(tmp_path) as (address, sched):
+        w = worker(address)
+        try:
+            p = subprocess.Popen([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip", "--sample-s", "2",
+                                  "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 env=ENV)
+            said = ""
+            while "ball: rendered" not in said:                   # one bundle finished, its row on the client
+                said += p.stderr.readline()
+                assert p.poll() is None, (said, p.communicate())
+            rendering(out, "cone", p)
+            sched.send_signal(signal.SIGKILL)
+            stdout, stderr = p.communicate(timeout=120)
+            stderr = said + stderr
+            w.wait(timeout=120)
+        finally:
+            stop(w)
+    assert p.returncode == 2, stderr[-3000:]
+    assert "Traceback" not in stderr, stderr[-3000:]
+    assert "error: the run stopped: the connection to the Dask scheduler" in stderr, stderr[-3000:]
+    runs = {r["scene"]: r for r in json.loads((out / "report.json").read_text())["runs"]}
+    assert "not finished: the connection to the Dask scheduler" in runs["cone"]["reason"], runs
+    assert runs["ball"]["status"] == "rendered" and (out / "ball" / "report.json").is_file()
+    assert "| cone | failed |" in stderr and not (out / "cone").exists()
+    assert not [q for q in out.rglob(".*")], list(out.rglob(".*"))
+
+
+def test_a_worker_that_cannot_see_the_bundles_hands_them_back(library, tmp_path):
+    """A worker in its own mount namespace with the bundles' folder hidden (a machine without the share) hands
+    each bundle back; they render on the worker that joins later, and the closing table names who handed back."""
+    if not (shutil.which("unshare") and subprocess.run(["unshare", "-m", "true"]).returncode == 0):
+        pytest.skip("needs unshare -m (root) to hide a folder from one worker")
+    out = tmp_path / "out"
+    with scheduler(tmp_path) as (address, _):
+        workers = [worker(address, *blind(library))]
+        try:
+            p = subprocess.Popen([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip",
+                                  "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 env=ENV)
+            said = ""
+            while "rendering 3 bundles" not in said:              # submitted, to the blind worker alone
+                said += p.stderr.readline()
+                assert p.poll() is None, (said, p.communicate())
+            workers.append(worker(address))
+            stdout, stderr = p.communicate(timeout=600)
+            stderr = said + stderr
+        finally:
+            for w in workers:
+                stop(w)
+    assert p.returncode == 0, stderr[-3000:]
+    runs = json.loads((out / "report.json").read_text())["runs"]
+    assert {r["status"] for r in runs} == {"rendered"}, runs
+    for r in runs:
+        assert [f"cannot read {library.absolute() / r['scene']}.bundle/manifest.json" in h for h in r["handed_back"]] \
+            == [True] and r["worker"] not in r["handed_back"][0], r
+    assert "handed back by tcp://127.0.0.1:" in stderr, stderr[-3000:]
