@@ -119,3 +119,16 @@ def test_the_combined_folder_is_swapped_in_whole(library, tmp_path, monkeypatch)
     assert r.exit_code == 0, r.output
     rows = json.loads((out / "report.json").read_text())["rows"]
     assert rows and all(x["reference_cached"] for x in rows)
+
+
+def test_every_bundle_failing_is_exit_1_with_the_table(tmp_path):
+    """No bundle rendered: the combined report has no rows and no plot, and the run ends as any failure does."""
+    folder = tmp_path / "bundles"
+    for name in ("a", "b"):
+        (folder / f"{name}.bundle").mkdir(parents=True)
+        (folder / f"{name}.bundle" / "manifest.json").write_text("{}")
+    out = tmp_path / "renders"
+    r = CliRunner().invoke(render_main, [str(folder), "-o", str(out), "--no-flip"])
+    assert r.exit_code == 1 and "2 of 2 bundles failed" in r.output, r.output
+    assert json.loads((out / "report.json").read_text())["rows"] == []
+    assert (out / "report.html").is_file() and not (out / "error_vs_time.png").exists()

@@ -15,10 +15,10 @@ import html
 import json
 import math
 import os
-import re
 from pathlib import Path
 from urllib.parse import quote
 
+from vdmbake.bundle import staging
 from vdmbake.scene import LIMIT_ON
 
 from .lod import CHANGE
@@ -245,10 +245,9 @@ def where(report: dict, obj: str) -> tuple[str, str]:
 
 
 def target(folder: Path) -> Path:
-    """The folder the page will be read in: a render writes into a hidden staging sibling (.NAME.tmp-PID,
-    vdmbake.bundle.staging) that is then swapped into place."""
-    m = re.fullmatch(r"\.(.+)\.tmp-\d+", folder.name)
-    return folder.parent / m[1] if m else folder
+    """The folder the page will be read in: a render writes into a hidden staging sibling that is then swapped
+    into place (vdmbake.bundle.staging)."""
+    return staging.target(folder)
 
 
 def page(folder: Path, report: dict) -> str:

@@ -64,7 +64,8 @@ def write(folder: Path, report: dict) -> None:
         (folder / "baseline.csv").write_text(baseline.to_csv(report["baseline"]))
     if "composite" in report:
         (folder / "composite.md").write_text(composite_table(report))
-    plot(folder / "error_vs_time.png", report)
+    if report["rows"] or report.get("composite"):   # nothing drawn (every bundle failed): no plot of nothing
+        plot(folder / "error_vs_time.png", report)
 
 
 def flat(row: dict) -> dict:

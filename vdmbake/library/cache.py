@@ -42,13 +42,13 @@ import json
 import os
 import re
 import shutil
-import socket
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import code_fingerprint, imported_closure
+from ..bundle import staging
 from ..bundle.budget import BUDGET
 from ..errors import InputError
 from ..formats.safeio import read_regular
@@ -273,7 +273,7 @@ class PartCache:
         body = b"".join([len(head).to_bytes(8, "little"), head, *(d for *_, d in parts)])
         final = self.path(key)
         final.parent.mkdir(parents=True, exist_ok=True)
-        tmp = final.parent / f".{key}.{socket.gethostname()}.{os.getpid()}.{os.urandom(4).hex()}.tmp"
+        tmp = final.parent / f".{key}.{staging.host()}.{os.getpid()}.{os.urandom(4).hex()}.tmp"
         try:
             with open(tmp, "wb") as f:
                 f.write(MAGIC + b" " + hashlib.sha256(body).hexdigest().encode() + b"\n")
@@ -339,7 +339,7 @@ class PartCache:
         c = self.counters
         if not (c.hits or c.misses or c.stored or c.evicted):
             return
-        line = json.dumps({"time": round(time.time(), 3), "host": socket.gethostname(), "pid": os.getpid(),
+        line = json.dumps({"time": round(time.time(), 3), "host": staging.host(), "pid": os.getpid(),
                            **c.as_dict(), **extra}, separators=(",", ":")) + "\n"
         try:
             self.root.mkdir(parents=True, exist_ok=True)
