@@ -1544,7 +1544,7 @@ def check_address_text(address: str) -> None:
     of one line or accepts, within CONNECT_S and a second; local:N is accepted only for 1 to MAX_LOCAL."""
     import re
 
-    from vdmbake.library import cluster
+    from vdmbake import cluster
 
     with time_limit(cluster.CONNECT_S + 1, "the scheduler address checks"):
         try:

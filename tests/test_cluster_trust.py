@@ -15,7 +15,7 @@ from click.testing import CliRunner
 from bench.cluster import ENV, scheduler, stop, worker
 from test_batch import SLOW, SMALL, _wait_for_staging, hidden, write
 from vdmbake.cli import main as bake_main
-from vdmbake.library import cluster
+from vdmbake import cluster
 
 pytest.importorskip("distributed")
 BIN = Path(sys.executable).parent

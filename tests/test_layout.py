@@ -1,5 +1,5 @@
 """The code's shape: the renderer renders what the bundle holds (it imports from vdmbake only the
-package itself, scene, schema, errors and three rooms: bundle/, formats/ and common/; the benchmarks, which
+package itself, scene, schema, errors, the Dask mechanism both tools share (cluster) and three rooms: bundle/, formats/ and common/; the benchmarks, which
 drive both tools, live outside both packages in bench/), the baker never imports the renderer, neither
 package has an import cycle, and every declared technique has its renderer."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ import vdmbake
 import vdmrender
 from vdmbake.scene import REGISTRY
 
-RENDER_MAY_IMPORT = {"vdmbake", "vdmbake.scene", "vdmbake.schema", "vdmbake.errors"}
+RENDER_MAY_IMPORT = {"vdmbake", "vdmbake.scene", "vdmbake.schema", "vdmbake.errors", "vdmbake.cluster"}
 # rooms of the baker the renderer may read from: the bundle format, the file formats, and the neutral
 # pure numpy (geometry, sRGB, the pyramid, the albedo lookup: the reference's twins of GL code)
 RENDER_MAY_IMPORT_ROOMS = ("vdmbake.bundle", "vdmbake.formats", "vdmbake.common")

@@ -164,7 +164,7 @@ def _many(scenes: list[Path], out: Path, many: bool, force: bool, jobs: int | No
     try:
         pairs = batch.targets(scenes, out) if many else [(scenes[0], out)]
         if scheduler is not None:
-            from .library.cluster import check_address
+            from .cluster import check_address
             check_address(scheduler)
         if many:
             out.mkdir(parents=True, exist_ok=True)
@@ -184,7 +184,7 @@ def _many(scenes: list[Path], out: Path, many: bool, force: bool, jobs: int | No
     t0 = time.perf_counter()
     try:
         if scheduler is not None:
-            from .library.cluster import run_dask
+            from .library.batch import run_dask
             rows, about, stopped = run_dask(tasks, scheduler, progress, workers_wait)
         else:
             rows, about, stopped = batch.run_local(tasks, jobs, progress), where, None

@@ -10,7 +10,7 @@ import click
 
 from vdmbake import __version__
 from vdmbake.errors import InputError, escaped, fail, guarded
-from vdmbake.library.cluster import check_address
+from vdmbake.cluster import check_address
 from vdmbake.scene import ANTIALIAS, MAX_SIDE, MAX_SPP, REGISTRY
 
 from . import gl

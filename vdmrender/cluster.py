@@ -10,7 +10,7 @@ machine writes (tests/test_render_cluster.py). One bundle given alone is rendere
 
 The cluster itself (the address checked, the bounded wait for workers, a task handed back by a worker that
 cannot see the shared folders, tasks stopped when the scheduler is lost, a killed worker's task run again) is
-vdmbake's (vdmbake.library.cluster); a run the cluster stopped still writes the combined report of what
+vdmbake's (vdmbake.cluster); a run the cluster stopped still writes the combined report of what
 finished, and the command exits 2."""
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from functools import partial
 from pathlib import Path
 
 from vdmbake.errors import InputError
-from vdmbake.library.cluster import WAIT_S, connected, existing, run_tasks
+from vdmbake.cluster import WAIT_S, connected, existing, run_tasks
 
 from . import many
 from .render import run

@@ -18,7 +18,7 @@ from vdmbake import __version__
 from vdmbake.bundle import staging
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.errors import InputError, paragraph
-from vdmbake.library.batch import handed_back
+from vdmbake.cluster import handed_back
 
 from . import baseline, html, report
 from .markdown import cell

@@ -1,6 +1,6 @@
 """Many scenes per call (`vdmbake SCENE_OR_FOLDER... -o OUTDIR`): each scene baked into
 OUTDIR/<scene file stem>.bundle, in parallel over local worker processes (`--jobs N`) or on a Dask
-cluster (`--scheduler`, vdmbake.library.cluster). A failing scene never stops the others: its error is its row
+cluster (`--scheduler`, vdmbake.cluster). A failing scene never stops the others: its error is its row
 of the table. docs/library.md.
 
 The local pool is a handful of long-lived worker processes (spawned, so no thread state is forked),
@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import wait
 from pathlib import Path
 
+from ..cluster import WAIT_S, connected, existing, handed_back, run_tasks
 from ..errors import InputError, escaped, paragraph
 
 GLOB_CHARS = set("*?[")
@@ -270,11 +271,6 @@ def _status(row: dict) -> str:
     return f"baked {row['parts']} parts ({row['from_cache']} from cache) in {row['seconds']:.2f} s"
 
 
-def handed_back(row: dict) -> str:
-    """Which cluster workers handed the task back, unable to read its inputs (vdmbake.library.cluster)."""
-    return f"handed back by {', '.join(row['handed_back'])}" if row.get("handed_back") else ""
-
-
 def table(rows: list[dict], wall_s: float) -> str:
     """The closing table: scene, status, parts baked / from cache, seconds, the reason of a failure; then totals."""
     head = ("scene", "status", "baked", "cached", "seconds", "reason")
@@ -292,3 +288,21 @@ def table(rows: list[dict], wall_s: float) -> str:
                  + (f" ({100 * cached / (baked + cached):.0f}%)" if baked + cached else "")
                  + f"; {wall_s:.1f} s wall, {sum(r['seconds'] for r in rows):.1f} s in bakes")
     return "\n".join(lines)
+
+
+def _failed(task: Task, reason: str) -> dict:
+    return {"scene": task.scene, "bundle": task.out, "status": "failed", "parts": 0, "baked": 0, "from_cache": 0,
+            "seconds": 0.0, "reason": reason}
+
+
+def run_dask(tasks: list[Task], address: str, done, wait_s: float = WAIT_S) -> tuple[list[dict], str, str | None]:
+    """Bake `tasks` on the cluster at `address`; `done(row)` hears each result as it comes. Returns the rows in
+    task order, a line describing the cluster, and why the run stopped early (None if it did not)."""
+    with connected(address, wait_s) as (client, about):
+        rows, stopped = run_tasks(client, address, bake_one, tasks, _bake_needs, _failed, done, wait_s, "vdmbake")
+    return rows, about, stopped
+
+
+def _bake_needs(task: Task) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """A scene's file to read; the folders its bundle and the part cache go into, to write into."""
+    return (task.scene,), tuple(existing(p) for p in [Path(task.out).parent] + ([Path(task.cache)] if task.cache else []))

@@ -82,7 +82,7 @@ def parse_size(text: str | int) -> int:
 # (each technique step has its own key), the bundle's reader and manifest check, the batch machinery.
 OBJECT_STEP_STOP = frozenset({"vdmbake.techniques", "vdmbake.scene", "vdmbake.bundle.directory",
                               "vdmbake.bundle.manifest", "vdmbake.library.cache", "vdmbake.library.batch",
-                              "vdmbake.library.cluster"})
+                              "vdmbake.cluster"})
 
 
 @functools.lru_cache(maxsize=None)

@@ -36,8 +36,7 @@ from concurrent.futures import CancelledError
 from contextlib import contextmanager
 from pathlib import Path
 
-from .batch import Task, bake_one
-from ..errors import InputError, escaped
+from .errors import InputError, escaped
 
 LOCAL = re.compile(r"local:(\d+)")
 TCP = re.compile(r"(?:tcp|tls)://\[?([^\]/]+?)\]?:(\d+)/?")
@@ -93,11 +92,6 @@ def _quiet_distributed() -> None:
     for name in ["distributed", "tornado", *logging.root.manager.loggerDict]:
         if name.split(".")[0] in ("distributed", "tornado"):
             logging.getLogger(name).setLevel(logging.CRITICAL)
-
-
-def _failed(task: Task, reason: str) -> dict:
-    return {"scene": task.scene, "bundle": task.out, "status": "failed", "parts": 0, "baked": 0, "from_cache": 0,
-            "seconds": 0.0, "reason": reason}
 
 
 @contextmanager
@@ -258,17 +252,9 @@ def _alone(client, address: str, wait_s: float, since: float | None) -> tuple[st
     return None, since
 
 
-def run_dask(tasks: list[Task], address: str, done, wait_s: float = WAIT_S) -> tuple[list[dict], str, str | None]:
-    """Bake `tasks` on the cluster at `address`; `done(row)` hears each result as it comes. Returns the rows in
-    task order, a line describing the cluster, and why the run stopped early (None if it did not)."""
-    with connected(address, wait_s) as (client, about):
-        rows, stopped = run_tasks(client, address, bake_one, tasks, _bake_needs, _failed, done, wait_s, "vdmbake")
-    return rows, about, stopped
-
-
-def _bake_needs(task: Task) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """A scene's file to read; the folders its bundle and the part cache go into, to write into."""
-    return (task.scene,), tuple(existing(p) for p in [Path(task.out).parent] + ([Path(task.cache)] if task.cache else []))
+def handed_back(row: dict) -> str:
+    """Which cluster workers handed the task back, unable to read its inputs (run_tasks)."""
+    return f"handed back by {', '.join(row['handed_back'])}" if row.get("handed_back") else ""
 
 
 def existing(path: Path) -> str:
