@@ -40,6 +40,17 @@ def test_closed_surfaces_and_uv_seams_have_no_border(tmp_path):
     assert len(geometry.skirt(m, 0.05, (4, 1))[1]) == 0       # welded by position they are not
 
 
+def test_classify_confined_to_a_closed_sheet_s_box():
+    """A closed sheet (no skirt) far in the frame: classes traced only within its bounding sphere's screen box are
+    those of every pixel traced (the torus seen through its hole, from behind at the far side: INSIDE pixels)."""
+    t = primitives.torus(1.0, 0.3, 24, 12)
+    sheet = RayScene(t.vertices, t.faces[:, ::-1])            # wound inwards: what the eye sees is its back
+    cam = Camera(np.array([0.5, -9.0, 2.0]), np.array([1.5, 0.0, 0.5]), np.array([0.0, 0.0, 1.0]), 40.0, 64, 64,
+                 0.5, 20.0)
+    confined = pixel_classes.classify(cam, sheet, None, t.bounding_sphere())
+    assert (confined == pixel_classes.INSIDE).sum() > 0
+    np.testing.assert_array_equal(confined, pixel_classes.classify(cam, sheet, None))
+
 def test_classify_plane_above_and_below():
     p = primitives.plane(2.0, 4)
     sheet = RayScene(p.vertices - [0, 0, 0.02], p.faces)      # a stand-in for the displaced sheet

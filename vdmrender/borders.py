@@ -14,18 +14,27 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import reference
+
 SURFACE, BORDER, INSIDE = 0, 1, 2
 COLOURS = np.array([[0, 0, 0], [255, 160, 0], [40, 110, 255]], np.uint8)   # class mask PNGs
 
 
-def classify(camera, sheet, skirt) -> np.ndarray:
+def classify(camera, sheet, skirt, sphere=None) -> np.ndarray:
     """(H, W) uint8 classes for one camera. sheet: the RayScene of the displaced reference mesh;
-    skirt: the RayScene of the shell's side wall, or None (no border)."""
-    eye, d = camera.pixel_rays()
+    skirt: the RayScene of the shell's side wall, or None (no border); sphere: the sheet's bounding sphere, whose
+    screen box confines the rays where there is no skirt (reference.may_meet: a ray that misses is SURFACE)."""
+    rays = np.arange(camera.width * camera.height)
+    keep = None if skirt is not None or sphere is None else reference.may_meet(camera, *sphere, rays)
+    eye, d = camera.pixel_rays(pixels=None if keep is None else rays[keep])
     o, tfar = eye + d * camera.near, camera.far - camera.near
     h = sheet.intersect(o, d, tfar)
     cls = np.where((h.prim >= 0) & (np.einsum("ij,ij->i", h.ng, d) > 0), INSIDE, SURFACE).astype(np.uint8)
     if skirt is not None:
         s = skirt.intersect(o, d, tfar)
         cls[(s.prim >= 0) & (s.t <= h.t)] = BORDER      # h.t is inf where the sheet is missed
+    if keep is not None:
+        every = np.full(rays.size, SURFACE, np.uint8)
+        every[keep] = cls
+        cls = every
     return cls.reshape(camera.height, camera.width)

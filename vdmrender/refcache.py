@@ -156,7 +156,7 @@ def object_frames(out, obj, entry, bundle, scene, cams, log, folder: str | None 
     def trace(cams):
         ref, skirt = object_reference(obj, entry, bundle, scene)
         frames, halves = zip(*(reference.filtered(ref.render, c, spp) for c in cams))
-        classes = [borders.classify(c, ref.scene, skirt) if obj.mesostructure else None for c in cams]
+        classes = [borders.classify(c, ref.scene, skirt, ref.sphere) if obj.mesostructure else None for c in cams]
         return list(frames), list(halves), classes, ref.scene.rays_cast
 
     return load_or_trace(out, folder or f"reference/{obj.name}", key, cams, trace, scene.render.background,
