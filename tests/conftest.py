@@ -16,3 +16,18 @@ def ctx():
     c = gl.create_context()
     yield c
     c.release()
+
+
+@pytest.fixture
+def no_warm_up(monkeypatch):
+    """No warm-up before timing (vdmrender.timing.warm_up, as the rows and the benches' interleaved loops call
+    it, with warmup = 0 and warmup_s = 0). The bench smoke tests prove a bench's plumbing; waiting for llvmpipe's
+    frame times to agree (up to warmup_max_s per variant on a loaded machine) proves nothing there, and the
+    warm-up rule itself is test_timing's."""
+    from dataclasses import replace
+
+    from vdmrender import timing
+
+    warm_up = timing.warm_up
+    monkeypatch.setattr(timing, "warm_up", lambda timer, renderer, cams, budget:
+                        warm_up(timer, renderer, cams, replace(budget, warmup=0, warmup_s=0.0)))

@@ -203,7 +203,8 @@ techniques = { billboards = { variants = ["greedy-hit0.02", "greedy-improved+coa
     assert rows["billboards@greedy-improved+coarse"]["mean_dluv"] < rows["billboards@greedy-hit0.02"]["mean_dluv"]
 
 
-def test_bench_quick_smoke(tmp_path):
+@pytest.mark.slow
+def test_bench_quick_smoke(tmp_path, no_warm_up):
     """make bench's billboard script runs end to end (a sphere at 200x150, 64-texel maps) and writes its report."""
     import json
 

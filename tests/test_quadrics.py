@@ -349,11 +349,14 @@ def test_only_zero_volume_input_is_refused(tmp_path):
     assert r.exit_code == 2 and "no sphere or cylinder" in r.stderr
 
 
-def test_bench_quick_smoke(tmp_path):
-    """make bench's script runs end to end (two small real molecules at 256x192) and writes its report."""
-    from bench.quadrics import main as bench_main
+@pytest.mark.slow
+def test_bench_quick_smoke(tmp_path, monkeypatch, no_warm_up):
+    """make bench's script runs end to end (the smallest real molecule at 256x192, at each distance; the last
+    molecule's tessellated levels at distance 3) and writes its report."""
+    import bench.quadrics
 
-    r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
+    monkeypatch.setattr(bench.quadrics, "MOLECULES", bench.quadrics.MOLECULES[:1])
+    r = CliRunner().invoke(bench.quadrics.main, ["-o", str(tmp_path), "--quick"])
     assert r.exit_code == 0, r.output
     report = json.loads((tmp_path / "quadrics.json").read_text())
     labels = {row["label"] for row in report["rows"]}
