@@ -57,10 +57,10 @@ demo: $(STAMP)
 	@echo "frames: out/$(NAME)/frames/   heat maps: out/$(NAME)/heatmaps/   overview: out/$(NAME)/overview/"
 
 # the tests on every core (pytest-xdist; TEST_WORKERS=N for N), a file's tests on one worker so its module
-# fixtures are built once (docs/testing.md)
+# fixtures are built once, the files with slow tests first (tests/conftest.py; docs/testing.md)
 TEST_WORKERS ?= auto
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # make docs: every table between <!-- table:FILE:KEY --> markers in README.md and docs/*.md rewritten from
 #            docs/results/FILE.json (tools/make_docs.py; tests/test_docs.py runs it with --check)

@@ -8,6 +8,14 @@ os.environ["VDM_GL_STRICT"] = "1"
 import pytest  # noqa: E402
 
 
+def pytest_collection_modifyitems(items):
+    """The files holding a slow test first, each file's tests in their order: under make test (xdist, a file to a
+    worker, --no-loadscope-reorder) the long files start at once and the short ones fill in behind them, rather than
+    one starting last beside an idle worker."""
+    slow = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow)
+
+
 @pytest.fixture(scope="module")
 def ctx():
     """One headless GL context per test module (vdmrender.gl: EGL, llvmpipe where there is no GPU)."""
@@ -31,3 +39,24 @@ def no_warm_up(monkeypatch):
     warm_up = timing.warm_up
     monkeypatch.setattr(timing, "warm_up", lambda timer, renderer, cams, budget:
                         warm_up(timer, renderer, cams, replace(budget, warmup=0, warmup_s=0.0)))
+
+
+@pytest.fixture(scope="session")
+def gl_context_ok():
+    """vdmrender error cases that are reached only after the GL context is made need EGL (llvmpipe works)."""
+    from vdmbake.errors import InputError
+    from vdmrender import gl
+
+    try:
+        ctx = gl.create_context(None)
+    except InputError as e:
+        pytest.skip(f"no OpenGL 4.3 context through EGL here: {e}")
+    ctx.release()
+
+
+@pytest.fixture
+def bundles(tmp_path):
+    """Two bundles of two scenes to export from: (this one, another one)."""
+    from exports import two_bundles
+
+    return two_bundles(tmp_path)

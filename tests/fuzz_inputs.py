@@ -210,7 +210,7 @@ def time_limit(seconds: float, what: str):
 def check_cli(result, out: Path) -> bool:
     """A vdmbake run under CliRunner: exit 0 (True; the bundle is there, nothing hidden left beside it) or exit 2
     through the one-paragraph error path, nothing written (False). Anything else fails."""
-    from test_bad_input import leftovers
+    from helpers import leftovers
 
     assert result.exit_code in (0, 2), (result.exit_code, result.output[-3000:], repr(result.exception))
     assert leftovers(out) == [], leftovers(out)
@@ -565,7 +565,7 @@ def check_textured_bake(folder: Path, mesh: str, files: dict, touched: set, text
     * whatever was damaged: what it baked agrees with trimesh reading the asset from disk itself (albedo map or
       none, the same texels): the files the bake lists for trimesh are the files trimesh asks for.
     A textures setting other than "use" or "ignore" is refused."""
-    from test_bad_input import bake
+    from helpers import bake
 
     A.write_files(folder, {**A.DECOYS, **files})
     scene = folder / "scene.toml"
@@ -939,7 +939,7 @@ def check_composite_bake(folder: Path, sets) -> None:
     round-tripping) and baked (check_cli: exit 0 or 2). What is accepted names every object of the scene once with
     one of its own labels (the labels written out in A.COMPOSITE_LABELS, not asked of the code), has no empty or
     repeated set, and survives the manifest: the bundle opens and its scene holds the same sets."""
-    from test_bad_input import bake
+    from helpers import bake
 
     text = A.composite_scene(sets)
     try:

@@ -22,7 +22,7 @@ from fuzz_inputs import (CACHE_SCENE, SETTINGS, TEXTURES_SETTING, DamagedPart, Q
                          part_case, stats_lines, ADDRESS, check_address_text)
 from fuzz_untrusted import (check_compressed, check_node_tree, check_reference, compressed_case, node_tree_case,
                             reference_case)
-from test_bad_input import bake, write_scene
+from helpers import bake, write_scene
 from scenes import TINY_HEAD
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -275,6 +275,7 @@ def test_fuzz_lod_is_accepted_unmutated(fuzz_lod, tmp_path):
 
 @given(data=st.data())
 @examples(300)
+@pytest.mark.slow
 def test_fuzz_lod(fuzz_lod, tmp_path_factory, data):
     bundle, lod = fuzz_lod
     d = tmp_path_factory.mktemp("export")

@@ -104,6 +104,7 @@ def share_apart(out, a: str, b: str, label: str) -> list[float]:
     return [float((np.abs(x - y).max(-1) > 2).mean()) for x, y in zip(fa, fb)]
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_one_copy_in_place_draws_as_the_object_alone(tmp_path):
     one = ('[[objects]]\nname = "b"\nprimitive = "sphere"\n' + TECHNIQUES +
            '\n[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n')
@@ -196,6 +197,7 @@ def test_each_copy_takes_the_band_its_screen_size_falls_in():
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_per_copy_lod_row_draws_each_copy_by_its_band(tmp_path):
     text = RENDER.replace("[32, 32]", "[80, 48]") + """
 [render.sweep]
@@ -267,6 +269,7 @@ def test_a_variant_holding_two_bands_draws_the_copies_of_both(ctx):
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_billboard_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_path):
     """The overlap case for billboards: copy B, turned and scaled, between copy A and the light and partly in
     front of it, against the merged reference: every billboard method within its bound in mean ΔLuv and IoU (the

@@ -3,25 +3,19 @@ export for engines (vdmbake.export): glTF 2.0 with MSFT_lod checked by the Khron
 independent reader (pygltflib)."""
 import json
 import math
-import os
-import shutil
-import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 from PIL import Image
 
+from gltf_files import validate
 from scenes import BRICK_PLANE, RENDER, bake_and_render
 from vdmbake.bundle.directory import Bundle
 from vdmbake.export.gltf import safe, up_to_y
 from vdmbake.scene import Thresholds
 from vdmrender import lod, metrics, pricing, scoring
 from vdmrender.sweep import distance_for
-
-ROOT = Path(__file__).parent.parent
-VALIDATOR = ROOT / ".venv" / "node" / "node_modules" / "gltf-validator"
 
 SWEEP = """
 [render.sweep]
@@ -186,16 +180,6 @@ def test_up_to_y_turns_the_scene_up_onto_plus_y():
         q = up_to_y(up)
         assert np.linalg.norm(q) == pytest.approx(1.0)
         assert rotate(q, np.array(up, float) / np.linalg.norm(up)) == pytest.approx([0, 1, 0], abs=1e-12)
-
-
-def validate(path: Path) -> dict:
-    """The Khronos glTF validator's report (npm gltf-validator, installed by make's set-up)."""
-    node = shutil.which("node")
-    assert node and VALIDATOR.is_dir(), "the glTF validator is installed by `make test` (npm gltf-validator)"
-    r = subprocess.run([node, str(ROOT / "tools" / "validate_gltf.cjs"), str(path)], capture_output=True, text=True,
-                       env={**os.environ, "GLTF_VALIDATOR": str(VALIDATOR)})
-    assert r.returncode in (0, 1), r.stderr
-    return json.loads(r.stdout)
 
 
 TEXTURED = """

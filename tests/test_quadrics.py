@@ -257,7 +257,7 @@ def test_camera_inside_an_atom(tmp_path):
 
 def test_camera_inside_a_water_box(tmp_path):
     """27 waters; the eye inside the middle oxygen and its first hydrogen at once."""
-    from test_molecules import pdb_text
+    from helpers import pdb_text
 
     waters = water_box(np.random.default_rng(11))
     (tmp_path / "water.pdb").write_text(pdb_text([("HOH", i + 1, w) for i, w in enumerate(waters)]))
