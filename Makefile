@@ -56,11 +56,11 @@ demo: $(STAMP)
 	@echo "report: out/$(NAME)/report.json  out/$(NAME)/report.csv  out/$(NAME)/error_vs_time.png"
 	@echo "frames: out/$(NAME)/frames/   heat maps: out/$(NAME)/heatmaps/   overview: out/$(NAME)/overview/"
 
-# the tests on every core (pytest-xdist; TEST_WORKERS=N for N), a file's tests on one worker so its module
+# the tests on every core up to 8 (pytest-xdist; TEST_WORKERS=N for N), a file's tests on one worker so its module
 # fixtures are built once, the files with slow tests first (tests/conftest.py; docs/testing.md)
 TEST_WORKERS ?= auto
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --maxprocesses 8 --dist loadfile --no-loadscope-reorder
 
 # make docs: every table between <!-- table:FILE:KEY --> markers in README.md and docs/*.md rewritten from
 #            docs/results/FILE.json (tools/make_docs.py; tests/test_docs.py runs it with --check)

@@ -1,6 +1,7 @@
 """Every test runs with strict GL (vdmrender.gl.strict): a uniform or vertex attribute that a shader
 does not have fails the test instead of being skipped. Set here, before any test imports the renderer,
-so the CLI runs under CliRunner and in subprocesses are strict too."""
+so the CLI runs under CliRunner and in subprocesses are strict too. Also the fixtures several test files
+share and the order make test runs the files in (docs/testing.md)."""
 import os
 
 os.environ["VDM_GL_STRICT"] = "1"

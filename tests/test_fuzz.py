@@ -95,6 +95,7 @@ def test_fuzz_bundle_is_accepted_unmutated(fuzz_bundle):
 
 @given(case=obj_case(), textures=TEXTURES_SETTING)
 @examples(200)
+@pytest.mark.slow
 def test_fuzz_textured_obj(tmp_path_factory, case, textures):
     files, touched = case
     check_textured_bake(tmp_path_factory.mktemp("obj"), "quad.obj", files, touched, textures)
@@ -102,6 +103,7 @@ def test_fuzz_textured_obj(tmp_path_factory, case, textures):
 
 @given(case=gltf_case(), textures=TEXTURES_SETTING)
 @examples(200)
+@pytest.mark.slow
 def test_fuzz_textured_gltf(tmp_path_factory, case, textures):
     files, touched = case
     check_textured_bake(tmp_path_factory.mktemp("gltf"), "quad.gltf", files, touched, textures)
@@ -171,6 +173,7 @@ def test_fuzz_baseline_is_accepted_unmutated(fuzz_report, tmp_path):
 
 @given(sets=composite_sets())
 @examples(300)
+@pytest.mark.slow
 def test_fuzz_composite_sets(tmp_path_factory, sets):
     check_composite_bake(tmp_path_factory.mktemp("composite"), sets)
 
@@ -209,6 +212,7 @@ def parts_bundle(tmp_path_factory):
 
 @given(data=st.data())
 @examples(400)
+@pytest.mark.slow
 def test_fuzz_parts(parts_bundle, tmp_path_factory, data):
     manifest, parts, values = parts_bundle
     case = data.draw(part_case(parts_bundle))

@@ -248,6 +248,7 @@ def run_molecule(tmp_path, camera, molecule, style="spacefill"):
 # exit, was never tested when that exit lay farther than another quadric's hit. Against that walk the
 # exact impostors were charged 2.70 ΔLuv inside an atom and 19.57 inside the water box.
 
+@pytest.mark.slow
 def test_camera_inside_an_atom(tmp_path):
     """Villin (596 atoms, spacefill), the eye inside an atom near the middle, overlapped by others."""
     camera = pose([0.261, 2.085, -0.044], [0.054, 0.6345, 0.8745])   # atom at (-0.039, 1.885, -0.144), r 1.7
