@@ -69,8 +69,11 @@ demo: $(DEMO_STAMP)
 	@echo "open out/$(NAME)/report.html in a browser: each object's chain of variants by screen size, the errors against time, every frame beside its reference"
 	@echo "the tools are in $(BIN)/ (vdmbake, vdmrender, vdmexport): run them as $(BIN)/vdmrender --help, or after source $(BIN)/activate"
 
+# the tests on every core up to 8 (pytest-xdist; TEST_WORKERS=N for N), a file's tests on one worker so its module
+# fixtures are built once, the files with slow tests first (tests/conftest.py; docs/testing.md)
+TEST_WORKERS ?= auto
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --maxprocesses 8 --dist loadfile --no-loadscope-reorder
 
 # make docs: every table between <!-- table:FILE:KEY --> markers in README.md and docs/*.md rewritten from
 #            docs/results/FILE.json (tools/make_docs.py; tests/test_docs.py runs it with --check)

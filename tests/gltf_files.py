@@ -1,12 +1,163 @@
 """glTF files rebuilt in the tests from the numbers of published Khronos glTF-Sample-Models (no package on PyPI or
 npm ships those models; nothing is downloaded at test time): each generator writes a file like the named sample,
 with the same structure (primitives, materials, accessors, modes) and the values written out here, so a test can
-state the colour, position or normal the file means."""
+state the colour, position or normal the file means. Also the in-memory glTF writer they and the glTF tests build
+on (Gltf), a mesh read from a file drawn and traced (drawn_and_traced), and the Khronos validator's report
+(validate)."""
 from __future__ import annotations
 
-import numpy as np
+import base64
+import io
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
 
-from tests.test_gltf_read import QUAD, UV, Gltf
+import numpy as np
+from PIL import Image
+
+from vdmbake.assets.meshes import TriMesh
+from vdmbake.common import texture
+from vdmrender import gl, images, metrics, reference
+from vdmrender.passes.raster import RasterMesh
+
+from exports import MODULES, ROOT
+
+VALIDATOR = MODULES / "gltf-validator"
+QUAD = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
+UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)          # glTF's v runs down the picture
+BG = (0.05, 0.05, 0.06)
+PICTURE = (np.arange(16 * 3).reshape(4, 4, 3) * 5).astype(np.uint8)  # 16 distinct texels, row 0 the picture's top
+CLAMP, MIRROR, REPEAT = 33071, 33648, 10497   # glTF samplers' wrap modes (the GL enums)
+
+
+class Gltf:
+    """A glTF file built up in memory: one buffer, accessors, meshes of quads, materials, nodes."""
+
+    def __init__(self):
+        self.blob = b""
+        self.tree = {"asset": {"version": "2.0"}, "accessors": [], "bufferViews": [], "meshes": [], "nodes": [],
+                     "scenes": [{"nodes": []}], "scene": 0}
+
+    def accessor(self, a: np.ndarray, normalized: bool = False) -> int:
+        self.blob += b"\0" * (-len(self.blob) % 4)
+        self.tree["bufferViews"].append({"buffer": 0, "byteOffset": len(self.blob), "byteLength": a.nbytes})
+        self.blob += np.ascontiguousarray(a).tobytes()
+        acc = {"bufferView": len(self.tree["bufferViews"]) - 1, "count": len(a),
+               "componentType": {"f": 5126, "B": 5121, "H": 5123, "b": 5120}[a.dtype.char],
+               "type": "SCALAR" if a.ndim == 1 else f"VEC{a.shape[1]}"}
+        if normalized:
+            acc["normalized"] = True
+        if a.ndim == 2 and a.shape[1] == 3 and a.dtype == np.float32:   # POSITION needs its bounds
+            acc["min"], acc["max"] = a.min(0).tolist(), a.max(0).tolist()
+        self.tree["accessors"].append(acc)
+        return len(self.tree["accessors"]) - 1
+
+    def material(self, factor=None, picture=None, info=None, sampler=None) -> int:
+        """A material of `factor` and (if `picture`, an (H, W, 3) uint8) a base-colour texture whose textureInfo
+        gets `info`'s keys, sampled by `sampler`."""
+        pbr = {} if factor is None else {"baseColorFactor": list(factor)}
+        if picture is not None:
+            png = io.BytesIO()
+            Image.fromarray(np.asarray(picture, np.uint8)).save(png, "PNG")
+            self.tree.setdefault("images", []).append(
+                {"uri": "data:image/png;base64," + base64.b64encode(png.getvalue()).decode()})
+            tex = {"source": len(self.tree["images"]) - 1}
+            if sampler is not None:
+                self.tree.setdefault("samplers", []).append(sampler)
+                tex["sampler"] = len(self.tree["samplers"]) - 1
+            self.tree.setdefault("textures", []).append(tex)
+            pbr["baseColorTexture"] = {"index": len(self.tree["textures"]) - 1, **(info or {})}
+        self.tree.setdefault("materials", []).append({"pbrMetallicRoughness": pbr})
+        return len(self.tree["materials"]) - 1
+
+    def primitive(self, colour=None, material=None, uv=None, mode=None) -> dict:
+        """A quad (two triangles, or its corners for a `mode` of points), its COLOR_0 `colour` given per vertex
+        (normalized where it is of integers)."""
+        p = {"attributes": {"POSITION": self.accessor(QUAD)},
+             "indices": self.accessor(np.array([0, 1, 2, 0, 2, 3], np.uint16))}
+        if colour is not None:
+            colour = np.asarray(colour)
+            p["attributes"]["COLOR_0"] = self.accessor(colour, normalized=colour.dtype.kind == "u")
+        if uv is not None:
+            p["attributes"]["TEXCOORD_0"] = self.accessor(np.asarray(uv, np.float32))
+        if material is not None:
+            p["material"] = material
+        if mode is not None:
+            p["mode"] = mode
+            del p["indices"]
+        return p
+
+    def mesh(self, *primitives) -> int:
+        self.tree["meshes"].append({"primitives": list(primitives)})
+        return len(self.tree["meshes"]) - 1
+
+    def node(self, root: bool = True, **node) -> int:
+        self.tree["nodes"].append(node)
+        if root:
+            self.tree["scenes"][0]["nodes"].append(len(self.tree["nodes"]) - 1)
+        return len(self.tree["nodes"]) - 1
+
+    def write(self, path, buffer: str = "data"):
+        """The file at `path`, its buffer a data: URI, a file of that name, or (`glb`) the GLB's binary chunk."""
+        self.tree["buffers"] = [{"byteLength": len(self.blob)}]
+        if buffer == "data":
+            self.tree["buffers"][0]["uri"] = ("data:application/octet-stream;base64,"
+                                              + base64.b64encode(self.blob).decode())
+        elif buffer != "glb":
+            self.tree["buffers"][0]["uri"] = buffer
+            (path.parent / buffer).write_bytes(self.blob)
+        text = json.dumps(self.tree).encode()
+        if buffer != "glb":
+            path.write_bytes(text)
+            return path
+        text += b" " * (-len(text) % 4)
+        blob = self.blob + b"\0" * (-len(self.blob) % 4)
+        chunks = (len(text).to_bytes(4, "little") + b"JSON" + text + len(blob).to_bytes(4, "little") + b"BIN\0" + blob)
+        path.write_bytes(b"glTF" + (2).to_bytes(4, "little") + (12 + len(chunks)).to_bytes(4, "little") + chunks)
+        return path
+
+
+def drawn_and_traced(ctx, m, stored, cam, light, material, truth) -> tuple[dict, dict]:
+    """The mesh read from a file drawn (its stored part) and traced (the reference) from `cam`, each compared
+    with `truth`, the frame its file's own numbers give (metrics.compare)."""
+    target = gl.Target(ctx, cam.width, cam.height)
+    r = RasterMesh(ctx, stored, light, material, 256)
+    try:
+        r.render(cam, target)
+        drawn = metrics.compare(images.encode(target.read(), BG), truth)
+    finally:
+        r.release()
+        target.release()
+    return drawn, metrics.compare(images.encode(reference.MeshReference(m, light, material).render(cam), BG), truth)
+
+
+def albedo_at(m: TriMesh, points) -> np.ndarray:
+    """(N, 3) linear albedo of the loaded mesh at surface points (on its faces), as the reference reads it."""
+    points = np.asarray(points, np.float64)
+    out = []
+    for p in points:
+        tri = m.vertices[m.faces]
+        e1, e2, d = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], p - tri[:, 0]
+        n = np.cross(e1, e2)
+        area = (n * n).sum(1)
+        b1 = (np.cross(d, e2) * n).sum(1) / np.where(area > 0, area, 1)
+        b2 = (np.cross(e1, d) * n).sum(1) / np.where(area > 0, area, 1)
+        inside = (area > 0) & (b1 >= -1e-9) & (b2 >= -1e-9) & (b1 + b2 <= 1 + 1e-9) & (np.abs((d * n).sum(1)) < 1e-9)
+        f = int(np.flatnonzero(inside)[0])
+        out.append(texture.surface_albedo(m, np.array([f]), np.array([[1 - b1[f] - b2[f], b1[f], b2[f]]]), None)[0])
+    return np.array(out)
+
+
+def validate(path: Path) -> dict:
+    """The Khronos glTF validator's report (npm gltf-validator, installed by make's set-up)."""
+    node = shutil.which("node")
+    assert node and VALIDATOR.is_dir(), "the glTF validator is installed by `make test` (npm gltf-validator)"
+    r = subprocess.run([node, str(ROOT / "tools" / "validate_gltf.cjs"), str(path)], capture_output=True, text=True,
+                       env={**os.environ, "GLTF_VALIDATOR": str(VALIDATOR)})
+    assert r.returncode in (0, 1), r.stderr
+    return json.loads(r.stdout)
 
 # four sRGB texels per picture (rows top to bottom as in the file), one picture per textured primitive
 PICTURES = [np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 0]]], np.uint8),

@@ -1,6 +1,7 @@
 """Scenes shared by the end-to-end tests of the mesostructure techniques (test_vdm_render.py,
 test_relief_render.py): small cameras, base surfaces and one object "p" with a mesostructure, and a
-render helper that checks every frame is finite and prints the figures the bounds come from."""
+render helper that checks every frame is finite and prints the figures the bounds come from; and the files the
+mesostructure fixes' tests write (a real elevation map, 16-bit PNGs, OBJs as exporters write them)."""
 from __future__ import annotations
 
 import json
@@ -8,6 +9,7 @@ import json
 import numpy as np
 from PIL import Image
 
+from vdmbake.assets import primitives
 from vdmrender.metrics import delta_luv
 
 from scenes import bake_and_render, rows_by_label
@@ -72,3 +74,38 @@ def centre_dluv(out, label):
     img = np.asarray(Image.open(out / f"frames/p/{label}/000.png"))[..., :3]
     c = ref.shape[0] // 2
     return float(delta_luv(img[c:c + 1, c:c + 1], ref[c:c + 1, c:c + 1])[0, 0])
+
+
+def dem() -> np.ndarray:
+    """Elevation in metres (int16), row 0 the north (the top of the map, as matplotlib draws it)."""
+    from matplotlib import cbook
+
+    return np.asarray(cbook.get_sample_data("jacksboro_fault_dem.npz")["elevation"])
+
+
+def write_png16(path, a: np.ndarray):
+    im = Image.new("I;16", a.shape[::-1])
+    im.frombytes(np.asarray(a, "<u2").tobytes())
+    im.save(path)
+
+
+def write_obj(path, v, uv, f_v, f_uv):
+    """An OBJ as exporters write it: unique positions, unique UVs, faces index both (v/vt)."""
+    lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in v] + [f"vt {a:.17g} {b:.17g}" for a, b in uv]
+    lines += [" ".join(["f"] + [f"{i + 1}/{j + 1}" for i, j in zip(fv, ft)]) for fv, ft in zip(f_v, f_uv)]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def torus_obj(tmp_path, segments=24, rings=12):
+    """The torus primitive as an exporter writes it: one position per point of the surface, UVs split
+    at the u = 0 / 1 and v = 0 / 1 seams (so trimesh's loader splits those vertices)."""
+    t = primitives.torus(1.0, 0.35, segments, rings)
+    grid = np.arange(len(t.vertices)).reshape(rings + 1, segments + 1)
+    pos_id = grid.copy()
+    pos_id[:, -1] = pos_id[:, 0]                               # phi = 2 pi is phi = 0
+    pos_id[-1, :] = pos_id[0, :]                               # t = 1 is t = 0
+    used = np.unique(pos_id)
+    remap = np.full(len(t.vertices), -1)
+    remap[used] = np.arange(len(used))
+    write_obj(tmp_path / "torus.obj", t.vertices[used], t.uvs, remap[pos_id.ravel()[t.faces]], t.faces)
+    return tmp_path / "torus.obj"

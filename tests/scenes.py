@@ -13,6 +13,16 @@ CAMERA = """
 orbit = { count = 1 }
 """
 TINY_HEAD = RENDER + CAMERA
+BALL = """
+[[objects]]
+name = "ball"
+primitive = "sphere"
+params = { segments = 16, rings = 8 }
+techniques = { mesh = {} }
+"""
+GOOD_SCENE = TINY_HEAD + BALL   # the bad-input tests' good scene, which they damage
+
+
 # A brick mesostructure on a plane, drawn by the two techniques that bake nothing of their own (object "p").
 BRICK_PLANE = """
 [[objects]]
@@ -25,6 +35,18 @@ height = "bricks"
 size = 16
 depth = 0.06
 tiling = [2, 2]
+"""
+
+# Two copies of a sphere, one at the origin and one at [FAR, 0, 0] (the test replaces FAR), object "b".
+FAR_COPIES = RENDER + """
+[[objects]]
+name = "b"
+primitive = "sphere"
+techniques = { mesh = {} }
+[[objects.instances.placements]]
+translate = [0, 0, 0]
+[[objects.instances.placements]]
+translate = [FAR, 0, 0]
 """
 
 

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from tests.scenes import bake_and_render
+from scenes import bake_and_render
 from vdmbake.kernels import coarse
 from vdmbake.bundle import parts
 from vdmbake.assets import primitives

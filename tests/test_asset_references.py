@@ -16,13 +16,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from test_bad_input import CAMERA, RENDER, assert_input_error, bake, write_scene
+from helpers import assert_input_error, bake, gltf_asset, obj_asset, png, scene, write_scene
 
 BIN = Path(sys.executable).parent
-
-
-def _png(path: Path, colour=(200, 40, 40), size=4) -> None:
-    Image.new("RGB", (size, size), colour).save(path)
 
 
 def _png_header(path: Path, width: int, height: int) -> None:
@@ -33,48 +29,6 @@ def _png_header(path: Path, width: int, height: int) -> None:
     path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IEND", b""))
 
 
-QUAD_V = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.1]]
-QUAD_UV = [[0, 0], [1, 0], [0, 1], [1, 1]]
-
-
-def obj_asset(d: Path, uv=QUAD_UV, texture_name: str = "tex.png") -> str:
-    """quad.obj -> m.mtl -> tex.png (a textured quad); returns the mesh's name."""
-    lines = ["mtllib m.mtl", "usemtl mat"] + [f"v {x} {y} {z}" for x, y, z in QUAD_V]
-    lines += [f"vt {s} {t}" for s, t in uv] + ["f 1/1 2/2 3/3", "f 2/2 4/4 3/3"]
-    (d / "quad.obj").write_text("\n".join(lines) + "\n")
-    (d / "m.mtl").write_text(f"newmtl mat\nKd 1 1 1\nmap_Kd {texture_name}\n")
-    if texture_name == "tex.png":
-        _png(d / "tex.png")
-    return "quad.obj"
-
-
-def gltf_asset(d: Path, texture_index: int = 0) -> str:
-    """quad.gltf -> quad.bin (positions, UVs, indices) and tex.png; returns the mesh's name."""
-    data = (np.asarray(QUAD_V, "<f4").tobytes() + np.asarray(QUAD_UV, "<f4").tobytes()
-            + np.asarray([0, 1, 2, 1, 3, 2], "<u2").tobytes())
-    (d / "quad.bin").write_bytes(data)
-    _png(d / "tex.png")
-    views = [(0, 48), (48, 32), (80, 12)]
-    tree = {
-        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
-        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": texture_index}}}],
-        "textures": [{"source": 0}], "images": [{"uri": "tex.png"}],
-        "buffers": [{"uri": "quad.bin", "byteLength": len(data)}],
-        "bufferViews": [{"buffer": 0, "byteOffset": o, "byteLength": n} for o, n in views],
-        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
-                       "min": [0, 0, 0], "max": [1, 1, 0.1]},
-                      {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
-                      {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}],
-    }
-    (d / "quad.gltf").write_text(json.dumps(tree))
-    return "quad.gltf"
-
-
-def scene(mesh: str, extra: str = "") -> str:
-    return RENDER + CAMERA + f'[[objects]]\nname = "thing"\nmesh = "{mesh}"\n{extra}techniques = {{ mesh = {{}} }}\n'
-
-
 def manifest(out: Path) -> dict:
     return json.loads((out / "manifest.json").read_text())
 
@@ -82,7 +36,7 @@ def manifest(out: Path) -> dict:
 # ------------------------------------------------------------------------------- the input hash
 
 def _edit_texture(d: Path) -> None:
-    _png(d / "tex.png", (20, 200, 40))
+    png(d / "tex.png", (20, 200, 40))
 
 
 def _edit_mtl(d: Path) -> None:

@@ -7,25 +7,13 @@ import shutil
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
 from vdmbake.bundle.directory import FORMAT_VERSION
-from vdmbake.cli import main as vdmbake_main
 from vdmbake.errors import InputError
-from vdmrender.cli import main as vdmrender_main
 from vdmrender.render import check_memory, reference_bytes_per_pixel
 
-from scenes import CAMERA, RENDER
-
-BALL = """
-[[objects]]
-name = "ball"
-primitive = "sphere"
-params = { segments = 16, rings = 8 }
-techniques = { mesh = {} }
-"""
-GOOD_SCENE = RENDER + CAMERA + BALL
-
+from helpers import assert_input_error, bake, leftovers, render, write_scene
+from scenes import BALL, CAMERA, GOOD_SCENE, RENDER
 
 def mesh_object(path: str) -> str:
     return f"""
@@ -34,59 +22,6 @@ name = "thing"
 mesh = "{path}"
 techniques = {{ mesh = {{}} }}
 """
-
-
-# ---------------------------------------------------------------------------------------- helpers
-
-def leftovers(out: Path) -> list[str]:
-    """Hidden temporary/old siblings of `out` (`.NAME.tmp-PID`, `.NAME.old-PID`)."""
-    if not out.parent.is_dir():
-        return []
-    return sorted(p.name for p in out.parent.iterdir() if p.name.startswith(f".{out.name}."))
-
-
-def assert_input_error(result, needles, out: Path | None = None):
-    """Exit 2 through the one-paragraph error path, naming `needles`; nothing half-written at `out`."""
-    assert result.exit_code == 2, (result.exit_code, result.output, result.exception)
-    # An uncaught exception would show up here as something other than the SystemExit of fail().
-    assert isinstance(result.exception, SystemExit), repr(result.exception)
-    err = result.stderr
-    assert "Traceback" not in result.output and "Traceback" not in err
-    lines = err.rstrip("\n").splitlines()
-    assert lines and lines[-1].startswith("error: "), err
-    assert err.count("error:") == 1, err
-    message = lines[-1]
-    for needle in ([needles] if isinstance(needles, str) else needles):
-        assert needle in message, f"{needle!r} not in {message!r}"
-    if out is not None:
-        assert not out.exists(), f"{out} was written"
-        assert leftovers(out) == []
-
-
-def bake(*args):
-    return CliRunner().invoke(vdmbake_main, [str(a) for a in args])
-
-
-def render(*args):
-    return CliRunner().invoke(vdmrender_main, [str(a) for a in args])
-
-
-def write_scene(tmp_path: Path, text: str, name: str = "scene.toml") -> Path:
-    p = tmp_path / name
-    p.write_text(text)
-    return p
-
-
-@pytest.fixture(scope="session")
-def gl_context_ok():
-    """vdmrender error cases that are reached only after the GL context is made need EGL (llvmpipe works)."""
-    from vdmrender import gl
-
-    try:
-        ctx = gl.create_context(None)
-    except InputError as e:
-        pytest.skip(f"no OpenGL 4.3 context through EGL here: {e}")
-    ctx.release()
 
 
 @pytest.fixture(scope="module")

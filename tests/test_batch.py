@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 from vdmbake.bundle import parts, staging
@@ -247,6 +248,7 @@ def test_library_has_100_varied_scenes(tmp_path):
     assert [f.read_text() for f in library.write(tmp_path)] == [f.read_text() for f in files]   # deterministic
 
 
+@pytest.mark.slow
 def test_library_sample_bakes_and_shares_the_cache(tmp_path):
     """One scene of each family baked on two workers through a cache, then again: every step from the cache."""
     from vdmbake.library import scenes as library

@@ -111,6 +111,7 @@ def test_maps_hold_colour_only_for_coloured_assets():
 
 
 # the command line last: its own GL context leaves the module's context no longer current
+@pytest.mark.slow
 def test_textured_scene_to_report(tmp_path):
     """Scene -> bundle -> report for the textured bunny: the billboards' parts carry colour maps, the atlas
     its albedo, and every variant is scored against the textured reference."""

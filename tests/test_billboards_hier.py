@@ -19,8 +19,7 @@ from vdmrender import images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.billboards_hier import HierBillboards
 
-from frames import BG, LIGHT, MATERIAL, draw, score
-from test_billboards_render import SHADOW, model, orbit_camera, render
+from frames import BG, LIGHT, MATERIAL, SHADOW, draw, model, orbit_camera, render, score
 
 
 # ----------------------------------------------------------------------------- the pyramid with empty cells

@@ -6,51 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vdmbake.kernels import billboard_maps, coarse
-from vdmbake.assets import primitives
-from vdmbake.kernels import billboards as bb
 from vdmbake.errors import InputError
-from vdmbake.assets.meshes import TriMesh
 from vdmrender import images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmbake.bundle import parts
 from vdmbake.bundle.parts import Billboard
 from vdmrender.techniques.billboards import Billboards
 
-from frames import BG, LIGHT, MATERIAL, draw, score
-
-SHADOW = 512
-MESHES = {"sphere": lambda: primitives.sphere(1.0, 64, 32), "torus": lambda: primitives.torus(1.0, 0.35, 64, 32)}
-_cache: dict = {}
-
-
-def model(name: str, res: int = 128, offset=(0.0, 0.0, 0.0)):
-    """(mesh, bake result, coarse mesh at 10% of the faces), cached for the module."""
-    key = (name, res, tuple(offset))
-    if key not in _cache:
-        m = MESHES[name]()
-        m = TriMesh(m.vertices + np.asarray(offset), m.faces, m.normals)
-        _cache[key] = (m, bb.bake(m, bb.Settings(resolution=res)), coarse.simplify(m, 0.1))
-    return _cache[key]
-
-
-def orbit_camera(mesh, azimuth, elevation, size=96, distance=2.8, fov=40.0) -> Camera:
-    c, r = mesh.bounding_sphere()
-    a, e = np.radians(azimuth), np.radians(elevation)
-    eye = c + distance * r * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
-    return Camera(eye, c, np.array([0.0, 0.0, 1.0]), fov, size, size, *clip_planes(eye, c, c, r))
-
-
-def bordered(boards) -> list:
-    """The bordered maps the bake stores beside the billboards (no pyramids)."""
-    return [billboard_maps.bordered(b, False) for b in boards]
-
-
-def render(ctx, boards, camera, method="improved", hit_range=0.01, coarse_mesh=None, **kw) -> np.ndarray:
-    return draw(Billboards(ctx, boards, bordered(boards), LIGHT, MATERIAL, SHADOW, method, hit_range, coarse_mesh, **kw),
-                camera)
-
-
+from frames import BG, LIGHT, MATERIAL, SHADOW, bordered, model, orbit_camera, render, score
 
 
 # (mean dLuv bound, IoU bound) per (mesh, method, hit range, coarse): R 128, 96x96, azimuth 30, elevation 25.
@@ -75,6 +38,7 @@ BOUNDS = {
 
 
 @pytest.mark.parametrize("name", ["sphere", "torus"])
+@pytest.mark.slow
 def test_methods_against_reference(ctx, name):
     """Both marches, both thesis hit ranges, with and without the coarse mesh (sec. 3.4)."""
     mesh, baked, co = model(name)
@@ -101,6 +65,7 @@ def test_methods_against_reference(ctx, name):
     assert got["improved", 0.01, False][1] - got["improved", 0.01, True][1] < 0.01
 
 
+@pytest.mark.slow
 def test_camera_inside_boxes(ctx):
     """From the torus's centre, inside the boxes of the billboards that look down on it (and outside the
     mesh), looking at the inner wall of the tube: the ray starts on the near plane, inside the box."""
@@ -203,7 +168,8 @@ techniques = { billboards = { variants = ["greedy-hit0.02", "greedy-improved+coa
     assert rows["billboards@greedy-improved+coarse"]["mean_dluv"] < rows["billboards@greedy-hit0.02"]["mean_dluv"]
 
 
-def test_bench_quick_smoke(tmp_path):
+@pytest.mark.slow
+def test_bench_quick_smoke(tmp_path, no_warm_up):
     """make bench's billboard script runs end to end (a sphere at 200x150, 64-texel maps) and writes its report."""
     import json
 

@@ -17,7 +17,7 @@ from vdmrender.camera import Camera
 from vdmrender.metrics import compare
 
 from scenes import bake_and_render, rows_by_label
-from test_meso_fixes import _torus_obj, dem, write_png16
+from meso_scenes import dem, torus_obj, write_png16
 
 
 def test_skirt_of_a_plane():
@@ -32,7 +32,7 @@ def test_skirt_of_a_plane():
 def test_closed_surfaces_and_uv_seams_have_no_border(tmp_path):
     t = primitives.torus(1.0, 0.3, 16, 8)                     # seam columns duplicated, equal up to rounding
     assert len(geometry.skirt(t, 0.05, (4, 1))[1]) == 0
-    m = load_mesh_file(_torus_obj(tmp_path))                 # split at its UV seams by the loader
+    m = load_mesh_file(torus_obj(tmp_path))                 # split at its UV seams by the loader
     ids = np.arange(len(m.vertices))
     assert len(geometry.boundary_edges(m.faces, ids)) > 0     # keyed by vertex, the seams look open
     from vdmbake.kernels.curvature import estimate_frame

@@ -7,67 +7,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-from click.testing import CliRunner
-
 from vdmbake.bundle.directory import Bundle
 from vdmbake.library.cache import PartCache, parse_size
-from vdmbake.cli import main as bake_main
+
+from helpers import bake, cache_scene, entries, files
 
 ROOT = Path(__file__).resolve().parents[1]
-
-SCENE = """
-[render]
-resolution = [32, 32]
-
-[[objects]]
-name = "{name}"
-primitive = "torus"
-params = {{ major = 1.0, minor = 0.35, segments = 24, rings = 10 }}
-material = {{ albedo = [{grey}, 0.5, 0.5] }}
-[objects.mesostructure]
-height = "bricks"
-albedo = "bricks"
-size = 16
-depth = 0.05
-tiling = [4, 1]
-phi = 8
-theta = 4
-curvatures = 2
-[objects.techniques]
-mesh = {{}}
-coarse = {{ ratios = [{ratio}] }}
-relief = {{ iterations = [8] }}
-vdm = {{ k = [2] }}
-displaced = {{ levels = [1] }}
-
-[[objects]]
-name = "mol"
-spheres = [[0, 0, 0, 0.5], [1, 0, 0, 0.3]]
-cylinders = [[0, 0, 0, 1, 0, 0, 0.1]]
-viewer_mesh = 1
-techniques = {{ impostor = {{ shading = ["direct"] }} }}
-"""
-
-
-def scene(tmp_path: Path, stem: str = "s", name: str = "torus", ratio: float = 0.5, grey: float = 0.5) -> Path:
-    p = tmp_path / f"{stem}.toml"
-    p.write_text(SCENE.format(name=name, ratio=ratio, grey=grey))
-    return p
-
-
-def bake(*args, env=None):
-    r = CliRunner().invoke(bake_main, [str(a) for a in args], env=env or {"VDM_CACHE": None})
-    return r
-
-
-def files(bundle: Path) -> dict:
-    """Every file of a bundle but timing.json (wall times and where the parts came from), as bytes."""
-    return {p.relative_to(bundle).as_posix(): p.read_bytes() for p in sorted(bundle.rglob("*"))
-            if p.is_file() and p.name != "timing.json"}
-
-
-def entries(cache: Path) -> list[Path]:
-    return sorted(p for p in (cache / "entries").rglob("*") if p.is_file())
 
 
 def test_parse_size():
@@ -78,7 +23,7 @@ def test_parse_size():
 def test_bundle_through_the_cache_is_byte_identical(tmp_path):
     """Determinism: a bundle baked without a cache, through a cold one and through a warm one: the same bytes in
     every file but timing.json (which records wall times and which steps came from the cache)."""
-    s, cache = scene(tmp_path), tmp_path / "cache"
+    s, cache = cache_scene(tmp_path), tmp_path / "cache"
     assert bake(s, "-o", tmp_path / "plain.bundle").exit_code == 0
     cold = bake(s, "-o", tmp_path / "cold.bundle", "--cache", cache, "--json")
     warm = bake(s, "-o", tmp_path / "warm.bundle", "--cache", cache, "--json")
@@ -98,11 +43,11 @@ def test_a_step_is_shared_across_scenes_and_names(tmp_path):
     does not read for a surface), takes every step from the cache; another coarse ratio bakes only that step,
     after the object's parts come from the cache, and the bundle is the one a bake without a cache makes."""
     cache = tmp_path / "cache"
-    assert bake(scene(tmp_path, "a"), "-o", tmp_path / "a.bundle", "--cache", cache).exit_code == 0
+    assert bake(cache_scene(tmp_path, "a"), "-o", tmp_path / "a.bundle", "--cache", cache).exit_code == 0
     n = len(entries(cache))
-    r = bake(scene(tmp_path, "b", name="ring", grey=0.9), "-o", tmp_path / "b.bundle", "--cache", cache, "--json")
+    r = bake(cache_scene(tmp_path, "b", name="ring", grey=0.9), "-o", tmp_path / "b.bundle", "--cache", cache, "--json")
     assert json.loads(r.stdout)["steps_baked"] == 0 and len(entries(cache)) == n
-    c = scene(tmp_path, "c", ratio=0.25)
+    c = cache_scene(tmp_path, "c", ratio=0.25)
     r = bake(c, "-o", tmp_path / "c.bundle", "--cache", cache, "--json")
     stats = json.loads(r.stdout)
     assert stats["steps_baked"] == 1 and len(entries(cache)) == n + 1, stats
@@ -113,7 +58,7 @@ def test_a_step_is_shared_across_scenes_and_names(tmp_path):
 def test_corrupted_entry_is_detected_and_baked_again(tmp_path):
     """Fault test: one byte of a cache entry flipped on disk; the next bake finds the checksum wrong, removes
     the entry, bakes the step again (stores a good entry) and the bundle is intact."""
-    s, cache = scene(tmp_path), tmp_path / "cache"
+    s, cache = cache_scene(tmp_path), tmp_path / "cache"
     assert bake(s, "-o", tmp_path / "plain.bundle").exit_code == 0
     assert bake(s, "-o", tmp_path / "a.bundle", "--cache", cache).exit_code == 0
     victim = max(entries(cache), key=lambda p: p.stat().st_size)      # the largest: a part's bytes
@@ -189,7 +134,7 @@ def test_two_processes_storing_one_key_leave_one_entry(tmp_path):
 def test_two_bakes_of_the_same_steps_at_once(tmp_path):
     """Fault test: two vdmbake processes baking scenes with the same steps into one cache at the same time: one
     entry per key, both bundles correct (the same bytes as a bake without the cache)."""
-    a, b = scene(tmp_path, "a"), scene(tmp_path, "b", name="ring")
+    a, b = cache_scene(tmp_path, "a"), cache_scene(tmp_path, "b", name="ring")
     cache = tmp_path / "cache"
     exe = str(Path(sys.executable).parent / "vdmbake")
     env = {k: v for k, v in os.environ.items() if k != "VDM_CACHE"}
@@ -210,7 +155,7 @@ def test_two_bakes_of_the_same_steps_at_once(tmp_path):
 
 
 def test_cache_flags_and_environment(tmp_path):
-    s, cache = scene(tmp_path), tmp_path / "cache"
+    s, cache = cache_scene(tmp_path), tmp_path / "cache"
     assert bake(s, "-o", tmp_path / "a.bundle", env={"VDM_CACHE": str(cache)}).exit_code == 0
     assert entries(cache)
     r = bake("--cache-stats", "--json", env={"VDM_CACHE": str(cache)})

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from vdmbake.library.cache import PartCache
-from tests.test_cache import bake, entries, files, scene
+
+from helpers import bake, cache_scene, entries, files
 
 
 def _entry_of(cache: Path, wanted) -> tuple[str, object]:
@@ -31,7 +32,7 @@ def _rename(entry, old: str, new: str):
 def _baked_with_crafted(tmp_path, craft) -> tuple[dict, dict]:
     """A scene baked into the cache; craft(cache, key, entry) rewrites one entry with valid checksums; then the
     scene baked again through the cache: (its --json stats, its timing.json's cache record)."""
-    s, cache = scene(tmp_path), tmp_path / "cache"
+    s, cache = cache_scene(tmp_path), tmp_path / "cache"
     assert bake(s, "-o", tmp_path / "plain.bundle").exit_code == 0
     assert bake(s, "-o", tmp_path / "a.bundle", "--cache", cache).exit_code == 0
     craft(PartCache(cache))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 
+import pytest
 from click.testing import CliRunner
 
 from scenes import BRICK_PLANE, RENDER, bake_and_render
@@ -107,6 +108,7 @@ coarse = { ratios = [0.01] }
 """
 
 
+@pytest.mark.slow
 def test_what_the_scans_coarsest_mesh_changes_falls_with_its_size(tmp_path):
     """configs/lod-bunny.toml's finding: the scanned bunny's 1% mesh does not come closer to the reference as it
     shrinks (the full mesh's own error grows as fast), but what it changes against the full mesh, drawn the same

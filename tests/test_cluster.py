@@ -20,6 +20,7 @@ pytest.importorskip("distributed")
 BIN = Path(sys.executable).parent
 
 
+@pytest.mark.slow
 def test_local_cluster_bakes_the_same_bundles(tmp_path):
     write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"), b=SMALL.format(name="b", prim="torus"))
     r = CliRunner().invoke(bake_main, [str(tmp_path / "s"), "-o", str(tmp_path / "dask"), "--scheduler", "local:2",
@@ -35,6 +36,7 @@ def test_local_cluster_bakes_the_same_bundles(tmp_path):
         assert files(tmp_path / "dask" / f"{stem}.bundle") == files(tmp_path / "pool" / f"{stem}.bundle")
 
 
+@pytest.mark.slow
 def test_worker_killed_mid_task_is_retried(tmp_path):
     """Fault test: the Dask worker process holding scene `slow` (its bake's staging folder names it) is killed
     (SIGKILL) mid-bake; the scheduler runs the task again and another worker process bakes `slow`, whose log shows

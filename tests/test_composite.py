@@ -70,6 +70,7 @@ def test_enclosing_sphere():
     assert r <= np.sqrt(3) * 6.5                                             # the smallest has radius >= 6.5
 
 
+@pytest.mark.slow
 def test_depth_order_between_techniques(tmp_path):
     """Impostors (direct and deferred) and billboards (hier and improved) in front of and behind a mesh
     equal the reference that traces all three, in both frames."""

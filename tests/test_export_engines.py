@@ -5,10 +5,7 @@ orientation on its own; impostor parts checked as they are copied. Bundles are b
 import functools
 import hashlib
 import json
-import os
 import re
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -16,15 +13,14 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
+from exports import MODULES, ROOT, engines, export, lod_of_levels
+from gltf_files import validate
 from scenes import RENDER
 from vdmbake.assets import primitives
 from vdmbake.bundle.directory import Bundle
 from vdmbake.cli import main as bake_main
-from vdmbake.export.cli import main as export_main
 from vdmbake.export.gltf import Writer, up_to_y
 
-ROOT = Path(__file__).parent.parent
-MODULES = ROOT / ".venv" / "node" / "node_modules"
 COLOUR = (0.2, 0.5, 0.9)
 LEVELS = [("mesh", 64, 512), ("coarse@0.3", 16, 64), ("coarse@0.1", 0, 16)]
 TECHNIQUES = 'techniques = { mesh = {}, coarse = { ratios = [0.3, 0.1] } }\n'
@@ -52,20 +48,6 @@ def _assets(folder: Path) -> dict[str, str]:
             "plain": body.format('primitive = "torus"') + TECHNIQUES, "colour": body.format('mesh = "c.gltf"') + TECHNIQUES}
 
 
-def _lod(bundle: Bundle, levels, name="a") -> dict:
-    entries = [{"variant": v, "technique": v.split("@")[0], "min_px": lo, "max_px": hi, "meets": True,
-                "screen_coverage": [hi / 512, lo / 512], "measured": []} for v, lo, hi in levels]
-    return {"device": "d", "resolution": [512, 512], "bundle": {"manifest_sha256": bundle.identity},
-            "chains": [{"name": name, "objects": {"ball": {"entries": entries, "meshes_only": {"entries": entries}}}}]}
-
-
-def export(bundle: Bundle, lod: dict, out: Path):
-    out.parent.mkdir(parents=True, exist_ok=True)
-    (out.parent / f"{out.name}.lod.json").write_text(json.dumps(lod))
-    return CliRunner().invoke(export_main, [str(bundle.path), "--lod", str(out.parent / f"{out.name}.lod.json"),
-                                            "-o", str(out)])
-
-
 @pytest.fixture(scope="module")
 def exports(tmp_path_factory) -> dict[str, Path]:
     return build(tmp_path_factory.mktemp("engines"))
@@ -79,25 +61,14 @@ def build(tmp: Path) -> dict[str, Path]:
         r = CliRunner().invoke(bake_main, [str(tmp / f"{kind}.toml"), "-o", str(tmp / f"{kind}.bundle")])
         assert r.exit_code == 0, r.output
         bundle = Bundle(tmp / f"{kind}.bundle")
-        r = export(bundle, _lod(bundle, LEVELS, kind), tmp / "x" / kind)
+        r = export(bundle, lod_of_levels(bundle, LEVELS, kind), tmp / "x" / kind)
         assert r.exit_code == 0, r.output
         out[kind] = tmp / "x" / kind / f"ball-{kind}.gltf"
     return out
 
 
 @functools.cache
-def _node(script: str, files: tuple) -> list[dict]:
-    """The engine's report on each file (tools/engine_*.cjs: one Node process for all of them)."""
-    node = shutil.which("node")
-    if node is None:
-        pytest.skip("Node.js is missing (make test installs it): the engines run in Node")
-    for package in ("babylonjs", "babylonjs-loaders", "three"):
-        assert (MODULES / package).is_dir(), f"npm {package} is missing from {MODULES}: run the npm line of the " \
-            "Makefile's set-up (rm .venv/.installed; make test)"
-    r = subprocess.run([node, str(ROOT / "tools" / script), *map(str, files)], capture_output=True, text=True,
-                       env={**os.environ, "NODE_PATH": str(MODULES)}, timeout=300)
-    assert r.returncode == 0, r.stderr[-3000:]
-    return json.loads(r.stdout)
+
 
 
 def _levels(path: Path) -> list[dict]:
@@ -120,7 +91,6 @@ def test_every_export_is_valid_without_warnings(exports):
     """The Khronos validator: 0 errors, 0 warnings and 0 hints on every export kind (issue 34). Its infos are the
     two it gives any MSFT_lod file, since it does not implement the extension: UNSUPPORTED_EXTENSION for MSFT_lod,
     and UNUSED_OBJECT for each lower level's node, which only the extension's ids refer to."""
-    from test_lod import validate
 
     for kind, path in exports.items():
         issues = validate(path)["issues"]
@@ -174,7 +144,7 @@ def test_babylon_loads_every_level(exports):
     """Babylon.js (NullEngine, MSFT_lod on): each level loaded in turn, coarsest first, with the file's vertex
     count, material, texture and colour; every level turned as the scene is (the torus's up along +Y); the finest
     level's mesh carries the switch coverages (its metadata.gltf.extras)."""
-    reports = _node("engine_babylon.cjs", tuple(exports.values()))
+    reports = engines("engine_babylon.cjs", tuple(exports.values()))
     for (kind, path), report in zip(exports.items(), reports):
         assert "error" not in report, (kind, report)
         levels = _levels(path)
@@ -192,7 +162,7 @@ def test_babylon_loads_every_level(exports):
 
 def test_three_loads_level_zero(exports):
     """three.js's GLTFLoader has no MSFT_lod: it shows level 0, with its vertex count and material."""
-    reports = _node("engine_three.cjs", tuple(exports.values()))
+    reports = engines("engine_three.cjs", tuple(exports.values()))
     for (kind, path), report in zip(exports.items(), reports):
         level = _levels(path)[0]
         assert "error" not in report, (kind, report)
@@ -227,8 +197,8 @@ def engine_table(exports: dict[str, Path]) -> str:
     import trimesh
 
     version = lambda p: json.loads((MODULES / p / "package.json").read_text())["version"]   # noqa: E731
-    babylon = _node("engine_babylon.cjs", tuple(exports.values()))
-    three = _node("engine_three.cjs", tuple(exports.values()))
+    babylon = engines("engine_babylon.cjs", tuple(exports.values()))
+    three = engines("engine_three.cjs", tuple(exports.values()))
     rows = ["| export | read by | levels | vertices per level | material per level | texture |", "|---|---|---|---|---|---|"]
 
     def row(kind, who, items):   # items: (vertices, material, textured) finest first
@@ -255,7 +225,7 @@ def test_a_chain_out_of_order_is_said_and_exported_finest_first(tmp_path, export
     before, with the coarse mesh twice) is exported finest first, each level once, coverages falling, and the
     export says so on stderr and in export.json."""
     bundle = Bundle(exports["plain"].parents[2] / "plain.bundle")
-    r = export(bundle, _lod(bundle, [("coarse@0.3", 256, 512), ("mesh", 32, 256), ("coarse@0.3", 0, 32)]),
+    r = export(bundle, lod_of_levels(bundle, [("coarse@0.3", 256, 512), ("mesh", 32, 256), ("coarse@0.3", 0, 32)]),
                tmp_path / "x")
     assert r.exit_code == 0, r.output
     path = tmp_path / "x" / "ball-a.gltf"
@@ -300,7 +270,7 @@ def test_a_damaged_impostor_part_is_refused_not_copied(tmp_path):
     (tmp_path / "s.toml").write_text(BOARDS)
     assert CliRunner().invoke(bake_main, [str(tmp_path / "s.toml"), "-o", str(tmp_path / "b")]).exit_code == 0
     bundle = Bundle(tmp_path / "b")
-    lod = _lod(bundle, [("mesh", 16, 512), ("billboards@axis-hit0.01", 0, 16)])
+    lod = lod_of_levels(bundle, [("mesh", 16, 512), ("billboards@axis-hit0.01", 0, 16)])
     lod["chains"][0]["objects"]["ball"]["meshes_only"]["entries"] = lod["chains"][0]["objects"]["ball"]["entries"][:1]
     r = export(bundle, lod, tmp_path / "ok")
     assert r.exit_code == 0, r.output

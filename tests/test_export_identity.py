@@ -4,51 +4,14 @@ recorded none, and numbers out of range (a band limit of 10**400 raised Overflow
 import json
 
 import pytest
-from click.testing import CliRunner
 
-from scenes import RENDER, bake_and_render
+from exports import export, lod_of_one
+from scenes import BALL, RENDER, bake_and_render
 from vdmbake.bundle.directory import Bundle
-from vdmbake.cli import main as bake_main
-from vdmbake.export.cli import main as export_main
-
-BALL = """
-[[objects]]
-name = "ball"
-primitive = "sphere"
-techniques = { mesh = {} }
-"""
-
-
-def _lod(identity, **entry) -> dict:
-    e = {"variant": "mesh", "technique": "mesh", "min_px": 0, "max_px": 8, "meets": True,
-         "screen_coverage": [0.25, 0.0], "measured": [], **entry}
-    lod = {"device": "d", "resolution": [32, 32], "chains": [{"name": "a", "objects": {"ball": {
-        "entries": [e], "meshes_only": {"entries": [e]}}}}]}
-    if identity is not None:
-        lod["bundle"] = {"manifest_sha256": identity}
-    return lod
-
-
-@pytest.fixture
-def bundles(tmp_path):
-    """Two bundles of two scenes: (this one, another one)."""
-    out = []
-    for name, grey in (("b", 0.5), ("other", 0.7)):
-        scene = tmp_path / f"{name}.toml"
-        scene.write_text(RENDER + BALL + f"material = {{ albedo = [{grey}, 0.5, 0.5] }}\n")
-        assert CliRunner().invoke(bake_main, [str(scene), "-o", str(tmp_path / name)]).exit_code == 0
-        out.append(Bundle(tmp_path / name))
-    return out
-
-
-def _export(tmp_path, bundle, lod: dict):
-    (tmp_path / "lod.json").write_text(json.dumps(lod))
-    return CliRunner().invoke(export_main, [str(bundle.path), "--lod", str(tmp_path / "lod.json"), "-o",
-                                            str(tmp_path / "x")])
 
 
 def test_lod_of_this_bundle_exports(tmp_path, bundles):
-    r = _export(tmp_path, bundles[0], _lod(bundles[0].identity))
+    r = export(bundles[0], lod_of_one(bundles[0].identity), tmp_path / "x")
     assert r.exit_code == 0 and (tmp_path / "x" / "ball-a.gltf").is_file(), r.output
 
 
@@ -56,7 +19,7 @@ def test_lod_of_this_bundle_exports(tmp_path, bundles):
     ("other", "was rendered from another bundle"),                 # exported without a word before
     (None, "records no bundle identity (bundle.manifest_sha256): it was written by an older vdmrender; render")])
 def test_lod_of_another_bundle_or_without_identity_is_refused(tmp_path, bundles, which, message):
-    r = _export(tmp_path, bundles[0], _lod(bundles[1].identity if which else None))
+    r = export(bundles[0], lod_of_one(bundles[1].identity if which else None), tmp_path / "x")
     assert r.exit_code == 2 and message in r.output and "Traceback" not in r.output, r.output
     assert not (tmp_path / "x").exists()
 
@@ -68,7 +31,7 @@ def test_lod_of_another_bundle_or_without_identity_is_refused(tmp_path, bundles,
     ({"measured": [{"mean_dluv": float("nan")}]}, "finite numbers"),
     ({"measured": [{"size_px": 10**400}]}, "finite numbers")])           # found by test_fuzz_lod: OverflowError
 def test_numbers_out_of_range_are_refused(tmp_path, bundles, entry, message):
-    r = _export(tmp_path, bundles[0], _lod(bundles[0].identity, **entry))
+    r = export(bundles[0], lod_of_one(bundles[0].identity, **entry), tmp_path / "x")
     assert r.exit_code == 2 and message in r.output and "Traceback" not in r.output, r.output
 
 

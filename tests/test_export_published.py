@@ -9,10 +9,9 @@ import json
 import numpy as np
 from click.testing import CliRunner
 
+from exports import engines, export, lod_of_levels
+from gltf_files import CLAMP, MIRROR, PICTURE, UV, Gltf, validate
 from scenes import RENDER
-from test_export_engines import _lod, _node, export
-from test_gltf_published import CLAMP, MIRROR, PICTURE
-from test_gltf_read import UV, Gltf
 from vdmbake.assets.meshes import load_mesh_file
 from vdmbake.bundle.directory import Bundle
 from vdmbake.cli import main as bake_main
@@ -39,15 +38,13 @@ def _albedos(m) -> np.ndarray:
 
 
 def test_the_export_carries_wrap_modes_and_transforms(tmp_path):
-    from test_lod import validate
-
     _source(tmp_path / "w.gltf")
     body = '[[objects]]\nname = "ball"\nmesh = "w.gltf"\ntechniques = { mesh = {} }\n'
     (tmp_path / "s.toml").write_text(RENDER + body)
     r = CliRunner().invoke(bake_main, [str(tmp_path / "s.toml"), "-o", str(tmp_path / "b.bundle")])
     assert r.exit_code == 0, r.output
     bundle = Bundle(tmp_path / "b.bundle")
-    r = export(bundle, _lod(bundle, [("mesh", 0, 512)]), tmp_path / "x")
+    r = export(bundle, lod_of_levels(bundle, [("mesh", 0, 512)]), tmp_path / "x")
     assert r.exit_code == 0, r.output
     (path,) = (tmp_path / "x").glob("*.gltf")
     issues = validate(path)["issues"]
@@ -57,5 +54,5 @@ def test_the_export_carries_wrap_modes_and_transforms(tmp_path):
     exported, source = load_mesh_file(path), load_mesh_file(tmp_path / "w.gltf")
     assert np.allclose(_albedos(exported), _albedos(source), rtol=0, atol=1e-6)
     for script in ("engine_three.cjs", "engine_babylon.cjs"):
-        (report,) = _node(script, (path,))
+        (report,) = engines(script, (path,))
         assert "error" not in report, (script, report)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from scenes import RENDER
+from scenes import FAR_COPIES
 from vdmbake.bundle.directory import Bundle
 from vdmbake.cli import main as bake_main
 from vdmbake.common import instances
@@ -30,21 +30,9 @@ def test_the_rule():
         instances.check(_pair(1e31), np.zeros(3), 1.0, "o")
 
 
-SCENE = RENDER + """
-[[objects]]
-name = "b"
-primitive = "sphere"
-techniques = { mesh = {} }
-[[objects.instances.placements]]
-translate = [0, 0, 0]
-[[objects.instances.placements]]
-translate = [FAR, 0, 0]
-"""
-
-
 def test_bake_refuses_a_copy_far_from_the_others(tmp_path):
     """Failed before the fix: exit 0, and vdmrender drew the far copy in GL only."""
-    (tmp_path / "s.toml").write_text(SCENE.replace("FAR", "1e20"))
+    (tmp_path / "s.toml").write_text(FAR_COPIES.replace("FAR", "1e20"))
     r = CliRunner().invoke(bake_main, [str(tmp_path / "s.toml"), "-o", str(tmp_path / "b")], env={"VDM_CACHE": None})
     assert r.exit_code == 2 and "object 'b': the copies spread over a sphere of radius" in r.output, r.output
     assert "copy 1 at [1e+20, 0.0, 0.0] the farthest" in r.output
@@ -53,7 +41,7 @@ def test_bake_refuses_a_copy_far_from_the_others(tmp_path):
 
 def test_the_renderer_refuses_such_a_bundle(tmp_path):
     """A bundle whose manifest places the copies so (baked before the check, or edited) is refused on opening."""
-    (tmp_path / "s.toml").write_text(SCENE.replace("FAR", "3"))
+    (tmp_path / "s.toml").write_text(FAR_COPIES.replace("FAR", "3"))
     assert CliRunner().invoke(bake_main, [str(tmp_path / "s.toml"), "-o", str(tmp_path / "b")]).exit_code == 0
     Bundle(tmp_path / "b")
     manifest = json.loads((tmp_path / "b" / "manifest.json").read_text())

@@ -176,6 +176,7 @@ coarse = { ratios = [0.01] }
 """
 
 
+@pytest.mark.slow
 def test_filtered_error_falls_with_screen_size(tmp_path):
     """The scanned bunny's 1% coarse mesh: its facets are about a dozen pixels wide at 512 px across and under half
     a pixel at 16, so what a viewer sees of its error falls; against the pixel-centre reference (aliased_*), a facet edge

@@ -22,7 +22,7 @@ from fuzz_inputs import (CACHE_SCENE, SETTINGS, TEXTURES_SETTING, DamagedPart, Q
                          part_case, stats_lines, ADDRESS, check_address_text)
 from fuzz_untrusted import (check_compressed, check_node_tree, check_reference, compressed_case, node_tree_case,
                             reference_case)
-from test_bad_input import bake, write_scene
+from helpers import bake, write_scene
 from scenes import TINY_HEAD
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -95,6 +95,7 @@ def test_fuzz_bundle_is_accepted_unmutated(fuzz_bundle):
 
 @given(case=obj_case(), textures=TEXTURES_SETTING)
 @examples(200)
+@pytest.mark.slow
 def test_fuzz_textured_obj(tmp_path_factory, case, textures):
     files, touched = case
     check_textured_bake(tmp_path_factory.mktemp("obj"), "quad.obj", files, touched, textures)
@@ -102,6 +103,7 @@ def test_fuzz_textured_obj(tmp_path_factory, case, textures):
 
 @given(case=gltf_case(), textures=TEXTURES_SETTING)
 @examples(200)
+@pytest.mark.slow
 def test_fuzz_textured_gltf(tmp_path_factory, case, textures):
     files, touched = case
     check_textured_bake(tmp_path_factory.mktemp("gltf"), "quad.gltf", files, touched, textures)
@@ -171,6 +173,7 @@ def test_fuzz_baseline_is_accepted_unmutated(fuzz_report, tmp_path):
 
 @given(sets=composite_sets())
 @examples(300)
+@pytest.mark.slow
 def test_fuzz_composite_sets(tmp_path_factory, sets):
     check_composite_bake(tmp_path_factory.mktemp("composite"), sets)
 
@@ -209,6 +212,7 @@ def parts_bundle(tmp_path_factory):
 
 @given(data=st.data())
 @examples(400)
+@pytest.mark.slow
 def test_fuzz_parts(parts_bundle, tmp_path_factory, data):
     manifest, parts, values = parts_bundle
     case = data.draw(part_case(parts_bundle))
@@ -275,6 +279,7 @@ def test_fuzz_lod_is_accepted_unmutated(fuzz_lod, tmp_path):
 
 @given(data=st.data())
 @examples(300)
+@pytest.mark.slow
 def test_fuzz_lod(fuzz_lod, tmp_path_factory, data):
     bundle, lod = fuzz_lod
     d = tmp_path_factory.mktemp("export")

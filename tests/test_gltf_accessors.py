@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from tests.test_gltf_read import Gltf
+from gltf_files import Gltf
 from vdmbake.assets.meshes import load_mesh_file
 from vdmbake.cli import main as bake_main
 from vdmbake.errors import InputError

@@ -8,8 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from tests.test_asset_references import gltf_asset
-from tests.test_gltf_read import UV, Gltf
+import gltf_files as G
+from gltf_files import BG, CLAMP, MIRROR, PICTURE, REPEAT, UV, Gltf, albedo_at, drawn_and_traced
+from helpers import gltf_asset
 from vdmbake.assets.meshes import load_mesh_file
 from vdmbake.common import texture
 from vdmbake.errors import InputError
@@ -58,11 +59,7 @@ def test_a_missing_base_colour_picture_is_still_refused(tmp_path):
 
 # ---------------------------------------------------------- 3. KHR_texture_transform and TEXCOORD_1 on the base colour
 
-PICTURE = (np.arange(16 * 3).reshape(4, 4, 3) * 5).astype(np.uint8)   # 16 distinct texels, row 0 the picture's top
-
-
 def _texel(m, x, y, row, col):
-    from tests.test_gltf_samples import albedo_at
     from vdmbake.common.colour import srgb8_to_linear
 
     got, want = albedo_at(m, [[x, y, 0]])[0], srgb8_to_linear(PICTURE[row, col])
@@ -133,7 +130,6 @@ def test_a_transform_leaving_an_atlas_tile_wraps(tmp_path):
 def test_draco_reads_as_the_plain_file(tmp_path, glb):
     """The grid compressed by Draco loads as the same grid written plain: positions within the 16-bit quantisation
     (3 / 65535), the lossless normals, UVs, colours and the triangles exactly."""
-    from tests import gltf_files as G
 
     plain = load_mesh_file(G.draco_grid(tmp_path / "plain.gltf", draco=False))
     packed = load_mesh_file(G.draco_grid(tmp_path / ("d.glb" if glb else "d.gltf"), glb=glb))
@@ -161,7 +157,6 @@ def test_draco_reads_as_the_plain_file(tmp_path, glb):
 def test_decoded_data_meets_the_accessor_checks(tmp_path, spoil, match):
     """Decoded attributes are checked against what their accessors declare, as plain ones are; a damaged stream
     and a declared size over the memory budget (checked before decoding) are refused, naming the primitive."""
-    from tests import gltf_files as G
 
     with pytest.raises(InputError, match=match):
         load_mesh_file(G.draco_grid(tmp_path / "d.gltf", spoil=spoil))
@@ -188,7 +183,6 @@ def test_meshopt_reads_as_the_plain_file(tmp_path):
     """The grid with every bufferView meshopt-compressed (lossless, as gltfpack writes it without quantisation)
     loads exactly as the grid written plain (each triangle with its winding, though the index codec may start it at
     another corner); the fallback buffer, which holds no data, is never read."""
-    from tests import gltf_files as G
 
     def started(faces):   # each triangle rotated to start at its smallest index: the same winding, one spelling
         return np.array([np.roll(f, -int(np.argmin(f))) for f in faces])
@@ -213,16 +207,12 @@ def test_meshopt_reads_as_the_plain_file(tmp_path):
 def test_meshopt_views_are_checked(tmp_path, spoil, match):
     """Each view's declarations are checked before decoding, its decoded size held to the memory budget, and a
     stream meshoptimizer cannot decode refused, naming the view."""
-    from tests import gltf_files as G
 
     with pytest.raises(InputError, match=match):
         load_mesh_file(G.meshopt_grid(tmp_path / "m.gltf", spoil=spoil))
 
 
 # --------------------------------------------------------------------- 2. every wrap mode as the file says
-
-CLAMP, MIRROR, REPEAT = 33071, 33648, 10497
-
 
 @pytest.mark.parametrize("pictures", [1, 2])
 @pytest.mark.parametrize("wrap_s, wrap_t", [(CLAMP, MIRROR), (MIRROR, CLAMP), (MIRROR, REPEAT), (CLAMP, CLAMP)])
@@ -231,7 +221,6 @@ def test_every_wrap_mode_reads_as_the_file_says(tmp_path, pictures, wrap_s, wrap
     an atlas): at each point the texel the GL spec's wrap gives (§8.14.2: CLAMP_TO_EDGE the edge texel, MIRRORED_REPEAT
     the mirror image, REPEAT the opposite side), bilinear between texel centres. Refused before issue 43 (the UVs
     reach the edge of a CLAMP_TO_EDGE or MIRRORED_REPEAT picture, or leave [0, 1] in an atlas)."""
-    from tests.test_gltf_samples import albedo_at
     from vdmbake.common.colour import srgb8_to_linear
 
     m = _quad(tmp_path / "w.gltf", sampler={"wrapS": wrap_s, "wrapT": wrap_t}, pictures=pictures, uv=UV * 2 - 0.5)
@@ -267,7 +256,6 @@ def test_render_of_wrap_modes_in_an_atlas_matches_the_reference(tmp_path, ctx):
     above, so this checks that the renderer reads the laid-out atlas as the reference does."""
     from types import SimpleNamespace
 
-    from tests.test_gltf_read import BG, drawn_and_traced
     from vdmbake.bundle import parts
     from vdmbake.scene import Light, Material
     from vdmrender import images, reference
@@ -299,7 +287,6 @@ def _box_level(lin: np.ndarray, level: int) -> np.ndarray:
 def test_unpictured_parts_stay_white_through_the_mip_levels(tmp_path):
     """Dark pictures beside a factor-only quad share an atlas: the quad's UV reads white at mip levels 0 to 5, where
     before issue 43 its one-texel tile averaged in its dark neighbours (sRGB 213 -> 100 at level 2, 10 at level 4)."""
-    from tests import gltf_files as G
 
     m = load_mesh_file(G.texture_coordinate_test(tmp_path / "a.gltf", [np.full((8, 8, 3), 20, np.uint8)] * 3))
     uv = m.uvs[np.flatnonzero(m.vertices[:, 0] >= 6 - 1e-9)]
@@ -318,7 +305,6 @@ def test_unpictured_parts_stay_white_through_the_mip_levels(tmp_path):
 def test_meshopt_octahedral_normals_decode_to_the_files_normals(tmp_path):
     """gltfpack's default normals: normalized bytes through meshopt's OCTAHEDRAL filter (8 bits): decoded, mapped as
     §3.11 maps normalized bytes and renormalised, within 1.5 degrees of the normals written."""
-    from tests import gltf_files as G
 
     plain = load_mesh_file(G.draco_grid(tmp_path / "plain.gltf", draco=False))
     packed = load_mesh_file(G.meshopt_grid(tmp_path / "m.gltf", octahedral=True))

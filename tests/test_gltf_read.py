@@ -4,14 +4,10 @@ texture read otherwise than the renderer reads it is refused, and the nodes' tra
 files are written here as plain JSON, their buffer a base64 data: URI, a .bin file or a GLB's binary chunk."""
 from __future__ import annotations
 
-import base64
-import io
-import json
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from PIL import Image
 
 from vdmbake.assets.meshes import TriMesh, load_mesh_file
 from vdmbake.bundle import parts
@@ -19,101 +15,10 @@ from vdmbake.common import texture
 from vdmbake.common.colour import srgb8_to_linear
 from vdmbake.errors import InputError
 from vdmbake.scene import Light, Material
-from vdmrender import gl, images, metrics, reference
+from vdmrender import images, reference
 from vdmrender.camera import orbit
-from vdmrender.passes.raster import RasterMesh
 
-QUAD = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
-UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)          # glTF's v runs down the picture
-BG = (0.05, 0.05, 0.06)
-
-
-class Gltf:
-    """A glTF file built up in memory: one buffer, accessors, meshes of quads, materials, nodes."""
-
-    def __init__(self):
-        self.blob = b""
-        self.tree = {"asset": {"version": "2.0"}, "accessors": [], "bufferViews": [], "meshes": [], "nodes": [],
-                     "scenes": [{"nodes": []}], "scene": 0}
-
-    def accessor(self, a: np.ndarray, normalized: bool = False) -> int:
-        self.blob += b"\0" * (-len(self.blob) % 4)
-        self.tree["bufferViews"].append({"buffer": 0, "byteOffset": len(self.blob), "byteLength": a.nbytes})
-        self.blob += np.ascontiguousarray(a).tobytes()
-        acc = {"bufferView": len(self.tree["bufferViews"]) - 1, "count": len(a),
-               "componentType": {"f": 5126, "B": 5121, "H": 5123, "b": 5120}[a.dtype.char],
-               "type": "SCALAR" if a.ndim == 1 else f"VEC{a.shape[1]}"}
-        if normalized:
-            acc["normalized"] = True
-        if a.ndim == 2 and a.shape[1] == 3 and a.dtype == np.float32:   # POSITION needs its bounds
-            acc["min"], acc["max"] = a.min(0).tolist(), a.max(0).tolist()
-        self.tree["accessors"].append(acc)
-        return len(self.tree["accessors"]) - 1
-
-    def material(self, factor=None, picture=None, info=None, sampler=None) -> int:
-        """A material of `factor` and (if `picture`, an (H, W, 3) uint8) a base-colour texture whose textureInfo
-        gets `info`'s keys, sampled by `sampler`."""
-        pbr = {} if factor is None else {"baseColorFactor": list(factor)}
-        if picture is not None:
-            png = io.BytesIO()
-            Image.fromarray(np.asarray(picture, np.uint8)).save(png, "PNG")
-            self.tree.setdefault("images", []).append(
-                {"uri": "data:image/png;base64," + base64.b64encode(png.getvalue()).decode()})
-            tex = {"source": len(self.tree["images"]) - 1}
-            if sampler is not None:
-                self.tree.setdefault("samplers", []).append(sampler)
-                tex["sampler"] = len(self.tree["samplers"]) - 1
-            self.tree.setdefault("textures", []).append(tex)
-            pbr["baseColorTexture"] = {"index": len(self.tree["textures"]) - 1, **(info or {})}
-        self.tree.setdefault("materials", []).append({"pbrMetallicRoughness": pbr})
-        return len(self.tree["materials"]) - 1
-
-    def primitive(self, colour=None, material=None, uv=None, mode=None) -> dict:
-        """A quad (two triangles, or its corners for a `mode` of points), its COLOR_0 `colour` given per vertex
-        (normalized where it is of integers)."""
-        p = {"attributes": {"POSITION": self.accessor(QUAD)},
-             "indices": self.accessor(np.array([0, 1, 2, 0, 2, 3], np.uint16))}
-        if colour is not None:
-            colour = np.asarray(colour)
-            p["attributes"]["COLOR_0"] = self.accessor(colour, normalized=colour.dtype.kind == "u")
-        if uv is not None:
-            p["attributes"]["TEXCOORD_0"] = self.accessor(np.asarray(uv, np.float32))
-        if material is not None:
-            p["material"] = material
-        if mode is not None:
-            p["mode"] = mode
-            del p["indices"]
-        return p
-
-    def mesh(self, *primitives) -> int:
-        self.tree["meshes"].append({"primitives": list(primitives)})
-        return len(self.tree["meshes"]) - 1
-
-    def node(self, root: bool = True, **node) -> int:
-        self.tree["nodes"].append(node)
-        if root:
-            self.tree["scenes"][0]["nodes"].append(len(self.tree["nodes"]) - 1)
-        return len(self.tree["nodes"]) - 1
-
-    def write(self, path, buffer: str = "data"):
-        """The file at `path`, its buffer a data: URI, a file of that name, or (`glb`) the GLB's binary chunk."""
-        self.tree["buffers"] = [{"byteLength": len(self.blob)}]
-        if buffer == "data":
-            self.tree["buffers"][0]["uri"] = ("data:application/octet-stream;base64,"
-                                              + base64.b64encode(self.blob).decode())
-        elif buffer != "glb":
-            self.tree["buffers"][0]["uri"] = buffer
-            (path.parent / buffer).write_bytes(self.blob)
-        text = json.dumps(self.tree).encode()
-        if buffer != "glb":
-            path.write_bytes(text)
-            return path
-        text += b" " * (-len(text) % 4)
-        blob = self.blob + b"\0" * (-len(self.blob) % 4)
-        chunks = (len(text).to_bytes(4, "little") + b"JSON" + text + len(blob).to_bytes(4, "little") + b"BIN\0" + blob)
-        path.write_bytes(b"glTF" + (2).to_bytes(4, "little") + (12 + len(chunks)).to_bytes(4, "little") + chunks)
-        return path
-
+from gltf_files import BG, QUAD, UV, Gltf, drawn_and_traced
 
 def quad_file(path, colour=None, uv=None, **materials) -> TriMesh:
     """A one-quad glTF loaded: COLOR_0 `colour`, and a material made by Gltf.material(**materials) if given."""
@@ -269,17 +174,3 @@ def test_render_shows_the_glTF_albedo(tmp_path, ctx, materials, colour, want):
     assert drawn["iou"] > 0.99 and traced["iou"] > 0.99
     # measured: 0.0 for both (at 32 px, on llvmpipe)
     assert traced["mean"] < 1e-6 and drawn["mean"] < 0.1, (traced["mean"], drawn["mean"])
-
-
-def drawn_and_traced(ctx, m, stored, cam, light, material, truth) -> tuple[dict, dict]:
-    """The mesh read from a file drawn (its stored part) and traced (the reference) from `cam`, each compared
-    with `truth`, the frame its file's own numbers give (metrics.compare)."""
-    target = gl.Target(ctx, cam.width, cam.height)
-    r = RasterMesh(ctx, stored, light, material, 256)
-    try:
-        r.render(cam, target)
-        drawn = metrics.compare(images.encode(target.read(), BG), truth)
-    finally:
-        r.release()
-        target.release()
-    return drawn, metrics.compare(images.encode(reference.MeshReference(m, light, material).render(cam), BG), truth)

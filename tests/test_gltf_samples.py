@@ -9,31 +9,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from tests import gltf_files as G
-from tests.test_gltf_read import BG, drawn_and_traced
+import gltf_files as G
+from gltf_files import BG, albedo_at, drawn_and_traced
 from vdmbake.assets.meshes import TriMesh, load_mesh_file
 from vdmbake.bundle import parts
-from vdmbake.common import texture
 from vdmbake.common.colour import srgb8_to_linear
 from vdmbake.errors import InputError
 from vdmbake.kernels import coarse
-
-
-def albedo_at(m: TriMesh, points) -> np.ndarray:
-    """(N, 3) linear albedo of the loaded mesh at surface points (on its faces), as the reference reads it."""
-    points = np.asarray(points, np.float64)
-    out = []
-    for p in points:
-        tri = m.vertices[m.faces]
-        e1, e2, d = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], p - tri[:, 0]
-        n = np.cross(e1, e2)
-        area = (n * n).sum(1)
-        b1 = (np.cross(d, e2) * n).sum(1) / np.where(area > 0, area, 1)
-        b2 = (np.cross(e1, d) * n).sum(1) / np.where(area > 0, area, 1)
-        inside = (area > 0) & (b1 >= -1e-9) & (b2 >= -1e-9) & (b1 + b2 <= 1 + 1e-9) & (np.abs((d * n).sum(1)) < 1e-9)
-        f = int(np.flatnonzero(inside)[0])
-        out.append(texture.surface_albedo(m, np.array([f]), np.array([[1 - b1[f] - b2[f], b1[f], b2[f]]]), None)[0])
-    return np.array(out)
 
 
 def at_uv(k: int, s: float, t: float) -> list[float]:

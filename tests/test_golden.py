@@ -185,6 +185,7 @@ def evidence(ctx):
 
 
 @pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.slow
 def test_frames_match_the_golden_images(ctx, frames, evidence, scene):
     new = frames(scene).frames
     if REGEN:

@@ -19,8 +19,8 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.errors import InputError
 from vdmbake.formats import exr
 
-from scenes import CAMERA, RENDER
-from test_bad_input import GOOD_SCENE, assert_input_error, bake, write_scene
+from scenes import CAMERA, GOOD_SCENE, RENDER
+from helpers import assert_input_error, bake, write_scene
 
 HEAD = RENDER + CAMERA
 TEXTURED_TETRAHEDRON = """mtllib card.mtl
@@ -327,7 +327,7 @@ def test_mesh_too_large_or_small_refused_by_both_tools_alike(tmp_path, scale):
 def test_atoms_far_away_refused(tmp_path):
     import gemmi
 
-    from test_molecules import WATER, pdb_text
+    from helpers import WATER, pdb_text
 
     (tmp_path / "w.pdb").write_text(pdb_text([("HOH", 1, WATER)]))
     st = gemmi.read_structure(str(tmp_path / "w.pdb"))

@@ -18,7 +18,8 @@ from vdmbake.bundle import parts, staging
 from vdmbake.bundle.directory import Bundle
 from vdmbake.errors import InputError
 
-from test_bad_input import GOOD_SCENE, assert_input_error, bake, render, write_scene
+from helpers import assert_input_error, bake, render, write_scene
+from scenes import GOOD_SCENE, TINY_HEAD
 
 COARSE_SCENE = GOOD_SCENE.replace("techniques = { mesh = {} }", "techniques = { mesh = {}, coarse = { ratios = [0.5] } }") + """
 [[objects]]
@@ -260,8 +261,7 @@ def _obj_file(path: Path, v, f, uv=None) -> str:
 
 
 def _mesh_scene(name: str, techniques: str, extra: str = "") -> str:
-    from test_bad_input import RENDER, CAMERA
-    return RENDER + CAMERA + f'[[objects]]\nname = "thing"\nmesh = "{name}"\n{extra}techniques = {{ {techniques} }}\n'
+    return TINY_HEAD + f'[[objects]]\nname = "thing"\nmesh = "{name}"\n{extra}techniques = {{ {techniques} }}\n'
 
 
 @pytest.mark.parametrize("shape", ["collinear", "point"])
@@ -518,6 +518,7 @@ def test_shader_compile_error_is_exit_2_with_the_log(monkeypatch):
     ctx.release()
 
 
+@pytest.mark.slow
 def test_concurrent_bakes_to_one_output(tmp_path):
     """Two vdmbake --force on one -o: each exits 0 (the swap is an exchange) or 2 with a message, never a
     traceback, and one valid bundle is left with no debris."""

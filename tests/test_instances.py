@@ -104,6 +104,7 @@ def share_apart(out, a: str, b: str, label: str) -> list[float]:
     return [float((np.abs(x - y).max(-1) > 2).mean()) for x, y in zip(fa, fb)]
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_one_copy_in_place_draws_as_the_object_alone(tmp_path):
     one = ('[[objects]]\nname = "b"\nprimitive = "sphere"\n' + TECHNIQUES +
            '\n[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n')
@@ -161,7 +162,8 @@ def test_memory_guard_counts_every_copy(tmp_path):
 
 
 @pytest.mark.gl
-def test_bench_quick_smoke(tmp_path):
+@pytest.mark.slow
+def test_bench_quick_smoke(tmp_path, no_warm_up):
     from bench.instances import run
 
     result = run(tmp_path, quick=True, log=lambda m: None)
@@ -195,6 +197,7 @@ def test_each_copy_takes_the_band_its_screen_size_falls_in():
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_per_copy_lod_row_draws_each_copy_by_its_band(tmp_path):
     text = RENDER.replace("[32, 32]", "[80, 48]") + """
 [render.sweep]
@@ -266,6 +269,7 @@ def test_a_variant_holding_two_bands_draws_the_copies_of_both(ctx):
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_billboard_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_path):
     """The overlap case for billboards: copy B, turned and scaled, between copy A and the light and partly in
     front of it, against the merged reference: every billboard method within its bound in mean ΔLuv and IoU (the
@@ -273,44 +277,53 @@ def test_billboard_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_pat
     with the normals left unturned the error is several times larger)."""
     boards = 'billboards = { resolution = 32, variants = ["greedy-improved", "greedy-hier+coarse", "greedy-hier"] }'
     pair = torus_pair("pair", f"techniques = {{ mesh = {{}}, {boards} }}")
-    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[96, 96]").replace("256", "1024") + pair)
+    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[96, 96]").replace("256", "1024") + pair,
+                               "--no-counters")
     assert res.exit_code == 0, res.output
     rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
     for label in BOARDS:
         assert rows["pair", label]["mean_dluv"] < 4.0 and rows["pair", label]["iou"] > 0.95, rows["pair", label]
 
 
+@pytest.fixture(scope="module")
+def pairs(tmp_path_factory):
+    """One bake and render of the overlapping torus pair four times: at the origin at unit scale ("unit"), placed
+    1.7e4 units from the object itself ("far"), and scaled by 1e-3 and 1e3 ("small", "large"); each object is
+    framed and drawn alone, so the tests below compare two of them. Without counters: the frames are the subject."""
+    text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "1024")
+    text += (torus_pair("unit", SURFACES) + torus_pair("far", SURFACES, at=(1e4, -1e4, 1e4))
+             + torus_pair("small", SURFACES, s=1e-3) + torus_pair("large", SURFACES, s=1e3))
+    res, out = bake_and_render(tmp_path_factory.mktemp("pairs"), text, "--no-counters")
+    assert res.exit_code == 0, res.output
+    return {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}, out
+
+
 @pytest.mark.gl
-def test_surface_copies_far_from_the_object_look_as_near_it(tmp_path):
+@pytest.mark.slow
+def test_surface_copies_far_from_the_object_look_as_near_it(pairs):
     """Every surface technique, the pair of copies placed 1.7e4 units from the object itself, the cameras with
     them: drawn about the copies' own sphere (instances.enclosing), not the object's centre, the frames are the
     near pair's (float32 coordinates stay small, the shadow map spans the copies, not the 1.7e4 units between)."""
-    text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "1024")
-    text += torus_pair("near", SURFACES) + torus_pair("far", SURFACES, at=(1e4, -1e4, 1e4))
-    res, out = bake_and_render(tmp_path, text)
-    assert res.exit_code == 0, res.output
-    rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
+    rows, out = pairs
     for label in ("mesh", "coarse@0.3", "octahedral@full-9x64-march", *BOARDS[:2]):
-        near, far = rows["near", label], rows["far", label]
+        near, far = rows["unit", label], rows["far", label]
         assert abs(far["mean_dluv"] - near["mean_dluv"]) < 0.05 and far["iou"] > near["iou"] - 0.002, (label, far, near)
-        assert max(share_apart(out, "near", "far", label)) < 0.002, label
+        assert max(share_apart(out, "unit", "far", label)) < 0.002, label
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
-def test_copies_scaled_by_orders_of_magnitude_look_as_at_unit_scale(tmp_path, scale):
+def test_copies_scaled_by_orders_of_magnitude_look_as_at_unit_scale(pairs, scale):
     """Stress: the overlapping pair with both copies (and their offset) scaled by 1e-3 or 1e3, the cameras
     framing them: a scene scaled as a whole looks the same, so the frames equal the unit pair's up to a few
     pixels and the same error (rays taken into a copy's frame divide by s^2; shadow offsets, the coarse mesh's
     push and the shadow map follow the copies' size). It found two faults of the octahedral impostor: its shadow
     offset in atlas texels ignored the copy's scale, and its shadow map was sized for copies of the object's
     size."""
-    text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "1024")
-    text += torus_pair("unit", SURFACES) + torus_pair("scaled", SURFACES, s=scale)
-    res, out = bake_and_render(tmp_path, text)
-    assert res.exit_code == 0, res.output
-    rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
+    rows, out = pairs
+    scaled = {1e-3: "small", 1e3: "large"}[scale]
     for label in ("reference", "mesh", "coarse@0.3", "octahedral@full-9x64-march", *BOARDS[:2]):
-        assert max(share_apart(out, "unit", "scaled", label)) < 0.002, label
+        assert max(share_apart(out, "unit", scaled, label)) < 0.002, label
         if label != "reference":
-            assert abs(rows["scaled", label]["mean_dluv"] - rows["unit", label]["mean_dluv"]) < 0.1, label
+            assert abs(rows[scaled, label]["mean_dluv"] - rows["unit", label]["mean_dluv"]) < 0.1, label

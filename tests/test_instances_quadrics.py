@@ -118,6 +118,7 @@ def shadowed_share(bundle_path, name: str) -> float:
 @pytest.mark.gl
 @pytest.mark.parametrize("source, centre, radius", [("inline", (0.475, 0.0, 0.5), 1.69),
                                                     ("villin", (0.054, 0.7535, 0.8745), 18.03)])
+@pytest.mark.slow
 def test_overlapping_copies_against_the_merged_reference(tmp_path, source, centre, radius):
     """Copy B stands between copy A and the light, turned and scaled: every technique agrees with the merged
     reference on which copy hides which and on B's shadow over A."""

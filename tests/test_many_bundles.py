@@ -95,6 +95,7 @@ def test_a_bundle_failing_with_any_error_is_named_and_the_others_render(library,
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_the_combined_folder_is_swapped_in_whole(library, tmp_path, monkeypatch):
     """OUT is staged as every output folder is: a run that fails while combining leaves the previous OUT exactly as
     it was (no half-written combined report beside new runs), and the next run finds each bundle's cached

@@ -15,27 +15,9 @@ from vdmbake.common import geometry
 from vdmbake.assets import heightfields as hf, primitives
 from vdmbake.assets.meshes import load_mesh_file
 
+from meso_scenes import dem, torus_obj, write_obj, write_png16
+
 DEPTH = 0.1
-
-
-def dem() -> np.ndarray:
-    """Elevation in metres (int16), row 0 the north (the top of the map, as matplotlib draws it)."""
-    from matplotlib import cbook
-
-    return np.asarray(cbook.get_sample_data("jacksboro_fault_dem.npz")["elevation"])
-
-
-def write_png16(path, a: np.ndarray):
-    im = Image.new("I;16", a.shape[::-1])
-    im.frombytes(np.asarray(a, "<u2").tobytes())
-    im.save(path)
-
-
-def write_obj(path, v, uv, f_v, f_uv):
-    """An OBJ as exporters write it: unique positions, unique UVs, faces index both (v/vt)."""
-    lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in v] + [f"vt {a:.17g} {b:.17g}" for a, b in uv]
-    lines += [" ".join(["f"] + [f"{i + 1}/{j + 1}" for i, j in zip(fv, ft)]) for fv, ft in zip(f_v, f_uv)]
-    path.write_text("\n".join(lines) + "\n")
 
 
 # ----------------------------------------------------------------------------- orientation
@@ -131,21 +113,6 @@ def test_png_bit_depths_and_photos_share_the_rule(tmp_path):
 # ----------------------------------------------------------------------------- seams
 
 
-def _torus_obj(tmp_path, segments=24, rings=12):
-    """The torus primitive as an exporter writes it: one position per point of the surface, UVs split
-    at the u = 0 / 1 and v = 0 / 1 seams (so trimesh's loader splits those vertices)."""
-    t = primitives.torus(1.0, 0.35, segments, rings)
-    grid = np.arange(len(t.vertices)).reshape(rings + 1, segments + 1)
-    pos_id = grid.copy()
-    pos_id[:, -1] = pos_id[:, 0]                               # phi = 2 pi is phi = 0
-    pos_id[-1, :] = pos_id[0, :]                               # t = 1 is t = 0
-    used = np.unique(pos_id)
-    remap = np.full(len(t.vertices), -1)
-    remap[used] = np.arange(len(used))
-    write_obj(tmp_path / "torus.obj", t.vertices[used], t.uvs, remap[pos_id.ravel()[t.faces]], t.faces)
-    return tmp_path / "torus.obj"
-
-
 def _open_edges(v: np.ndarray, f: np.ndarray) -> int:
     """Edges, keyed by their end positions, used by only one face: 0 on a closed surface."""
     _, pid = np.unique(v, axis=0, return_inverse=True)
@@ -157,7 +124,7 @@ def _open_edges(v: np.ndarray, f: np.ndarray) -> int:
 
 @pytest.mark.parametrize("levels", [0, 2])
 def test_displaced_mesh_has_no_cracks_at_uv_seams(tmp_path, levels):
-    mesh = load_mesh_file(_torus_obj(tmp_path))
+    mesh = load_mesh_file(torus_obj(tmp_path))
     assert len(mesh.vertices) > 24 * 12                        # the loader kept the seams split (UVs differ)
     assert _open_edges(mesh.vertices, mesh.faces) == 0         # and the positions there are the same
     mesh.frame = curvature.estimate_frame(mesh.vertices, mesh.faces, mesh.normals, mesh.uvs)

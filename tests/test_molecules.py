@@ -13,11 +13,7 @@ import pytest
 from vdmbake.errors import InputError
 from vdmbake.assets.molecules import STYLES, find_bonds, load_molecule
 
-ANG = np.deg2rad(104.5)
-WATER = [("O", "O", (0.0, 0.0, 0.0)),
-         ("H1", "H", (0.96, 0.0, 0.0)),
-         ("H2", "H", (0.96 * np.cos(ANG), 0.96 * np.sin(ANG), 0.0))]
-
+from helpers import WATER, pdb_line, pdb_text
 
 def _ethane():
     """Staggered ethane: C-C 1.54, C-H 1.09, tetrahedral angles; offset from the water."""
@@ -32,24 +28,6 @@ def _ethane():
 
 
 ETHANE = _ethane()
-
-
-def pdb_line(serial, name, element, xyz, resname="HOH", resseq=1, chain="A", altloc=" ",
-             record="HETATM"):
-    field = f" {name:<3}" if len(name) < 4 else name
-    x, y, z = xyz
-    return (f"{record:<6}{serial:>5} {field}{altloc}{resname:>3} {chain}{resseq:>4}    "
-            f"{x:8.3f}{y:8.3f}{z:8.3f}{1.0:6.2f}{0.0:6.2f}          {element:>2}")
-
-
-def pdb_text(groups) -> str:
-    """groups: [(resname, resseq, [(name, element, xyz), ...]), ...] -> a PDB file's text."""
-    lines, serial = [], 1
-    for resname, resseq, atoms in groups:
-        for name, el, xyz in atoms:
-            lines.append(pdb_line(serial, name, el, xyz, resname, resseq))
-            serial += 1
-    return "\n".join(lines + ["END", ""])
 
 
 def write(path: Path, text: str) -> Path:

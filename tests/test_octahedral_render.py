@@ -71,6 +71,7 @@ def test_against_reference(ctx, name, method):
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_error_falls_with_view_resolution(ctx):
     """The march reconstructs each view's surface, so the error is the views' texels: it falls as R grows
     (torus, 13 x 13 views, R = 32, 64, 128) and is small at the largest."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.scenes import TINY_HEAD
+from scenes import TINY_HEAD
 from vdmbake.bundle import parts
 from vdmbake.kernels import quadric_mesh
 from vdmbake.bundle.directory import Bundle

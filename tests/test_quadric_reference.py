@@ -83,6 +83,7 @@ def test_overlapping_random_quadrics_seen_from_inside():
 
 
 @pytest.mark.parametrize("style", ["spacefill", "ball-and-stick"])
+@pytest.mark.slow
 def test_real_molecule_from_outside_and_inside(style):
     """Villin (596 atoms): rays from far away and from the middle, at every angle."""
     q = load_molecule(resolve_path("pkg:pdbfixer/tests/data/test.pdb", Path(".")), style)

@@ -248,6 +248,7 @@ def run_molecule(tmp_path, camera, molecule, style="spacefill"):
 # exit, was never tested when that exit lay farther than another quadric's hit. Against that walk the
 # exact impostors were charged 2.70 ΔLuv inside an atom and 19.57 inside the water box.
 
+@pytest.mark.slow
 def test_camera_inside_an_atom(tmp_path):
     """Villin (596 atoms, spacefill), the eye inside an atom near the middle, overlapped by others."""
     camera = pose([0.261, 2.085, -0.044], [0.054, 0.6345, 0.8745])   # atom at (-0.039, 1.885, -0.144), r 1.7
@@ -257,7 +258,7 @@ def test_camera_inside_an_atom(tmp_path):
 
 def test_camera_inside_a_water_box(tmp_path):
     """27 waters; the eye inside the middle oxygen and its first hydrogen at once."""
-    from test_molecules import pdb_text
+    from helpers import pdb_text
 
     waters = water_box(np.random.default_rng(11))
     (tmp_path / "water.pdb").write_text(pdb_text([("HOH", i + 1, w) for i, w in enumerate(waters)]))
@@ -349,11 +350,14 @@ def test_only_zero_volume_input_is_refused(tmp_path):
     assert r.exit_code == 2 and "no sphere or cylinder" in r.stderr
 
 
-def test_bench_quick_smoke(tmp_path):
-    """make bench's script runs end to end (two small real molecules at 256x192) and writes its report."""
-    from bench.quadrics import main as bench_main
+@pytest.mark.slow
+def test_bench_quick_smoke(tmp_path, monkeypatch, no_warm_up):
+    """make bench's script runs end to end (the smallest real molecule at 256x192, at each distance; the last
+    molecule's tessellated levels at distance 3) and writes its report."""
+    import bench.quadrics
 
-    r = CliRunner().invoke(bench_main, ["-o", str(tmp_path), "--quick"])
+    monkeypatch.setattr(bench.quadrics, "MOLECULES", bench.quadrics.MOLECULES[:1])
+    r = CliRunner().invoke(bench.quadrics.main, ["-o", str(tmp_path), "--quick"])
     assert r.exit_code == 0, r.output
     report = json.loads((tmp_path / "quadrics.json").read_text())
     labels = {row["label"] for row in report["rows"]}

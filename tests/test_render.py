@@ -40,6 +40,7 @@ def bake_and_render(tmp_path, obj, w=96, h=80, extra="", args=()):
     return scenes.bake_and_render(tmp_path, SMALL.format(w=w, h=h, extra=extra, obj=obj), *args)
 
 
+@pytest.mark.slow
 def test_bunny_mesh_matches_traced_reference(tmp_path):
     """The real scanned bunny: rasterised full mesh against Embree, same shading, same pixel centres."""
     obj = ('name = "bunny"\nmesh = "pkg:pymeshfix/examples/StanfordBunny.ply"\n'

@@ -245,6 +245,7 @@ def test_plain_teapot_mesh_matches_its_reference(tmp_path):
     assert row["mean_dluv"] < 0.2 and row["p95_dluv"] < 0.5 and row["iou"] >= 0.999
 
 
+@pytest.mark.slow
 def test_teapot_with_bricks(tmp_path):
     """VDM Fig. 9: the teapot with a brick mesostructure, 64^2, two orbit frames, every mesostructure technique
     against the displaced teapot (16 segments: VDM interpolates the curvature per vertex, and at 8 the tight rim

@@ -17,7 +17,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 import pytest
 
-import test_heightfield_trace as hft_tests          # its fields and ray mixture (module import: no tests collected)
+import hf_cases
 from vdmbake.kernels import octahedral as oc
 from vdmbake.common import pyramid as P
 from vdmbake.common import texspace, texture
@@ -214,13 +214,13 @@ def curved_ray_twin(x):
 
 # ----------------------------------------------------------------------------- heightfield_trace.glsl / pyramid.py
 
-HF_FIELDS = hft_tests.fields()
+HF_FIELDS = hf_cases.fields()
 HF_RAYS = 160     # per field
 
 
 def hf_inputs(mode, field):
     p = P.build(HF_FIELDS[field], mode)
-    rays = hft_tests.random_rays(p, np.random.default_rng(4), HF_RAYS)
+    rays = hf_cases.random_rays(p, np.random.default_rng(4), HF_RAYS)
     return {"o": rays[:, :4], "d": rays[:, 4:8], "k": rays[:, 8]}
 
 

@@ -14,9 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_asset_references import QUAD_V, _png, gltf_asset, obj_asset, scene
-from test_bad_input import assert_input_error, bake, gl_context_ok, write_scene  # noqa: F401 (a fixture)
-from test_export_identity import bundles  # noqa: F401 (a fixture)
+from helpers import QUAD_V, assert_input_error, bake, gltf_asset, obj_asset, png, scene, write_scene
+from scenes import FAR_COPIES
 from vdmbake.assets import references
 from vdmbake.assets.meshes import load_mesh_file
 from vdmbake.errors import InputError
@@ -83,7 +82,7 @@ def test_an_obj_reference_outside_is_refused(tmp_path, where):
     (tmp_path / "scene").mkdir()
     d = tmp_path / "scene"
     obj_asset(d)
-    _png(tmp_path / "outside" / "t.png")
+    png(tmp_path / "outside" / "t.png")
     if where == "mtllib":
         (tmp_path / "outside" / "o.mtl").write_text("newmtl mat\nKd 1 1 1\nmap_Kd t.png\n")
         (d / "quad.obj").write_text((d / "quad.obj").read_text().replace("mtllib m.mtl", "mtllib ../outside/o.mtl"))
@@ -421,11 +420,11 @@ def _entries(*bands, **entry) -> list[dict]:
      "'mesh' variant"),
 ])
 def test_lod_json_types_are_checked(tmp_path, bundles, entries, message):
-    from test_export_identity import _export, _lod
+    from exports import export, lod_of_one
 
-    lod = _lod(bundles[0].identity)
+    lod = lod_of_one(bundles[0].identity)
     lod["chains"][0]["objects"]["ball"] = {"entries": entries, "meshes_only": {"entries": _entries((8, 0))}}
-    r = _export(tmp_path, bundles[0], lod)
+    r = export(bundles[0], lod, tmp_path / "x")
     assert r.exit_code == 2 and message in r.output and "Traceback" not in r.output, r.output
     assert not (tmp_path / "x").exists()
 
@@ -450,8 +449,6 @@ def test_a_glTF_overflowing_float64_is_refused_without_a_warning(tmp_path, node)
 def test_one_copy_far_from_the_origin_is_refused(tmp_path):
     """Left from issue 32: one copy placed at [1e20, 0, 0] baked with exit 0 (only copies far from each other were
     refused), and the reference, placed in float64, held nothing of it: IoU 0."""
-    from test_far_copies import SCENE
-
     from vdmbake.common import instances
 
     one = np.eye(4)[None].copy()
@@ -461,7 +458,7 @@ def test_one_copy_far_from_the_origin_is_refused(tmp_path):
         instances.check(one, np.zeros(3), 1.0, "o")
     one[0, 0, 3] = 1e12                      # 1e-12 of its distance: kept to 1/256 of its radius in float64
     instances.check(one, np.zeros(3), 1.0, "o")
-    lone = SCENE.replace("[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n", "")
+    lone = FAR_COPIES.replace("[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n", "")
     out = tmp_path / "b"
     assert_input_error(bake(write_scene(tmp_path, lone.replace("FAR", "1e20")), "-o", out),
                        "object 'b': copy 0 lies 1e+20 from the origin", out)

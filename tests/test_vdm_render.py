@@ -33,6 +33,7 @@ def scene(camera, obj, techniques=ALL, **kw):
 
 # ----------------------------------------------------------------------------- baseline
 
+@pytest.mark.slow
 def test_torus_bricks_baseline(tmp_path):
     """Bricks on a torus, 64^2, two orbit frames: vdm and pom within their bounds of the displaced reference,
     more eigenfunctions no worse, every vdm below bump below the plain mesh, vdm's IoU at least bump's; the bake

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from tests.scenes import bake_and_render, rows_by_label
+from scenes import bake_and_render, rows_by_label
 from vdmbake.kernels import coarse
 from vdmbake.bundle import parts
 from vdmbake.assets import primitives
