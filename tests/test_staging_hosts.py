@@ -127,3 +127,20 @@ def test_two_hosts_baking_one_target_at_once(tmp_path, monkeypatch):
 @pytest.fixture(autouse=True)
 def _no_cache(monkeypatch):
     monkeypatch.delenv("VDM_CACHE", raising=False)
+
+
+def test_a_zombie_writer_is_not_alive():
+    """A process killed but not yet reaped by its parent (a zombie) no longer writes: its staging folder is debris.
+    A running one is alive."""
+    child = subprocess.Popen(["sleep", "30"])
+    try:
+        assert staging.alive(child.pid)
+        child.kill()
+        for _ in range(200):   # the kernel marks it Z at once; give it a moment under load
+            if not staging.alive(child.pid):
+                break
+            time.sleep(0.01)
+        assert not staging.alive(child.pid)
+        assert Path(f"/proc/{child.pid}").exists()   # not reaped yet: only its state says it is gone
+    finally:
+        child.wait()

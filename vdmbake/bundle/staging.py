@@ -55,14 +55,18 @@ def _identity() -> dict:
 
 
 def alive(pid: int) -> bool:
-    """Whether process `pid` runs (another user's counts)."""
+    """Whether process `pid` runs (another user's counts; a zombie, dead but not yet reaped by its parent, does not:
+    a killed worker's staging folder is debris before its parent waits for it)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:       # another user's process
         return True
-    return True
+    try:   # the state follows the command's closing parenthesis (the command may hold spaces and parentheses)
+        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True
 
 
 _libc = ctypes.CDLL(None, use_errno=True)
