@@ -68,4 +68,4 @@ def test_render_log_lines_are_escaped(tmp_path):
     r = CliRunner().invoke(render_main, [str(bundle), "-o", str(tmp_path / f"out{EVIL}"), "--no-flip"])
     assert r.exit_code == 0, r.output
     _clean(r.output)
-    assert f"out{SHOWN}/report.json" in r.output
+    assert f"out{SHOWN}/report.html" in r.output
