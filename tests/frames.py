@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from vdmbake.assets import primitives
-from vdmbake.assets.meshes import TriMesh
+from vdmbake.common.mesh import TriMesh
 from vdmbake.kernels import billboard_maps, coarse
 from vdmbake.kernels import billboards as bb
 from vdmbake.scene import Light, Material

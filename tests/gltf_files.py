@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from vdmbake.assets.meshes import TriMesh
+from vdmbake.common.mesh import TriMesh
 from vdmbake.common import texture
 from vdmrender import gl, images, metrics, reference
 from vdmrender.passes.raster import RasterMesh

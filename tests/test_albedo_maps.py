@@ -16,7 +16,8 @@ from vdmbake.kernels import coarse
 from vdmbake.bundle import parts
 from vdmbake.assets import primitives
 from vdmbake.common import texture
-from vdmbake.assets.meshes import TriMesh, load_mesh_file, resolve_path, weld
+from vdmbake.assets.meshes import load_mesh_file, resolve_path
+from vdmbake.common.mesh import TriMesh, weld
 from vdmbake.scene import Light, Material
 from vdmrender import gl, images, metrics, reference
 from vdmrender.camera import orbit

@@ -8,7 +8,7 @@ import pytest
 from vdmbake.kernels import billboards as bb
 from vdmbake.assets import primitives
 from vdmbake.errors import InputError
-from vdmbake.assets.meshes import TriMesh, vertex_normals
+from vdmbake.common.mesh import TriMesh, vertex_normals
 
 R = 64
 

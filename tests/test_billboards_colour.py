@@ -15,7 +15,8 @@ import pytest
 
 from vdmbake.kernels import billboard_maps, billboards, coarse, octahedral
 from vdmbake.bundle import parts
-from vdmbake.assets.meshes import TriMesh, load_mesh_file, resolve_path
+from vdmbake.assets.meshes import load_mesh_file, resolve_path
+from vdmbake.common.mesh import TriMesh
 from vdmrender.camera import orbit
 from vdmrender.techniques.billboards import Billboards
 from vdmrender.techniques.billboards_hier import HierBillboards

@@ -14,7 +14,7 @@ from vdmbake.bundle import parts
 from vdmbake.assets import primitives
 from vdmbake.kernels import billboards as bb
 from vdmbake.common import pyramid as P
-from vdmbake.assets.meshes import TriMesh, vertex_normals
+from vdmbake.common.mesh import TriMesh, vertex_normals
 from vdmrender import images, metrics
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.billboards_hier import HierBillboards

@@ -19,7 +19,7 @@ from vdmbake.bundle import parts
 from vdmbake.bundle.directory import FORMAT, FORMAT_VERSION, Bundle
 from vdmbake.cli import main as vdmbake_main
 from vdmbake.errors import InputError
-from vdmbake.assets.meshes import TriMesh
+from vdmbake.common.mesh import TriMesh
 from vdmbake.scene import load_scene
 
 from scenes import TINY_HEAD as HEAD

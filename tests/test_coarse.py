@@ -12,7 +12,8 @@ import pytest
 from vdmbake.kernels import coarse
 from vdmbake.assets import primitives
 from vdmbake.common.embree import RayScene
-from vdmbake.assets.meshes import TriMesh, load_mesh_file, resolve_path, weld
+from vdmbake.assets.meshes import load_mesh_file, resolve_path
+from vdmbake.common.mesh import TriMesh, weld
 from vdmrender.camera import orbit
 
 SAMPLES = "pkg:pymeshlab/tests/sample_meshes/"
@@ -119,7 +120,7 @@ def test_sharp_edges_stay_sharp():
     """Welded for the simplifier, a cone's rim would get normals averaged over the side and the base
     (coarse@0.1 of the cone: 4.98 mean dLuv at 256 px against the full mesh, 0.49 with crease normals).
     The base's corners keep the base's normal; smooth surfaces keep one normal per vertex."""
-    from vdmbake.assets.meshes import crease_normals
+    from vdmbake.common.mesh import crease_normals
 
     c = coarse.simplify(primitives.cone(1.0, 2.0, 64, 16, 4), 0.1)
     tri = c.vertices[c.faces]

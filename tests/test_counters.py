@@ -14,7 +14,7 @@ from vdmbake.kernels import billboard_maps, coarse, octahedral, quadrics
 from vdmbake.assets import primitives
 from vdmbake.kernels import billboards as bb
 from vdmbake.bake import bake
-from vdmbake.assets.meshes import TriMesh
+from vdmbake.common.mesh import TriMesh
 from vdmbake.scene import Light, Material
 from vdmrender import counters, gl
 from vdmrender import quadric_math as qm

@@ -8,7 +8,8 @@ import trimesh
 
 from vdmbake.assets import primitives
 from vdmbake.kernels.curvature import estimate_frame
-from vdmbake.assets.meshes import TriMesh, rotation_xyz, vertex_normals
+from vdmbake.common.mesh import rotation_xyz
+from vdmbake.common.mesh import TriMesh, vertex_normals
 
 
 def _estimate(m: TriMesh, normals=None):

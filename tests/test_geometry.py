@@ -9,7 +9,8 @@ import pytest
 from vdmbake.kernels import coarse
 from vdmbake.assets import primitives
 from vdmbake.common.embree import RayScene
-from vdmbake.assets.meshes import TriMesh, rotation_xyz, transformed, vertex_normals
+from vdmbake.common.mesh import rotation_xyz, transformed
+from vdmbake.common.mesh import TriMesh, vertex_normals
 from vdmbake.scene import Transform
 
 FAR = np.array([1e5, -2e5, 3e5])  # "far from the origin": float32 spacing there is 0.0078-0.031

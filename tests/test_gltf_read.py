@@ -9,7 +9,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from vdmbake.assets.meshes import TriMesh, load_mesh_file
+from vdmbake.assets.meshes import load_mesh_file
+
+from vdmbake.common.mesh import TriMesh
 from vdmbake.bundle import parts
 from vdmbake.common import texture
 from vdmbake.common.colour import srgb8_to_linear

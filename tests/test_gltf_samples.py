@@ -11,7 +11,8 @@ import pytest
 
 import gltf_files as G
 from gltf_files import BG, albedo_at, drawn_and_traced
-from vdmbake.assets.meshes import TriMesh, load_mesh_file
+from vdmbake.assets.meshes import load_mesh_file
+from vdmbake.common.mesh import TriMesh
 from vdmbake.bundle import parts
 from vdmbake.common.colour import srgb8_to_linear
 from vdmbake.errors import InputError

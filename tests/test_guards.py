@@ -310,7 +310,7 @@ def test_mesh_too_large_or_small_refused_by_both_tools_alike(tmp_path, scale):
     good = tmp_path / "good.bundle"
     assert bake(write_scene(tmp_path, mesh_scene(_sphere_obj(tmp_path / "s.obj", 1.0), "mesh = {}")), "-o",
                 good).exit_code == 0
-    from vdmbake.assets.meshes import TriMesh
+    from vdmbake.common.mesh import TriMesh
     from vdmbake.formats import ply
 
     mesh = ply.from_bytes((good / "objects/thing/mesh.ply").read_bytes(), "mesh")

@@ -288,7 +288,7 @@ def test_coarse_ratio_leaving_no_face_refused(tmp_path, monkeypatch):
     """fast-simplification can collapse a small mesh to nothing; the bake says so instead of writing a
     part vdmrender cannot draw."""
     from vdmbake.kernels import coarse
-    from vdmbake.assets.meshes import TriMesh
+    from vdmbake.common.mesh import TriMesh
 
     monkeypatch.setattr(coarse, "simplify", lambda mesh, ratio: TriMesh(mesh.vertices[:0], mesh.faces[:0], mesh.normals[:0]))
     out = tmp_path / "x.bundle"
@@ -299,7 +299,7 @@ def test_coarse_ratio_leaving_no_face_refused(tmp_path, monkeypatch):
 def test_bake_reads_each_part_back_through_the_renderers_checks(tmp_path, monkeypatch):
     """Whatever a bake step writes goes through the reader's checks before the bundle is committed."""
     from vdmbake.kernels import coarse
-    from vdmbake.assets.meshes import TriMesh
+    from vdmbake.common.mesh import TriMesh
 
     real = coarse.simplify
 

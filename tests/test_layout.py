@@ -118,3 +118,21 @@ def test_architecture_page_names_real_files_and_every_technique():
     table = text[text.index("### Where each technique lives"):text.index("### The one arrow")]
     rows = set(re.findall(r"^\| `([a-z_]+)` \|", table, re.M))
     assert rows == set(REGISTRY), sorted(rows ^ set(REGISTRY))
+
+
+def test_shared_rooms_never_import_the_file_readers():
+    """The mesh type and the pure numpy every room shares (common/), the file formats (formats/) and the papers'
+    kernels (kernels/) depend on no reader of asset files (assets/): the readers make meshes, they do not define
+    them."""
+    root = Path(vdmbake.__file__).parent
+    for room in ("common", "formats", "kernels"):
+        for path in sorted((root / room).rglob("*.py")):
+            package = ["vdmbake", room, *path.relative_to(root / room).parts[:-1]]
+            found = set()
+            for node in ast.walk(ast.parse(path.read_text())):   # relative imports resolved, function-level too
+                if isinstance(node, ast.ImportFrom):
+                    base = package[:len(package) - node.level + 1] if node.level else []
+                    found |= {".".join(base + (node.module.split(".") if node.module else []))}
+                elif isinstance(node, ast.Import):
+                    found |= {a.name for a in node.names}
+            assert not {m for m in found if m.startswith("vdmbake.assets")}, path

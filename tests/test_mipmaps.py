@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from bench import interleave
-from vdmbake.assets.meshes import TriMesh
+from vdmbake.common.mesh import TriMesh
 from vdmbake.bake import bake
 from vdmbake.common import texture
 from vdmbake.scene import Light, Material

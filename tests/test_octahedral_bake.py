@@ -8,7 +8,7 @@ import pytest
 from vdmbake.kernels import octahedral as oc
 from vdmbake.assets import primitives
 from vdmbake.errors import InputError
-from vdmbake.assets.meshes import TriMesh
+from vdmbake.common.mesh import TriMesh
 
 
 def random_directions(n=20000, seed=0, upper=False):

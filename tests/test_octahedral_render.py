@@ -10,7 +10,7 @@ import pytest
 from vdmbake.kernels import octahedral as oc
 from vdmbake.assets import primitives
 from vdmbake.errors import InputError
-from vdmbake.assets.meshes import TriMesh
+from vdmbake.common.mesh import TriMesh
 from vdmrender.camera import Camera, clip_planes
 from vdmrender.techniques.octahedral import Octahedral, atlas_texels, shadow_size
 

@@ -9,7 +9,7 @@ from vdmbake.bundle import parts
 from vdmbake.assets import primitives
 from vdmbake.kernels import quadrics
 from vdmbake.errors import InputError
-from vdmbake.assets.meshes import TriMesh
+from vdmbake.common.mesh import TriMesh
 
 RNG = np.random.default_rng(3)
 

@@ -190,7 +190,7 @@ def test_back_faces_follow_the_winding():
     """relief's frame pass culls the faces its stage would discard: back faces of a consistently wound mesh,
     front faces of one wound the other way, nothing for a mixed one."""
     from vdmbake.assets import primitives
-    from vdmbake.assets.meshes import TriMesh
+    from vdmbake.common.mesh import TriMesh
     from vdmrender.passes.mesostructure import back_faces
     m = primitives.build("torus", {"major": 1.0, "minor": 0.35, "segments": 16, "rings": 8})
     assert back_faces(m) == "back"

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from vdmbake.assets import primitives
-from vdmbake.assets.meshes import transformed
+from vdmbake.common.mesh import transformed
 from vdmbake.scene import Transform
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from vdmbake.assets import primitives, teapot
 from vdmbake.common.geometry import boundary_edges
-from vdmbake.assets.meshes import weld
+from vdmbake.common.mesh import weld
 
 import meso_scenes
 from meso_scenes import ORBIT, mean, render

@@ -10,7 +10,7 @@ from vdmbake.common import geometry, texspace
 from vdmbake.assets import primitives
 from vdmbake.kernels import vdm
 from vdmbake.errors import InputError
-from vdmbake.assets.meshes import TriMesh
+from vdmbake.common.mesh import TriMesh
 
 RNG = np.random.default_rng(2003)
 E_U, E_V = np.array([[1.0, 0.0]]), np.array([[0.0, 1.0]])

@@ -22,7 +22,7 @@ from vdmbake.kernels import octahedral as oc
 from vdmbake.common import pyramid as P
 from vdmbake.common import texspace, texture
 from vdmbake.common.geometry import onb
-from vdmbake.assets.meshes import SurfaceFrame
+from vdmbake.common.mesh import SurfaceFrame
 from vdmrender import curved_ray as cr
 from vdmrender import gl, quadric_math, shading
 from vdmrender.passes import hftrace

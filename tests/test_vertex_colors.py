@@ -13,7 +13,8 @@ from scenes import bake_and_render, rows_by_label
 from vdmbake.kernels import coarse
 from vdmbake.bundle import parts
 from vdmbake.assets import primitives
-from vdmbake.assets.meshes import TriMesh, load_mesh_file, resolve_path
+from vdmbake.assets.meshes import load_mesh_file, resolve_path
+from vdmbake.common.mesh import TriMesh
 from vdmbake.scene import Light, Material
 from vdmrender import gl, images, metrics, reference
 from vdmrender.camera import orbit

@@ -26,7 +26,9 @@ from .common import instances
 from .bundle.parts.mesostructure import check_reference
 from .bundle.directory import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter, RefusedBundle, update_scene
 from .errors import InputError
-from .assets.meshes import TriMesh, file_sha256, load_mesh_file, resolve_path, transformed, validate
+from .assets.meshes import file_sha256, load_mesh_file, resolve_path
+from .common.mesh import transformed, validate
+from .common.mesh import TriMesh
 from .assets.references import reached_files
 from .scene import Object, Scene, load_scene
 from .schema import dump

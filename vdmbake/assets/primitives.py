@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, is_dataclass
 import numpy as np
 
 from ..common.geometry import cylinder, disk, flat_frame, grid_faces, revolve
-from .meshes import TriMesh
+from ..common.mesh import TriMesh
 from ..schema import Integer, Number, setting
 from .teapot import teapot
 

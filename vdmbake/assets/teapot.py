@@ -44,7 +44,7 @@ import numpy as np
 
 from ..bundle import budget
 from ..common.geometry import grid_faces, onb
-from .meshes import SurfaceFrame, TriMesh, weld
+from ..common.mesh import SurfaceFrame, TriMesh, weld
 
 DATA = files(__package__) / "data" / "teapot.txt"   # package data (pyproject.toml), found in any install
 HEIGHT = 3.15   # of the classic data, bottom (z = 0) to the knob's top

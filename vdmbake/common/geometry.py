@@ -10,7 +10,7 @@ import numpy as np
 
 from . import texspace
 from ..errors import InputError
-from ..assets.meshes import SurfaceFrame, TriMesh, weld
+from .mesh import SurfaceFrame, TriMesh, weld
 
 MAX_FACES = 16_000_000   # a displaced mesh finer than this would not fit a 24 GiB machine's Embree build
 
@@ -160,7 +160,7 @@ def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: fl
     (it is the reference surface every mesostructure technique starts from), carrying the
     interpolated normal, UV and texture tangents; each vertex moves inward by depth * s_n * (1 - h)
     against its normal. Seams live in the texture coordinates only: vertices split for their UVs are
-    welded by position first (meshes.weld), take one position and one normal, and move by the mean of
+    welded by position first (mesh.weld), take one position and one normal, and move by the mean of
     their copies' displacements (equal where the height field is continuous across the seam), so the
     displaced surface has no cracks. The shading normals are those every per-pixel technique uses: the
     mesostructure's texture-space normals `normals` (MesostructureMaps) mapped through the
@@ -203,7 +203,7 @@ def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: fl
 
 def boundary_edges(faces: np.ndarray, ids: np.ndarray) -> np.ndarray:
     """(E, 2) vertex index pairs of the edges used by exactly one face, keyed by the position ids
-    `ids` (meshes.weld), in their face's winding order (so the surface lies to the left)."""
+    `ids` (mesh.weld), in their face's winding order (so the surface lies to the left)."""
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     key = np.sort(ids[e], axis=1)
     _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)

@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from ..assets.meshes import rotation_xyz
+from .mesh import rotation_xyz
 from ..bundle.parts.kind import EXTENT, check_extent
 from ..errors import InputError
 
@@ -132,10 +132,10 @@ def count(instances) -> int:
 
 
 def placed(mesh, m: np.ndarray):
-    """Every copy of `mesh` (vdmbake.assets.meshes.TriMesh) placed by the world matrices m, merged into one mesh
+    """Every copy of `mesh` (vdmbake.common.mesh.TriMesh) placed by the world matrices m, merged into one mesh
     (what the reference traces): positions by each similarity, normals turned by its rotation; texture
     coordinates, colours and the albedo map kept."""
-    from ..assets.meshes import TriMesh
+    from .mesh import TriMesh
 
     parts = []
     for a in m:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..assets.meshes import SurfaceFrame
+from .mesh import SurfaceFrame
 
 
 def jacobian(frame: SurfaceFrame, tiling) -> np.ndarray:

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..assets.meshes import SurfaceFrame, TriMesh
+from ..common.mesh import SurfaceFrame, TriMesh
 
 _TYPES = {"<f8": "double", "<f4": "float", "|u1": "uchar", "<i4": "int"}
 _DTYPES = {v: k for k, v in _TYPES.items()}
@@ -111,7 +111,7 @@ def from_bytes(data: bytes, origin: str) -> TriMesh:
 # The asset's per-vertex albedo (linear RGB in [0, 1], float), only when the asset has colours.
 _COLOR_NAMES = ("red", "green", "blue")
 
-# The surface frame (meshes.SurfaceFrame) as extra vertex properties, for VDM base meshes.
+# The surface frame (common.mesh.SurfaceFrame) as extra vertex properties, for VDM base meshes.
 _FRAME_NAMES = tuple(f"{p}_{a}" for p in ("dpdu", "dpdv") for a in "xyz") + ("k1", "k2", "d1_x", "d1_y", "d1_z")
 
 

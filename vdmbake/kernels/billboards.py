@@ -38,7 +38,8 @@ import numpy as np
 from ..common import geometry, texture
 from ..common.embree import RayScene
 from ..errors import InputError
-from ..assets.meshes import TriMesh, validate
+from ..common.mesh import validate
+from ..common.mesh import TriMesh
 from ..bundle.parts import Billboard
 
 # The axis baseline of Vichitvejpaisal2005 §4.2 (Fig. 4-5), as view directions: +X, -X, +Y, -Y, +Z, -Z.

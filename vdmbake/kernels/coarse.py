@@ -4,7 +4,7 @@ seams.
 A mesh file splits a vertex wherever its texture coordinates jump (a UV seam), so the seam is an open
 border to a simplifier, which then collapses each side on its own and opens cracks (the textured 10k
 bunny: 109 border edges in, 1013 out at half the faces). The simplifier is therefore given the surface
-welded by position (`meshes.weld`), and its two kinds of topological damage are repaired afterwards:
+welded by position (`common.mesh.weld`), and its two kinds of topological damage are repaired afterwards:
 fins (two faces on the same three vertices, the remains of a collapsed pocket) are removed, and an
 edge that ends up shared by more than two faces (two sheets pinched together) is split into one edge
 per sheet (`split_pinches`), so the output's faces meet only along manifold edges.
@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..assets.meshes import TriMesh, crease_normals, weld
+from ..common.mesh import TriMesh, crease_normals, weld
 
 CREASE_DEG = 60.0   # faces meeting at a larger angle do not share a vertex normal
 
@@ -71,7 +71,7 @@ class Lineage(NamedTuple):
     origin: np.ndarray     # (F,) the full mesh's face each face descends from
     raw: np.ndarray        # (F, 3) each corner's vertex as the simplifier numbered it
     mapping: np.ndarray    # welded input vertex -> that numbering (-1: unused)
-    ids: np.ndarray        # full mesh vertex -> welded vertex (meshes.weld)
+    ids: np.ndarray        # full mesh vertex -> welded vertex (common.mesh.weld)
 
 
 def transferred_uvs(mesh: TriMesh, lineage: Lineage, corners: np.ndarray,

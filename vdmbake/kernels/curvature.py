@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..assets.meshes import SurfaceFrame
+from ..common.mesh import SurfaceFrame
 
 _DEGENERATE = 1e-12   # a triangle whose area / (sum of squared edges) is below this has no shape
 

@@ -57,7 +57,8 @@ from ..bundle import budget, parts
 from ..common import texture
 from ..common.embree import RayScene
 from ..errors import InputError
-from ..assets.meshes import TriMesh, validate
+from ..common.mesh import validate
+from ..common.mesh import TriMesh
 
 EMPTY = 3            # rings of texels around every tile that the object never covers (see capture)
 MIN_RESOLUTION = 16  # below this the empty rings take over the tile

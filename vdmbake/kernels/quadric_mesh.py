@@ -10,7 +10,7 @@ import numpy as np
 
 from ..common import geometry
 from ..common.colour import to_srgb8
-from ..assets.meshes import TriMesh
+from ..common.mesh import TriMesh
 from ..formats.ply import elements_from_bytes, elements_to_bytes
 from .quadrics import QuadricSet
 

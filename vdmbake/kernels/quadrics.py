@@ -13,7 +13,7 @@ import numpy as np
 
 from ..formats import ply
 from ..errors import InputError
-from ..assets.meshes import rotation_xyz
+from ..common.mesh import rotation_xyz
 
 _XYZ = [(n, "<f8") for n in "xyz"]
 _RGB = [(n, "<f4") for n in ("red", "green", "blue")]

@@ -76,7 +76,7 @@ def height_normals(heights: np.ndarray, depth: float) -> np.ndarray:
     """(N, N, 3) texture-space unit normals of the mesostructure mesh at its vertices (the texel
     centres), area-weighted over the six incident triangles: the shading normals of every
     mesostructure technique, and what the displaced reference's vertex normals converge to."""
-    from ..assets.meshes import vertex_normals
+    from ..common.mesh import vertex_normals
 
     n = heights.shape[0]
     v, f = mesostructure_mesh(heights, depth, 1)
