@@ -1,4 +1,4 @@
-"""Rays over a curved reference surface (vdmrender/curved_ray.py and its GLSL twin
+"""Rays over a curved reference surface (tests/curved_ray.py and its GLSL twin
 shaders/include/curved_ray.glsl): the plane limit, the inverses, the distance from the bake's exact
 bend (second order in c t). The GLSL functions against numpy: tests/test_twins.py."""
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from vdmbake.kernels import vdm
-from vdmrender import curved_ray as cr
+import curved_ray as cr
 
 RNG = np.random.default_rng(7)
 N = 4000

@@ -1,4 +1,4 @@
-"""Every GLSL include that has a numpy twin, against the twin, through one harness (vdmrender.glsl_eval):
+"""Every GLSL include that has a numpy twin, against the twin, through one harness (tests/glsl_eval.py):
 ONE table, one row per pair (or per variant of a pair), and ONE parametrised test over it.
 
 A row: name, the GLSL includes, the GLSL body (reads the element's vec4 inputs, writes out0, out1, ...), the
@@ -23,11 +23,11 @@ from vdmbake.common import pyramid as P
 from vdmbake.common import texspace, texture
 from vdmbake.common.geometry import onb
 from vdmbake.common.mesh import SurfaceFrame
-from vdmrender import curved_ray as cr
+import curved_ray as cr
 from vdmrender import gl, quadric_math, shading
 from vdmrender.passes import hftrace
 from vdmrender.camera import Camera, pixel_ray, window_depth
-from vdmrender.glsl_eval import evaluate
+from glsl_eval import evaluate
 
 
 class Twin(NamedTuple):

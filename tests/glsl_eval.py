@@ -1,4 +1,4 @@
-"""Evaluate a GLSL snippet per element of arrays on the GL device: the harness that compares the shader
+"""Evaluate a GLSL snippet per element of arrays on the GL device: the test harness that compares the shader
 includes (shaders/include/) with their numpy twins (tests/test_twins.py), usable for any probe.
 
 `evaluate` draws one fullscreen pass into RGBA32F targets, one fragment per element: the fragment reads
@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from . import gl
+from vdmrender import gl
 
 MAX_WIDTH = 1024    # elements per row of the targets
 
