@@ -81,6 +81,30 @@ def blind(folder: Path) -> list[str]:
             "sh"]
 
 
+def beside_a_blind_worker(cmd: list[str], hidden: Path, work: Path, submitted: str,
+                          timeout: float) -> tuple[subprocess.Popen, str, str, float]:
+    """`cmd --scheduler ADDRESS` on a scheduler (started in `work`) whose one worker cannot see `hidden` (blind),
+    until its stderr says `submitted` (every task went to that worker alone); then a worker that can see it joins.
+    The finished process, its stdout and stderr, and its seconds from start to end."""
+    with scheduler(work) as (address, _):
+        workers = [worker(address, *blind(hidden))]
+        try:
+            t0 = time.perf_counter()
+            p = subprocess.Popen([*cmd, "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                 text=True, env=ENV)
+            said = ""
+            while submitted not in said:
+                said += p.stderr.readline()
+                assert p.poll() is None, (said, p.communicate())
+            workers.append(worker(address))
+            stdout, stderr = p.communicate(timeout=timeout)
+            seconds = time.perf_counter() - t0
+        finally:
+            for w in workers:
+                stop(w)
+    return p, stdout, said + stderr, seconds
+
+
 def rendering(out: Path, scene: str, proc, timeout: float = 600) -> tuple[int, Path]:
     """(pid, folder) of the process rendering bundle `scene` of a many-bundle run into `out`: the staging sibling
     `.SCENE.tmp-HOST-PID` of its run folder, inside OUT's staging folder; waited for."""
@@ -195,24 +219,10 @@ def faults(work: Path, bundles: Path, res: list[str]) -> list[list[str]]:
                  f"{sum(r['status'] == 'rendered' for r in runs)} of {len(runs)} bundles rendered, "
                  f"{len(list(out.rglob('.*')))} hidden files left"])
 
-    out = work / "f5"
-    with scheduler(work) as (address, _):
-        ws = [worker(address, *blind(bundles))]
-        try:
-            t0 = time.perf_counter()
-            p = subprocess.Popen(render + ["-o", str(out), "--scheduler", address], stdout=subprocess.PIPE,
-                                 stderr=subprocess.PIPE, text=True, env=ENV)
-            said = ""
-            while "rendering 3 bundles" not in said:
-                said += p.stderr.readline()
-            ws.append(worker(address))
-            stdout, stderr = p.communicate(timeout=1200)
-        finally:
-            for w in ws:
-                stop(w)
+    p, stdout, stderr, s = beside_a_blind_worker(render + ["-o", str(work / "f5")], bundles, work,
+                                                 "rendering 3 bundles", 1200)
     rows.append(["a worker that cannot see the bundles (its own mount namespace), a second one joining",
-                 "`--scheduler ADDRESS`", str(p.returncode), f"{time.perf_counter() - t0:.1f} s",
-                 _said(said + stdout + stderr, "| rendered", "| failed")])
+                 "`--scheduler ADDRESS`", str(p.returncode), f"{s:.1f} s", _said(stdout + stderr, "| rendered", "| failed")])
     return rows
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from bench.cluster import ENV, blind, scheduler, stop, worker
+from bench.cluster import beside_a_blind_worker
 from test_batch import SLOW, SMALL, files, kill_the_baker, redone_elsewhere, whole, write
 from vdmbake.library.cache import PartCache
 from vdmbake.cli import main as bake_main
@@ -74,21 +74,8 @@ def test_a_worker_that_cannot_see_the_scenes_hands_them_back(tmp_path):
     if not (shutil.which("unshare") and subprocess.run(["unshare", "-m", "true"]).returncode == 0):
         pytest.skip("needs unshare -m (root) to hide a folder from one worker")
     write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"), b=SMALL.format(name="b", prim="torus"))
-    with scheduler(tmp_path) as (address, _):
-        workers = [worker(address, *blind(tmp_path / "s"))]
-        try:
-            p = subprocess.Popen([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(tmp_path / "out"),
-                                  "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                 env=ENV)
-            said = ""
-            while "baking 2 scenes" not in said:              # submitted, to the blind worker alone
-                said += p.stderr.readline()
-                assert p.poll() is None, (said, p.communicate())
-            workers.append(worker(address))
-            stdout, stderr = p.communicate(timeout=300)
-        finally:
-            for w in workers:
-                stop(w)
+    p, stdout, stderr, _ = beside_a_blind_worker([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(tmp_path / "out")],
+                                                 tmp_path / "s", tmp_path, "baking 2 scenes", 300)
     assert p.returncode == 0, stderr
     for stem in "ab":
         line = next(x for x in stdout.splitlines() if x.startswith(f"{stem}.toml"))

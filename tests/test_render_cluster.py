@@ -13,7 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from scenes import BRICK_PLANE, TINY_HEAD
-from bench.cluster import ENV, blind, differences, rendering, scheduler, stop, worker
+from bench.cluster import ENV, beside_a_blind_worker, differences, rendering, scheduler, stop, worker
 from test_batch import _ancestors
 from vdmbake.bundle import staging
 from vdmbake.cli import main as bake_main
@@ -156,22 +156,8 @@ def test_a_worker_that_cannot_see_the_bundles_hands_them_back(library, tmp_path)
     if not (shutil.which("unshare") and subprocess.run(["unshare", "-m", "true"]).returncode == 0):
         pytest.skip("needs unshare -m (root) to hide a folder from one worker")
     out = tmp_path / "out"
-    with scheduler(tmp_path) as (address, _):
-        workers = [worker(address, *blind(library))]
-        try:
-            p = subprocess.Popen([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip",
-                                  "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                 env=ENV)
-            said = ""
-            while "rendering 3 bundles" not in said:              # submitted, to the blind worker alone
-                said += p.stderr.readline()
-                assert p.poll() is None, (said, p.communicate())
-            workers.append(worker(address))
-            stdout, stderr = p.communicate(timeout=600)
-            stderr = said + stderr
-        finally:
-            for w in workers:
-                stop(w)
+    p, stdout, stderr, _ = beside_a_blind_worker([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip"],
+                                                 library, tmp_path, "rendering 3 bundles", 600)
     assert p.returncode == 0, stderr[-3000:]
     runs = json.loads((out / "report.json").read_text())["runs"]
     assert {r["status"] for r in runs} == {"rendered"}, runs
