@@ -330,18 +330,6 @@ def test_an_atlas_is_built_within_the_side_gl_reads(tmp_path):
         load_mesh_file(G.texture_coordinate_test(tmp_path / "wide.gltf", wide))
 
 
-@pytest.fixture(scope="module")
-def ctx():
-    from vdmrender import gl
-
-    try:
-        context = gl.create_context(None)
-    except InputError as e:
-        pytest.skip(f"no OpenGL 4.3 context through EGL here: {e}")
-    yield context
-    context.release()
-
-
 def test_a_supersampled_target_over_the_device_limit_is_refused(ctx):
     """Failed before: --antialias ssaa4 --resolution 8192x16 gave a moderngl traceback (a target 32768 wide)."""
     from vdmrender import antialias
