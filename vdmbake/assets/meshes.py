@@ -1,5 +1,6 @@
-"""Triangle meshes: the in-memory form, loading (through assets/references.py: every file a mesh file
-reaches is read and checked before trimesh sees its bytes), validation, transforms and normals."""
+"""Mesh files read into the shared triangle mesh (vdmbake.common.mesh.TriMesh): the file found (pkg: paths too) and
+hashed, loaded through assets/references.py (every file a mesh file reaches is read and checked before trimesh sees
+its bytes), coincident vertices merged, the asset's own colours and base-colour texture kept."""
 from __future__ import annotations
 
 import hashlib
@@ -7,7 +8,6 @@ import importlib.util
 import io
 import sys
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
