@@ -24,7 +24,7 @@ from vdmbake.errors import InputError, escaped
 from vdmbake.formats.safeio import read_regular
 from vdmbake.schema import REQUIRED, Integer, Invalid, Number, Reader, Text, Type, Vector
 
-from .markdown import cell
+from .markdown import cell, number
 
 COLUMNS = ["object", "label", "status", "old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv",
            "new_p95_dluv", "d_p95_dluv", "old_flip", "new_flip", "d_flip", "old_ms", "new_ms", "time_ratio",
@@ -189,10 +189,6 @@ def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown
             "notes": notes, "rows": changes, "failed": [f"{c['object']}: {c['label']}" for c in changes if c["exceeds"]]}
 
 
-def _cell(v, digits: int) -> str:
-    return "-" if v is None else f"{v:.{digits}f}"
-
-
 def table(block: dict) -> str:
     """The block as a markdown table (stderr and OUT/baseline.md); a row over a threshold is marked."""
     t = block["thresholds"]
@@ -202,16 +198,13 @@ def table(block: dict) -> str:
              "| time ratio | noise ms | exceeds |", "|---|---|---|---:|---|---:|---:|---|---:|---:|---|"]
     for c in block["rows"]:
         lines.append(
-            f"| {cell(c['object'])} | {cell(c['label'])} | {_cell(c['old_mean_dluv'], 3)} → {_cell(c['new_mean_dluv'], 3)} | "
-            f"{_signed(c['d_mean_dluv'], 3)} | {_cell(c['old_p95_dluv'], 2)} → {_cell(c['new_p95_dluv'], 2)} | "
-            f"{_signed(c['d_p95_dluv'], 2)} | {_signed(c['d_flip'], 4)} | {_cell(c['old_ms'], 2)} → "
-            f"{_cell(c['new_ms'], 2)} | {_cell(c['time_ratio'], 2)} | {_cell(c['noise_ms'], 2)} | "
+            f"| {cell(c['object'])} | {cell(c['label'])} | "
+            f"{number(c['old_mean_dluv'], 3)} → {number(c['new_mean_dluv'], 3)} | {number(c['d_mean_dluv'], 3, True)} | "
+            f"{number(c['old_p95_dluv'], 2)} → {number(c['new_p95_dluv'], 2)} | {number(c['d_p95_dluv'], 2, True)} | "
+            f"{number(c['d_flip'], 4, True)} | {number(c['old_ms'], 2)} → {number(c['new_ms'], 2)} | "
+            f"{number(c['time_ratio'], 2)} | {number(c['noise_ms'], 2)} | "
             f"{cell(', '.join(c['exceeds']) or ('' if c['status'] == 'compared' else c['status']))} |")
     return "\n".join(lines) + "\n"
-
-
-def _signed(v, digits: int) -> str:
-    return "-" if v is None else f"{v:+.{digits}f}"
 
 
 def to_csv(block: dict) -> str:

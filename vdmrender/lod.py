@@ -32,7 +32,7 @@ from vdmbake.scene import LIMIT_ON
 
 from . import pricing
 from .baseline import POINT
-from .markdown import cell
+from .markdown import cell, number
 from .report import ERROR_LABEL
 
 NOISE = 0.1   # separately timed medians (no interleaved times): a difference below this share is not one in cost
@@ -262,9 +262,6 @@ def table(lod: dict) -> str:
     reference's noise, per size); every chain as bands of screen sizes, its variant, its change against the full
     asset and its error against the reference at the band's top, the pop where it takes over and the hysteresis of
     the switch; for a field of copies, how the chain was priced there."""
-    def num(x, digits):
-        return "-" if x is None else f"{x:.{digits}f}"
-
     seen = lod.get("error") or POINT
     lines = [f"LOD chains on {cell(lod['device'])}, frame {lod['resolution'][0]}x{lod['resolution'][1]}, sizes measured "
              f"{', '.join(map(str, lod['sizes_px']))} px; frames anti-aliased {seen['antialias']}, the reference at "
@@ -277,8 +274,8 @@ def table(lod: dict) -> str:
                   "(ray-cast quadrics miss atoms smaller than a pixel), what the chains decide on is drawn wrong too.", "",
                   "| size [px] | full asset | mean ΔLuv | p95 ΔLuv | IoU | reference noise ΔLuv | variant pairs within "
                   "noise |", "|---:|---|---:|---:|---:|---:|---:|"]
-        lines += [f"| {f['size_px']} | {cell(f['full_asset'])} | {num(f['floor_dluv'], 3)} | {num(f['floor_p95_dluv'], 2)} | "
-                  f"{num(f.get('floor_iou'), 4)} | {num(f['reference_noise_dluv'], 3)} | {f['ties']} of {f['pairs']} |"
+        lines += [f"| {f['size_px']} | {cell(f['full_asset'])} | {number(f['floor_dluv'], 3)} | {number(f['floor_p95_dluv'], 2)} | "
+                  f"{number(f.get('floor_iou'), 4)} | {number(f['reference_noise_dluv'], 3)} | {f['ties']} of {f['pairs']} |"
                   for f in rows]
         lines.append("")
     for c in lod["chains"]:
@@ -294,10 +291,10 @@ def table(lod: dict) -> str:
                 top = e["measured"][0]
                 switch = e.get("switch_px")
                 lines.append(f"| ({e['min_px']}, {e['max_px']}] | {cell(e['variant'])} | {'yes' if e['meets'] else '**no**'} | "
-                             f"{num(top.get(CHANGE), 3)} | {num(top.get('change_p95_dluv'), 2)} | "
-                             f"{num(top.get('change_iou'), 4)} | {num(top['mean_dluv'], 3)} | "
-                             f"{num(top.get('floor_dluv'), 3)} | {num(top['median_ms'], 3)} | "
-                             f"{num(top.get('pop_dluv'), 2)} | {f'{switch[0]:g}, {switch[1]:g}' if switch else '-'} |")
+                             f"{number(top.get(CHANGE), 3)} | {number(top.get('change_p95_dluv'), 2)} | "
+                             f"{number(top.get('change_iou'), 4)} | {number(top['mean_dluv'], 3)} | "
+                             f"{number(top.get('floor_dluv'), 3)} | {number(top['median_ms'], 3)} | "
+                             f"{number(top.get('pop_dluv'), 2)} | {f'{switch[0]:g}, {switch[1]:g}' if switch else '-'} |")
             lines.append("")
             if ch["unmet_px"]:
                 lines += [f"**No variant is within the limits at {', '.join(map(str, ch['unmet_px']))} px**: the chain "
@@ -311,8 +308,8 @@ def table(lod: dict) -> str:
                           "| on the field | median GPU ms | spread ms | change ΔLuv | ΔLuv against the reference | "
                           "floor ΔLuv | within limits |", "|---|---:|---:|---:|---:|---:|---|"]
                 lines += [f"| {'**' + cell(r['variant']) + '**' if r['variant'] == f['chosen'] else cell(r['variant'])} | "
-                          f"{num(r['median_ms'], 2)} | {num(r['spread_ms'], 2)} | {num(r.get('change_dluv'), 3)} | "
-                          f"{num(r['mean_dluv'], 3)} | {num(r.get('floor_dluv'), 3)} | {'yes' if r['meets'] else 'no'} |"
+                          f"{number(r['median_ms'], 2)} | {number(r['spread_ms'], 2)} | {number(r.get('change_dluv'), 3)} | "
+                          f"{number(r['mean_dluv'], 3)} | {number(r.get('floor_dluv'), 3)} | {'yes' if r['meets'] else 'no'} |"
                           for r in f["candidates"]]
                 lines.append("")
             lines += [f"Above {ch['above_px']} px nothing was measured.", ""]

@@ -12,3 +12,8 @@ def cell(value) -> str:
     """`value` as Markdown text of one table cell: unprintable characters escaped as Python writes them, HTML's
     special characters as entities (CommonMark §6.6: raw HTML is passed through), and `|` as `\\|` (GFM tables)."""
     return html.escape(escaped(str(value)), quote=False).replace("|", "\\|")
+
+
+def number(v, digits: int, signed: bool = False) -> str:
+    """A figure of a Markdown table: `digits` decimals (with its sign if `signed`), or "-" where there is none."""
+    return "-" if v is None else f"{v:{'+' if signed else ''}.{digits}f}"

@@ -9,6 +9,7 @@ import math
 from pathlib import Path
 
 from . import baseline
+from .markdown import number
 
 COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "empty_frames", "median_ms", "min_ms",
            "q1_ms", "q3_ms", "spread_ms", "wall_ms", "submit_ms", "samples", "warmup_s", "warmup_frames", "steady",
@@ -78,16 +79,13 @@ def flat(row: dict) -> dict:
 
 def composite_table(report: dict) -> str:
     """composite.md: per variant set of render.composite its variants, time and error (vdmrender.composite)."""
-    def num(x, digits):
-        return "-" if x is None else f"{x:.{digits}f}"
-
     lines = [f"Composite frames, {report['resolution'][0]}x{report['resolution'][1]}, {report['device']}: every object "
              "in one frame, against the reference tracing every object together; frames in composite/frames/SET/, "
              "heat maps in composite/heatmaps/SET/, the sheet in composite/overview.png.", "",
              "| set | variants | median GPU ms/frame | mean ΔLuv | p95 ΔLuv | IoU | FLIP |", "|---:|---|---:|---:|---:|---:|---:|"]
     for r in report["composite"]:
-        lines.append(f"| {r['set']} | {r['label']} | {r['median_ms']:.1f} | {num(r['mean_dluv'], 3)} | "
-                     f"{num(r['p95_dluv'], 2)} | {num(r['iou'], 4)} | {num(r['flip_mean'], 4)} |")
+        lines.append(f"| {r['set']} | {r['label']} | {r['median_ms']:.1f} | {number(r['mean_dluv'], 3)} | "
+                     f"{number(r['p95_dluv'], 2)} | {number(r['iou'], 4)} | {number(r['flip_mean'], 4)} |")
     return "\n".join(lines) + "\n"
 
 
