@@ -111,8 +111,9 @@ def reference_frames(out, bundle, scene, cams, log, spp: int = 1, folder: str = 
     def trace(cams):
         ref = reference.CompositeReference(refcache.object_reference(o, entries[o.name], bundle, scene)[0]
                                            for o in scene.objects)
+        before = ref.rays_cast
         frames, halves = zip(*(reference.filtered(ref.render, c, spp) for c in cams))
-        return list(frames), list(halves), [None] * len(frames), ref.rays_cast
+        return list(frames), list(halves), [None] * len(frames), ref.rays_cast - before
 
     return refcache.load_or_trace(out, folder, key, cams, trace, scene.render.background,
                                   "composite" + (f" ({spp} spp)" if spp > 1 else ""), log)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+import weakref
 from dataclasses import asdict
 
 import numpy as np
@@ -56,9 +57,25 @@ def reference_geometry(obj, entry, bundle) -> dict:
     return geometry
 
 
+# Per open bundle, the last object reference built: a sweep's sizes and the filtered and point references of an
+# object trace one, built once (a mesostructure's displaced mesh and its Embree scene take seconds); gone with the
+# bundle.
+_LAST = weakref.WeakKeyDictionary()
+
+
 def object_reference(obj, entry, bundle, scene):
     """The object's reference tracer (vdmrender.reference), and for a mesostructure object the Embree
-    scene of its open border (vdmrender.borders; None otherwise)."""
+    scene of its open border (vdmrender.borders; None otherwise); the same ones again while nothing they trace
+    changed (_LAST). Their rays_cast counts every ray they traced: a caller counts its own as a difference."""
+    key = json.dumps([obj.name, reference_geometry(obj, entry, bundle), asdict(scene.light), asdict(obj.material),
+                      list(scene.camera.up)], sort_keys=True)
+    last = _LAST.get(bundle)
+    if last is None or last[0] != key:
+        last = _LAST[bundle] = (key, _object_reference(obj, entry, bundle, scene))
+    return last[1]
+
+
+def _object_reference(obj, entry, bundle, scene):
     if obj.mesostructure:
         src = Source(obj, entry, None, bundle, scene, None)
         return (reference.MeshReference(mesostructure.reference_mesh(src), scene.light, obj.material),
@@ -155,9 +172,10 @@ def object_frames(out, obj, entry, bundle, scene, cams, log, folder: str | None 
 
     def trace(cams):
         ref, skirt = object_reference(obj, entry, bundle, scene)
+        before = ref.scene.rays_cast
         frames, halves = zip(*(reference.filtered(ref.render, c, spp) for c in cams))
         classes = [borders.classify(c, ref.scene, skirt, ref.sphere) if obj.mesostructure else None for c in cams]
-        return list(frames), list(halves), classes, ref.scene.rays_cast
+        return list(frames), list(halves), classes, ref.scene.rays_cast - before
 
     return load_or_trace(out, folder or f"reference/{obj.name}", key, cams, trace, scene.render.background,
                          f"{what or obj.name}" + (f" ({spp} spp)" if spp > 1 else ""), log)
