@@ -29,8 +29,8 @@ CONFIGS = ("bunny-coarse", "molecule-villin", "vdm-torus-bricks")
 # What a run measures in time, or where it ran: the only fields a cluster's run may change.
 TIMED = re.compile(r".*_ms|.*_s|ratio_to_baseline|samples|spread_warning|warmup_frames|steady|saturated|seconds|worker"
                    r"|nvml")
-# Files that hold times (their other content is compared through report.json and report.csv).
-TIMING_FILES = {"report.html", "error_vs_time.png", "runs.md"}
+# Files that hold times (their other content is compared through report.json, report.csv, lod.json, sweep.csv).
+TIMING_FILES = {"report.html", "error_vs_time.png", "runs.md", "cost_vs_size.png", "lod.md", "composite.md"}
 
 
 # ------------------------------------------------------------------------------------- shared with tests
@@ -131,15 +131,16 @@ def untimed(x):
 
 
 def differences(a: Path, b: Path) -> list[str]:
-    """The files of output folders `a` and `b` that differ: byte for byte, the reports (report.json, report.csv)
-    once their times are left out, the files of TIMING_FILES not at all; files in only one of them too."""
+    """The files of output folders `a` and `b` that differ: byte for byte, JSON and CSV files (report.json,
+    report.csv, lod.json, sweep.csv) once their times are left out, the files of TIMING_FILES not at all; files in
+    only one of them too."""
     names = lambda d: {p.relative_to(d).as_posix() for p in d.rglob("*") if p.is_file()}  # noqa: E731
     out = sorted(names(a) ^ names(b))
     for rel in sorted(names(a) & names(b)):
         x, y = a / rel, b / rel
-        if x.name == "report.json":
+        if x.suffix == ".json":
             same = untimed(json.loads(x.read_text())) == untimed(json.loads(y.read_text()))
-        elif x.name == "report.csv":
+        elif x.suffix == ".csv":
             rows = lambda p: [untimed(r) for r in csv.DictReader(p.open())]  # noqa: E731
             same = rows(x) == rows(y)
         else:

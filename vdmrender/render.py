@@ -73,6 +73,7 @@ class Options:
     sizes: tuple[int, ...] | None = None         # screen-size sweep (vdmrender.sweep), overrides render.sweep.sizes
     reference_spp: int | None = None             # the reference's samples per pixel, overrides render.reference_spp
     antialias: str | None = None                 # the variants' anti-aliasing (vdmbake.scene.ANTIALIAS), overrides render.antialias
+    reference_cache: refcache.Shared | None = None   # references by content key, shared by a cluster's workers
 
 
 def filtering(opts: Options, scene) -> Options:
@@ -177,11 +178,13 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         raise
     out = StagedDir(out_path, "report.json", "vdmrender output folder")
     try:
-        sizes = sorted(opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ()), reverse=True)
+        sizes = _sizes(opts, scene)
         lod_sets = scene.render.sweep.lod if sizes and scene.render.sweep else ()
+        drawn = view_sets(bundle, scene, only, sizes, width, height)
         rows, sweep_rows, per_object = [], [], {}
         for obj in scene.objects:   # each object once: its sweep, its chains, then its cameras (vdmrender.lodmix)
-            views = render_views(harness, out, bundle, scene, obj, only, opts, device, log, sizes, lod_sets)
+            views = render_views(harness, out, bundle, scene, obj, [v for v in drawn if v.obj and v.obj.name == obj.name],
+                                 only, opts, device, log, lod_sets)
             rows += views.rows
             sweep_rows += views.sweep
             if views.chains:
@@ -194,7 +197,10 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                 lod.priced_on_field(sized["lod"], rows)
                 _log_chains(sized["lod"], log, "priced on the field")
         report.add_baseline_ratios(rows)
-        composite_rows = composite.render_sets(harness, out, bundle, scene, only, opts, device, log)
+        whole = [v for v in drawn if v.obj is None]
+        composite_rows = composite.render_sets(harness, out, bundle, scene, composite.variant_sets(scene, only),
+                                               whole[0].cams, _references(out, bundle, scene, whole[0], opts, log),
+                                               opts, device, log) if whole else []
         result = {"tool_version": __version__, "bundle": str(bundle.path), "device": device,
                   "gl": device_info, "nvml": nvml, "resolution": [width, height], "budget": asdict(plan),
                   "time": "gpu", "timing": TIMING,
@@ -274,17 +280,14 @@ def _measure(harness, v, cams, refs, out, obj, opts, background, prefix="", what
     return row, enc, heats
 
 
-def render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, device, log, prefix="", what=None,
-                  keep: dict | None = None) -> list[dict]:
-    """One object's variants from cameras `cams`, against its reference and, for their change, its full asset
-    (`full`: change.full_asset's variant, drawn untimed where it is not one of `chosen`): their report rows; frames,
-    heat maps, reference and overview sheet written under `prefix` (a screen-size sweep's sizes/NNNpx/); keep: also
-    each variant's frames (sRGB, by label) put here."""
-    entry, what = bundle.manifest["objects"][obj.name], what or obj.name
+def render_object(harness, out, bundle, scene, view, chosen, full, opts, device, log, keep: dict | None = None) -> list[dict]:
+    """One object's variants from the cameras of `view` (a ViewSet), against its reference and, for their change,
+    its full asset (`full`: change.full_asset's variant, drawn untimed where it is not one of `chosen`): their
+    report rows; frames, heat maps, reference and overview sheet written under the view's prefix (a screen-size
+    sweep's sizes/NNNpx/); keep: also each variant's frames (sRGB, by label) put here."""
+    obj, cams, prefix, what = view.obj, view.cams, view.prefix, view.what
     background = scene.render.background
-    refs = scoring.References.traced(
-        lambda spp, folder: refcache.object_frames(out, obj, entry, bundle, scene, cams, log, folder, what, spp),
-        f"{prefix}reference/{obj.name}", opts.reference_spp, background)
+    refs = _references(out, bundle, scene, view, opts, log)
     sheet, rows, frames = [("reference", refs.filtered)], [], {}
     for v in chosen:
         row, enc, heats = _measure(harness, v, cams, refs, out, obj, opts, background, prefix, what)
@@ -301,6 +304,79 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, de
     return rows
 
 
+@dataclass(frozen=True)
+class ViewSet:
+    """Cameras a run draws from, scored against the reference traced from them (in `folder`): an object's (`obj`;
+    one copy at `size` px in the sweep, its files under `prefix` sizes/NNNpx/) or, `obj` None, the composite's;
+    `what` names it in the log."""
+    obj: object | None
+    cams: list
+    prefix: str = ""
+    what: str = ""
+    size: int | None = None
+
+    @property
+    def folder(self) -> str:
+        return f"{self.prefix}reference/{self.obj.name}" if self.obj else f"{composite.FOLDER}/reference"
+
+    def named(self, spp: int) -> str:
+        """How the log names its reference at `spp` samples per pixel."""
+        return self.what + (f" ({spp} spp)" if spp > 1 else "")
+
+    def source(self, bundle, scene, spp: int):
+        """Its reference at `spp` samples per pixel: (cache key, tracer) for refcache.load_or_trace."""
+        if self.obj is None:
+            return composite.reference_source(bundle, scene, self.cams, spp)
+        return refcache.object_source(self.obj, bundle.manifest["objects"][self.obj.name], bundle, scene, self.cams, spp)
+
+
+def _sizes(opts: Options, scene) -> list[int]:
+    """The screen sizes of the sweep, largest first."""
+    return sorted(opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ()), reverse=True)
+
+
+def view_sets(bundle, scene, only, sizes, width: int, height: int) -> list[ViewSet]:
+    """Every set of views a run draws, in its order, without GL: each object that has a variant to draw, one copy at
+    each size of the sweep (the chain is the object's), then from its own cameras; then the composite's, where it
+    draws a variant set. run() draws these; vdmrender.cluster traces their references on workers first
+    (references)."""
+    out = []
+    for obj in scene.objects:
+        entry = bundle.manifest["objects"][obj.name]
+        if not variants(obj, entry, bundle, scene, only):
+            continue
+        one = dataclasses.replace(obj, instances=None)
+        centre, radius = framed(one, entry, scene)
+        own = cameras_for(scene.camera, centre, radius, width, height)
+        out += [ViewSet(one, sweep.sized(own, centre, radius, size), f"sizes/{size}px/", f"{obj.name} @{size}px", size)
+                for size in sizes]
+        out.append(ViewSet(obj, cameras_for(scene.camera, *framed(obj, entry, scene), width, height), what=obj.name))
+    if composite.variant_sets(scene, only):
+        out.append(ViewSet(None, composite.cameras(bundle, scene, width, height), what="composite"))
+    return out
+
+
+def references(bundle, opts: Options) -> list[tuple[ViewSet, str, int]]:
+    """Every reference a run of `bundle` under `opts` traces, (view set, folder, samples per pixel): each view set's
+    (view_sets) filtered and pixel-centre ones (scoring.folders). Bad input raises InputError as run() does."""
+    scene = bundle.scene
+    opts = filtering(opts, scene)
+    width, height = opts.resolution or scene.render.resolution
+    return [(v, folder, spp) for v in view_sets(bundle, scene, _technique_filter(opts, scene), _sizes(opts, scene),
+                                                width, height)
+            for folder, spp in scoring.folders(v.folder, opts.reference_spp)]
+
+
+def _references(out, bundle, scene, view: ViewSet, opts: Options, log) -> scoring.References:
+    """The references `view` is scored against (refcache.load_or_trace: the previous run's, the shared cache's, or
+    traced here)."""
+    def load(spp, folder):
+        key, trace = view.source(bundle, scene, spp)
+        return refcache.load_or_trace(out, folder, key, view.cams, trace, scene.render.background, view.named(spp),
+                                      log, opts.reference_cache)
+    return scoring.References.traced(load, view.folder, opts.reference_spp, scene.render.background)
+
+
 @dataclass
 class Views:
     """One object's rows: at its cameras (`rows`, with an instanced object's lod@CHAIN rows), at each size of the
@@ -310,50 +386,48 @@ class Views:
     chains: dict
 
 
-def render_views(harness, out, bundle, scene, obj, only, opts, device, log, sizes, lod_sets) -> Views:
-    """One object, once: its variants at each screen size of the sweep (one copy: the chain is the object's), its
-    LOD chains chosen from those rows (vdmrender.lod, no drawing), then its variants from its cameras, an instanced
-    object's also per chain with each copy drawn by the variant its screen size selects (lod@CHAIN:
-    vdmrender.lodmix)."""
+def render_views(harness, out, bundle, scene, obj, views, only, opts, device, log, lod_sets) -> Views:
+    """One object, once, from its view sets (view_sets'; none: it draws nothing): its variants at each screen size
+    of the sweep (one copy: the chain is the object's), its LOD chains chosen from those rows (vdmrender.lod, no
+    drawing), then its variants from its cameras, an instanced object's also per chain with each copy drawn by the
+    variant its screen size selects (lod@CHAIN: vdmrender.lodmix)."""
+    if not views:
+        return Views([], [], {})
+    *sized, own = views
     entry = bundle.manifest["objects"][obj.name]
     chosen = variants(obj, entry, bundle, scene, only)
-    if not chosen:
-        return Views([], [], {})
-    sweep_rows, frames = _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) if sizes else ([], {})
+    sweep_rows, frames = _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sized) if sized else ([], {})
     chains = lod.object_chains(sweep_rows, lod_sets, harness.target.size[1], scoring.pops(frames)) \
         if lod_sets else {}
     for name, c in chains.items():
         _log_chain(name, obj.name, c["entries"], log, "from the sweep")
-    cams = cameras_for(scene.camera, *framed(obj, entry, scene), *harness.target.size)
     world = instances.matrices(obj.instances, scene.camera.up, entry["centre"]) if obj.instances else None
     mixes = {name: c["entries"] for name, c in chains.items()} if world is not None else {}
-    rows = render_object(harness, out, bundle, scene, obj, cams,
+    rows = render_object(harness, out, bundle, scene, own,
                          chosen + [lodmix.mixed(obj, entry, bundle, scene, name, entries, world)
                                    for name, entries in mixes.items()], change.full_asset(obj, entry, bundle, scene),
                          opts, device, log)
     for row in rows:
         if row["technique"] == "lod":
-            row["lod_copies"] = lodmix.copies_chosen(entry, world, mixes[row["value"]], cams)
+            row["lod_copies"] = lodmix.copies_chosen(entry, world, mixes[row["value"]], own.cams)
     return Views(rows, sweep_rows, chains)
 
 
-def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) -> tuple[list[dict], dict]:
-    """An object's variants at each screen size (vdmrender.sweep), an instanced object's as one copy: rows as
-    render_object's, with size_px; and the frames, {size: {label: sRGB frames}} (the LOD chains' pops)."""
-    width, height = harness.target.size
+def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, views) -> tuple[list[dict], dict]:
+    """An object's variants at each screen size (vdmrender.sweep) from `views` (its sized view sets, one copy each):
+    rows as render_object's, with size_px; and the frames, {size: {label: sRGB frames}} (the LOD chains' pops)."""
+    height = harness.target.size[1]
     entry = bundle.manifest["objects"][obj.name]
     obj = dataclasses.replace(obj, instances=None)   # one copy: the chain is the object's
     chosen = variants(obj, entry, bundle, scene, only)
     full = change.full_asset(obj, entry, bundle, scene)   # one for every size: a mesostructure's is built once
-    centre, radius = framed(obj, entry, scene)
-    views = cameras_for(scene.camera, centre, radius, width, height)
     rows, frames = [], {}
-    for size in sizes:
-        cams = sweep.sized(views, centre, radius, size)
-        distance = round(sweep.distance_for(size, 1.0, views[0].fov_deg, height), 4)
+    for view in views:
+        size, cams = view.size, view.cams
+        distance = round(sweep.distance_for(size, 1.0, cams[0].fov_deg, height), 4)
         here = [{**r, "size_px": size, "distance_radii": distance}
-                for r in render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, device, log,
-                                       f"sizes/{size}px/", f"{obj.name} @{size}px", frames.setdefault(size, {}))]
+                for r in render_object(harness, out, bundle, scene, view, chosen, full, opts, device, log,
+                                       frames.setdefault(size, {}))]
         contest = lod.contenders(here, scene.render.sweep.lod if scene.render.sweep else ())
         if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.pricing)
             times = pricing.interleaved(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
