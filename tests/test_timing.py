@@ -1,4 +1,4 @@
-"""GPU time by timer queries (vdmrender.timing): the warm-up's steady-state rule, the within-camera spread,
+"""GPU time by timer queries (vdmrender.measuring.timing): the warm-up's steady-state rule, the within-camera spread,
 the harness's clear kept out of every technique's time, --baseline that knows noise (on scripted reports), and
 a doubled pass (the test-only knob VDM_TEST_DOUBLE_PASS) caught exactly by the counters."""
 from __future__ import annotations
@@ -9,7 +9,10 @@ import numpy as np
 from click.testing import CliRunner
 
 from scenes import TINY_HEAD, bake_and_render
-from vdmrender import baseline, gl, measure, timing
+from vdmrender.deciding import baseline
+from vdmrender.reporting import report
+from vdmrender.gpu import gl
+from vdmrender.measuring import measure, timing
 from vdmrender.cli import main as render_main
 
 
@@ -181,7 +184,7 @@ def test_counters_compared_exactly():
     b = baseline.compare(old, new, None, None)
     assert b["rows"][0]["counters_changed"] == {"fetches": [300, 301]}
     assert any("fetches 300 -> 301" in n for n in b["notes"])
-    assert "fetches=300->301" in baseline.to_csv(b)
+    assert "fetches=300->301" in report.baseline_csv(b)
 
 
 def test_times_across_devices_are_refused_unless_asked():

@@ -14,11 +14,11 @@ from vdmbake.errors import InputError, escaped, fail, guarded
 from vdmbake.cluster import check_address
 from vdmbake.scene import ANTIALIAS, MAX_SIDE, MAX_SPP, REGISTRY
 
-from . import gl
 from . import many as many_bundles
-from .baseline import table as baseline_table
-from .refcache import Shared
+from .gpu import gl
 from .render import Options, run
+from .reporting.report import baseline_table
+from .tracing.refcache import Shared
 
 
 def _resolution(ctx, param, value):

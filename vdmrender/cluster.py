@@ -31,7 +31,8 @@ from vdmbake.bundle.staging import StagedDir
 from vdmbake.errors import InputError, paragraph
 from vdmbake.cluster import WAIT_S, connected, existing, handed_back, run_tasks
 
-from . import many, refcache, render
+from . import many, render
+from .tracing import refcache
 from .render import run
 
 

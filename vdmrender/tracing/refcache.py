@@ -18,13 +18,15 @@ from vdmbake.formats import exr
 from vdmbake.bundle import parts
 from vdmbake.bundle.staging import StagedDir
 
-from . import borders, images, progress, reference
-from .techniques import Source
-from .passes import mesostructure
+from . import borders, reference
+from ..common import images
+from ..common import progress
+from ..passes import mesostructure
+from ..techniques import Source
 
 
 # What every reference runs: the tracers, the cameras' pixel rays and the placing of an object's copies.
-REFERENCE_ROOTS = ("vdmrender.reference", "vdmrender.camera", "vdmbake.common.instances")
+REFERENCE_ROOTS = ("vdmrender.tracing.reference", "vdmrender.common.camera", "vdmbake.common.instances")
 
 
 def reference_code(mesostructure: bool) -> str:
@@ -66,8 +68,8 @@ _LAST = weakref.WeakKeyDictionary()
 
 
 def object_reference(obj, entry, bundle, scene):
-    """The object's reference tracer (vdmrender.reference), and for a mesostructure object the Embree
-    scene of its open border (vdmrender.borders; None otherwise); the same ones again while nothing they trace
+    """The object's reference tracer (vdmrender.tracing.reference), and for a mesostructure object the Embree
+    scene of its open border (vdmrender.tracing.borders; None otherwise); the same ones again while nothing they trace
     changed (_LAST). Their rays_cast counts every ray they traced: a caller counts its own as a difference."""
     key = json.dumps([obj.name, reference_geometry(obj, entry, bundle), asdict(scene.light), asdict(obj.material),
                       list(scene.camera.up)], sort_keys=True)
@@ -112,10 +114,10 @@ def _write_frame(path: Path, frame, halves, classes) -> None:
     """A reference frame as EXR, with its Halves (layers `half`: the first half's mean, and `samples`: each
     pixel's samples N, of which A in the first half) and its pixel classes where there are some."""
     layers = {"reference": {ch: frame[..., i] for i, ch in enumerate("RGBA")}}
-    if halves is not None:   # the frame's noise (vdmrender.scoring.noise)
+    if halves is not None:   # the frame's noise (vdmrender.comparing.scoring.noise)
         layers["half"] = {ch: halves.first[..., i] for i, ch in enumerate("RGBA")}
         layers["samples"] = {"N": halves.traced.astype(np.float32), "A": halves.in_first.astype(np.float32)}
-    if classes is not None:   # which pixels see an open border or the inside (vdmrender.borders)
+    if classes is not None:   # which pixels see an open border or the inside (vdmrender.tracing.borders)
         layers["classes"] = {"C": classes.astype(np.float32)}
     exr.write(path, layers)
 
@@ -233,7 +235,7 @@ def share(shared: Shared, key: str, cams, trace, what: str, log) -> bool:
 
 def object_source(obj, entry, bundle, scene, cams, spp: int = 1):
     """One object's reference from `cams` at `spp` samples per pixel (reference.filtered): its cache key, and its
-    tracer for load_or_trace, which also gives a mesostructure object's pixel classes (vdmrender.borders: open
+    tracer for load_or_trace, which also gives a mesostructure object's pixel classes (vdmrender.tracing.borders: open
     border, inside; of the pixel centres)."""
     key = reference_key(reference_geometry(obj, entry, bundle), cams, scene.light, obj.material,
                         scene.render.background, reference_code(obj.mesostructure is not None), spp)
