@@ -167,7 +167,7 @@ def test_a_worker_that_cannot_see_the_bundles_hands_them_back(library, tmp_path)
     for r in runs:
         assert all(f"cannot read {library.absolute() / r['scene']}.bundle/manifest.json" in h and r["worker"] not in h
                    for h in r.get("handed_back", [])), r
-    refs = re.findall(r"\] reference (\w+)/reference/\w+: traced on (\S+) \(handed back by (\S+) \(cannot read "
+    refs = re.findall(r"\] reference (\w+)/reference/\w+: traced on (\S+) in [\d.]+ s \(handed back by (\S+) \(cannot read "
                       r"(\S+)/manifest\.json\)\)", stderr)
     assert sorted(s for s, *_ in refs) == sorted(r["scene"] for r in runs), stderr[-3000:]
     for scene, seeing, blind, manifest in refs:

@@ -111,7 +111,7 @@ def trace_references(client, address: str, jobs: list[many.Job], wait_s: float, 
         try:
             bundle = Bundle(Path(job.bundle))
             wanted = render.references(bundle, job.opts)
-        except Exception:       # noqa: BLE001 -- the bundle's render task meets the same error and reports it
+        except Exception:       # the bundle's render task meets the same error and reports it
             continue
         for view, folder, spp in wanted:
             key = view.source(bundle, bundle.scene, spp)[0]
@@ -123,7 +123,9 @@ def trace_references(client, address: str, jobs: list[many.Job], wait_s: float, 
 
     def done(row):
         log(f"[{next(count)}/{len(tasks)}] reference {row['reference']}: {row['status']}"
-            + (f" on {row['worker']}" if row.get("worker") else "") + (f": {row['reason']}" if row.get("reason") else "")
+            + (f" on {row['worker']}" if row.get("worker") else "")
+            + (f" in {row['trace_s']:.2f} s" if "trace_s" in row else "")
+            + (f": {row['reason']}" if row.get("reason") else "")
             + (f" ({handed_back(row)})" if row.get("handed_back") else ""))
     _, stopped = run_tasks(client, address, partial(_here, os.getcwd(), _trace), list(tasks.values()), _trace_needs,
                            lambda t, why: {"reference": _named(t), "status": "failed", "reason": why}, done, wait_s,
@@ -146,12 +148,11 @@ def _trace(task: Trace) -> dict:
         scene = bundle.scene
         render.check_memory(*(task.opts.resolution or scene.render.resolution), geometry=render.geometry_bytes(bundle))
         key, trace = task.view.source(bundle, scene, task.spp)
-        traced = refcache.share(task.opts.reference_cache, key, task.view.cams, trace, task.view.named(task.spp),
-                                lambda m: None)
+        info = refcache.share(task.opts.reference_cache, key, task.view.cams, trace, task.view.named(task.spp))
     except Exception as e:
         return {**row, "status": "failed", "reason": paragraph(str(e) if isinstance(e, InputError)
                                                                else f"{type(e).__name__}: {e}")}
-    return {**row, "status": "traced" if traced else "in the cache"}
+    return {**row, "status": "in the cache"} if info is None else {**row, "status": "traced", "trace_s": info["trace_s"]}
 
 
 def _trace_needs(task: Trace) -> tuple[tuple[str, ...], tuple[str, ...]]:

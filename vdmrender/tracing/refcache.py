@@ -224,13 +224,10 @@ def load_or_trace(out, folder: str, key: str, cams, trace, background, what: str
     return frames, classes, info
 
 
-def share(shared: Shared, key: str, cams, trace, what: str, log) -> bool:
+def share(shared: Shared, key: str, cams, trace, what: str) -> dict | None:
     """A reference task of a cluster run (vdmrender.cluster): the reference traced into the shared cache unless it
-    is there already; whether this call traced it."""
-    if shared.read(key, len(cams)) is not None:
-        return False
-    _logged(log, what, len(cams), shared.trace(key, cams, trace, what)[3])
-    return True
+    is there already; the trace's info as load_or_trace's (trace_s, rays), None where it was there."""
+    return None if shared.read(key, len(cams)) is not None else shared.trace(key, cams, trace, what)[3]
 
 
 def object_source(obj, entry, bundle, scene, cams, spp: int = 1):
