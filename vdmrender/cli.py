@@ -75,14 +75,14 @@ def overrides(command):
 @click.option("--compare-devices", is_flag=True,
               help="With --baseline: compare times even when the baseline ran on another GL device (refused "
                    "otherwise: --max-slowdown exits 2, and the table leaves times out).")
-@click.option("--counters/--no-counters", default=True, show_default=True,
+@click.option("--counters/--no-counters", default=Options.counters, show_default=True,
               help="Count each variant's work per frame, device-independent (fragments shaded, texture fetches, "
                    "search steps, primitives, draws, instances, GPU bytes held: report.json's counters, "
                    "per_pixel, counters_per_pass) from one more frame per camera of an instrumented build.")
-@click.option("--flip/--no-flip", default=True, show_default=True,
+@click.option("--flip/--no-flip", default=Options.flip, show_default=True,
               help="Also score every frame with NVIDIA FLIP (flip_mean in the report; about 2 s per 512x512 "
                    "frame on 2 CPU cores).")
-@click.option("--heat-max", type=click.FloatRange(min=1e-3), default=10.0, show_default=True,
+@click.option("--heat-max", type=click.FloatRange(min=1e-3), default=Options.heat_max, show_default=True,
               help="ΔLuv at the top of the heat maps' colour scale.")
 @click.option("--scheduler", metavar="ADDRESS",
               help="Render on a Dask cluster: tcp://HOST:8786 (a running `dask scheduler`, its workers each with their "
