@@ -16,16 +16,15 @@ import math
 import re
 from typing import Any, Callable
 
-from .errors import InputError, escaped
+from .errors import InputError, cut, escaped
 
 
 REQUIRED = dataclasses.MISSING
 
 
 def show(value) -> str:
-    """A value as an error message shows it: one line, at most about 200 characters."""
-    text = repr(value)
-    return text if len(text) <= 200 else text[:200] + "..."
+    """A value as an error message shows it: its repr, one line, at most about 200 characters."""
+    return cut(repr(value))
 
 
 class Invalid(Exception):
