@@ -14,9 +14,9 @@ from vdmbake.cluster import check_address
 from vdmbake.scene import REGISTRY
 from vdmbake.schema import Invalid, default_text, flag_name
 
-from . import gl
+from .gpu import gl
 from . import many as many_bundles
-from .baseline import table as baseline_table
+from .deciding.baseline import table as baseline_table
 from .render import OVERRIDES, Options, run
 
 

@@ -13,7 +13,7 @@ from vdmbake.bundle.parts.mesostructure import check_reference
 from vdmbake.common.embree import RayScene
 from vdmbake.errors import InputError
 
-from .. import gl
+from ..gpu import gl
 from .raster import RasterPasses
 
 def maps(src) -> parts.MesostructureMaps:
