@@ -17,6 +17,7 @@ from vdmbake.schema import Invalid, default_text, flag_name
 from .gpu import gl
 from . import many as many_bundles
 from .deciding.baseline import table as baseline_table
+from .measuring.timing import Budget
 from .render import OVERRIDES, Options, run
 
 
@@ -56,10 +57,11 @@ def overrides(command):
                    "the scene names.")
 @overrides
 @click.option("--warmup-s", type=click.FloatRange(0, 600), metavar="SECONDS",
-              help="Warm up at least this long, then until successive windows of GPU times agree within 5% "
-                   "(default 0.1; on a GPU give 2: its clocks need about a second of sustained work).")
+              help=f"Warm up at least this long, then until successive windows of GPU times agree within "
+                   f"{Budget.tolerance:.0%} (default {Budget.warmup_s:g}; on a GPU give 2: its clocks need about a "
+                   "second of sustained work).")
 @click.option("--sample-s", type=click.FloatRange(0, 600), metavar="SECONDS",
-              help="Time at least this long (and at least --repeats renders per frame; default 0).")
+              help=f"Time at least this long (and at least --repeats renders per frame; default {Budget.sample_s:g}).")
 @click.option("--device", help="The GPU: an EGL device index N, or cuda:N for the GPU CUDA numbers N (NVIDIA, "
                                "EGL_NV_device_cuda); or set VDM_GL_DEVICE.")
 @click.option("--max-error", type=click.FloatRange(min=0), help="Exit 1 if any technique's mean ΔLuv exceeds this.")
