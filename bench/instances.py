@@ -32,12 +32,12 @@ from vdmbake.common import instances
 from vdmbake.scene import Instances, Scatter
 
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.deciding import lod
 from vdmrender.views import lodmix, sweep
 from vdmrender.tracing import refcache
-from vdmrender.views.camera import Camera, cameras_for, clip_planes
-from vdmrender.reporting.markdown import number
+from vdmrender.common.camera import Camera, cameras_for, clip_planes
+from vdmrender.common.markdown import number
 from vdmrender.render import BYTES_PER_FACE, reference_bytes_per_pixel
 from vdmrender.techniques import variants
 

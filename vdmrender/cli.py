@@ -14,11 +14,11 @@ from vdmbake.cluster import check_address
 from vdmbake.scene import REGISTRY
 from vdmbake.schema import Invalid, default_text, flag_name
 
-from .gpu import gl
 from . import many as many_bundles
-from .deciding.baseline import table as baseline_table
+from .gpu import gl
 from .measuring.timing import Budget
 from .render import OVERRIDES, Options, run
+from .reporting.report import baseline_table
 
 
 class Setting(click.ParamType):

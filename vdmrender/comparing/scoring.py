@@ -6,9 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..reporting import images
-from .. import progress
-from ..reporting.markdown import number
+from ..common import images
+from ..common import progress
+from ..common.markdown import number
 from .metrics import compare, flip_values, pooled
 
 
