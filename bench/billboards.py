@@ -11,7 +11,7 @@ Then, on the bunny, in one process (issue 9's closing measurements):
   * interleaved timing: full mesh, coarse mesh, hit0.01+coarse, improved+coarse, hier, hier+coarse,
     ROUNDS rounds of one frame each per resolution, every pass timed by its own timer query: the
     median frame and its shadow pass share; the ratio to the full mesh of the same round;
-  * march cost, instrumented (vdmrender/counters.py): fragments, texture fetches, march steps (cell visits
+  * march cost, instrumented (vdmrender/measuring/counters.py): fragments, texture fetches, march steps (cell visits
     for hier) and searches per covered pixel, improved against hier, at 800x600.
 
     python -m bench.billboards -o out/bench [--quick]
@@ -61,7 +61,7 @@ def _builders(bundle_path: Path, width: int, height: int):
     """(camera, {label: build}, (bundle, scene, object, entry)) for the bench scene's object, as vdmrender
     builds them, at width x height."""
     from bench.interleave import scene_of
-    from vdmrender.camera import cameras_for
+    from vdmrender.views.camera import cameras_for
     from vdmrender.techniques import variants
 
     bundle, scene, obj, entry, _ = scene_of(bundle_path)
@@ -71,11 +71,11 @@ def _builders(bundle_path: Path, width: int, height: int):
 
 def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> list[dict]:
     """Interleaved timing in one GL context: per resolution, `rounds` rounds of one frame of each label
-    (after each is warmed up as vdmrender warms up a row: timing.warm_up_each), every pass in its own timer query (vdmrender/timing.py: GPU time, as
+    (after each is warmed up as vdmrender warms up a row: timing.warm_up_each), every pass in its own timer query (vdmrender/measuring/timing.py: GPU time, as
     vdmrender reports it), and the frame's process CPU time (llvmpipe's threads are the process's own: the
     work done, much less disturbed by other processes on a shared machine than wall time)."""
-    from vdmrender import gl
-    from vdmrender.timing import Budget, FrameTimer, warm_up_each
+    from vdmrender.gpu import gl
+    from vdmrender.measuring.timing import Budget, FrameTimer, warm_up_each
 
     ctx = gl.create_context()
     rows = []
@@ -111,13 +111,14 @@ def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> l
 
 
 def march_cost(bundle_path: Path, width: int, height: int) -> dict:
-    """improved+coarse and hier+coarse on the bench camera, instrumented (vdmrender/counters.py): per covered
+    """improved+coarse and hier+coarse on the bench camera, instrumented (vdmrender/measuring/counters.py): per covered
     pixel, over the frame's passes (all but the shadow map's), the fragments the stages ran (improved: every
     box fragment and the coarse mesh's; hier: its pre-passes', the screen pass's and the coarse mesh's),
     texture fetches, march steps (improved: its samples and bisections; hier: cell visits, a pyramid fetch
     each) and searches (a billboard marched or traced); steps per search is a march's mean length."""
-    from vdmrender import counters, gl
-    from vdmrender.measure import is_light_pass
+    from vdmrender.measuring import counters
+    from vdmrender.gpu import gl
+    from vdmrender.measuring.measure import is_light_pass
 
     cam, builds, _ = _builders(bundle_path, width, height)
     ctx = gl.create_context()
@@ -177,7 +178,7 @@ def _markdown(rows: list[dict], bakes: dict, prof: list[dict], cost: dict, devic
             if len(t) == 3:
                 lines.append(f"| {label} | {t['800x600'] / t['400x300']:.2f} | {t['400x300'] / t['200x150']:.2f} |")
     if cost:
-        lines += ["", f"## March cost, {model} {cost_resolution} (instrumented, vdmrender/counters.py)", "",
+        lines += ["", f"## March cost, {model} {cost_resolution} (instrumented, vdmrender/measuring/counters.py)", "",
                   "Per covered pixel, over the frame's passes but the shadow map's; hier's steps are cell visits.", "",
                   "| march (+coarse) | covered pixels | fragments / px | fetches / px | steps / px | searches / px | "
                   "steps / search |", "|---|---:|---:|---:|---:|---:|---:|"]

@@ -4,7 +4,7 @@ displaced reference. Written to JSON and markdown, never asserted.
 
 The elevation model is matplotlib's sample `jacksboro_fault_dem.npz` (344 x 403 int16 metres), written
 as a 16-bit PNG of its metres and as a float EXR: one normalisation rule makes them the same surface.
-Each row carries the surface score (border and inside pixels apart, vdmrender.borders) and the score
+Each row carries the surface score (border and inside pixels apart, vdmrender.tracing.borders) and the score
 over every pixel (mean_dluv_all, iou_all: what the report counted before).
 
     python -m bench.borders -o out/bench-borders [--height png|exr|exr-flipped] [--res 256]

@@ -4,13 +4,13 @@ shadows, octahedral impostors), then fields of N copies (N = 1, 10, 100, 1000, 1
 constant density (one copy per (SPACING r)^2 of ground, r the bounding radius, seeded turns and scales 0.8-1.2),
 seen by two cameras standing at the field's edge and looking across it (copies from near to far, as in a real
 scene). Every variant is timed interleaved (bench.interleave: GPU timer queries after a warm-up, medians), with its
-GPU bytes and per-pixel work (vdmrender.counters), and scored against the reference that traces every copy merged
+GPU bytes and per-pixel work (vdmrender.measuring.counters), and scored against the reference that traces every copy merged
 while that fits the memory budget (vdmbake.bundle.budget.render_bytes, the render's own rule); beyond it the
 error is not measured, and said so. A variant whose frame would take longer than FRAME_BUDGET_S at the next
 N (its time growing with N) is not run there. Per-copy LOD (row lod@dluvLIMIT): one copy measured at SIZES pixels
-across (vdmrender.sweep's cameras, the same interleaved timing, its own reference) gives the chain of the cheapest
-variant within mean ΔLuv LIMIT per band of screen sizes (vdmrender.lod.chain); in every field each copy is then
-drawn per frame by the variant its screen size selects (vdmrender.lodmix.LodMix), as an engine would. The crossover:
+across (vdmrender.views.sweep's cameras, the same interleaved timing, its own reference) gives the chain of the cheapest
+variant within mean ΔLuv LIMIT per band of screen sizes (vdmrender.deciding.lod.chain); in every field each copy is then
+drawn per frame by the variant its screen size selects (vdmrender.views.lodmix.LodMix), as an engine would. The crossover:
 the smallest N at which each impostor's median time is below the full mesh's.
 
     python -m bench.instances -o out/bench [--quick]
@@ -31,8 +31,12 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.common import instances
 from vdmbake.scene import Instances, Scatter
 
-from vdmrender import gl, images, lod, lodmix, refcache, sweep
-from vdmrender.camera import Camera, cameras_for, clip_planes
+from vdmrender.gpu import gl
+from vdmrender.reporting import images
+from vdmrender.deciding import lod
+from vdmrender.views import lodmix, sweep
+from vdmrender.tracing import refcache
+from vdmrender.views.camera import Camera, cameras_for, clip_planes
 from vdmrender.techniques import variants
 
 from .interleave import costs, measure
@@ -152,8 +156,8 @@ def run(out: Path, quick: bool, log) -> dict:
 
 def chain(ctx, bundle, obj, entry, sizes, quick: bool, log) -> list[dict]:
     """The LOD chain of one copy: every variant timed interleaved and scored against the copy's reference at each
-    screen size (vdmrender.sweep's cameras around the bench scene's own views), the cheapest within LIMIT per
-    band (vdmrender.lod.chain): lod.json's entries."""
+    screen size (vdmrender.views.sweep's cameras around the bench scene's own views), the cheapest within LIMIT per
+    band (vdmrender.deciding.lod.chain): lod.json's entries."""
     one = dataclasses.replace(obj, instances=None)
     scene = bundle.scene
     w, h = scene.render.resolution

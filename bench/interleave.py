@@ -1,10 +1,10 @@
 """Alternatives measured against each other in one process, interleaved (A, B, C, A, B, C, ...), for
 the benchmarks: on a shared machine a sequential run gives each variant different neighbours. Per frame,
-the GPU time of its passes by timer queries (vdmrender/timing.py, as vdmrender reports it), the wall
+the GPU time of its passes by timer queries (vdmrender/measuring/timing.py, as vdmrender reports it), the wall
 time and the process's CPU time (llvmpipe's rasteriser threads are the process's own, so CPU time is
 the work done, much less disturbed by other processes than wall time), and each variant's
 error against the reference frames of a previous vdmrender run. Also each variant's device-independent
-costs (vdmrender/counters.py: fragments, texture fetches, search steps and searches)."""
+costs (vdmrender/measuring/counters.py: fragments, texture fetches, search steps and searches)."""
 from __future__ import annotations
 
 import statistics
@@ -17,10 +17,12 @@ import numpy as np
 from vdmbake.formats import exr
 from vdmbake.bundle.directory import Bundle
 
-from vdmrender import counters, gl, images
-from vdmrender.timing import Budget, FrameTimer, warm_up_each
-from vdmrender.camera import cameras_for
-from vdmrender.metrics import compare
+from vdmrender.measuring import counters
+from vdmrender.gpu import gl
+from vdmrender.reporting import images
+from vdmrender.measuring.timing import Budget, FrameTimer, warm_up_each
+from vdmrender.views.camera import cameras_for
+from vdmrender.comparing.metrics import compare
 
 
 def scene_of(bundle_path: Path):

@@ -10,11 +10,11 @@ maps, pyramid atlases, coarse mesh and occupancy-box buffers; not the per-frame 
 targets, reported apart) fix the octahedral atlases: N x N views of R^2 texels at 8 bytes a texel (RGBA16)
 with 8 N^2 R^2 as close as possible to the billboards' bytes, for N = 5, 9, 13, and N = 9 at a quarter
 of them. All variants of a model are timed interleaved (per camera: one render
-each, in turn) after a warm-up to steady times as vdmrender's rows (timing.warm_up_each), each pass in its own timer query (vdmrender/timing.py); the shadow map pass
+each, in turn) after a warm-up to steady times as vdmrender's rows (timing.warm_up_each), each pass in its own timer query (vdmrender/measuring/timing.py); the shadow map pass
 is part of every frame (billboards: the scene's 1024^2 map of the coarse mesh; octahedral: its own, shadow_scale 2, and one
 row with the scene's 1024^2 map for a like-for-like comparison). Octahedral rows also give the frame pass's
 texture fetches (atlas lookups, the albedo atlas's, the shadow map's) and search steps per covered pixel
-(instrumented, vdmrender/counters.py, one camera) and the shadow pass's time.
+(instrumented, vdmrender/measuring/counters.py, one camera) and the shadow pass's time.
 
     python -m bench.octahedral -o out/bench [--quick]
 """
@@ -34,11 +34,15 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.scene import load_scene
 from vdmbake.techniques.octahedral import VARIANT as OCT_VARIANT
 
-from vdmrender import counters, gl, images, reference, techniques
-from vdmrender.camera import cameras_for
-from vdmrender.metrics import compare
+from vdmrender.measuring import counters
+from vdmrender.gpu import gl
+from vdmrender.reporting import images
+from vdmrender.tracing import reference
+from vdmrender import techniques
+from vdmrender.views.camera import cameras_for
+from vdmrender.comparing.metrics import compare
 from vdmrender.techniques import octahedral
-from vdmrender.timing import Budget, FrameTimer, warm_up_each
+from vdmrender.measuring.timing import Budget, FrameTimer, warm_up_each
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
           ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]

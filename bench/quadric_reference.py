@@ -5,7 +5,7 @@ Two tracers, interleaved (old, new, old, new, ...), median of 3 rounds, each rou
 tracer afresh (vdmrender's reference log times the build with the frames):
   box-walk  the original, kept here so the gain stays visible: one box a quadric, Embree float32
             alone deciding which boxes a ray meets;
-  grouped   vdmrender.reference.QuadricTracer: a box a grid cell's group, each its own orientation,
+  grouped   vdmrender.tracing.reference.QuadricTracer: a box a grid cell's group, each its own orientation,
             faces stepped over found in float64.
 Per variant: build s, first frame s (Embree builds its BVH on the first query), steady frame s, and
 rays/s (primary rays plus their shadow rays, as QuadricReference.render casts them). Exactness: the
@@ -32,8 +32,8 @@ from vdmbake.common.geometry import onb
 from vdmbake.kernels.quadrics import QuadricSet
 from vdmbake.scene import Cameras, Light, Material, Orbit
 
-from vdmrender import quadric_math, reference
-from vdmrender.camera import cameras_for
+from vdmrender.tracing import quadric_math, reference
+from vdmrender.views.camera import cameras_for
 
 from .quadrics import MOLECULES, _available
 

@@ -5,9 +5,9 @@ so that Mitsuba's `direct` integrator with one emitter sample renders the same p
 ray and, where it hits, one shadow ray), two orbit cameras, square frames. Variants:
   before     the reference's sampling as it was (main at 62f9cd8), kept here so the gain stays visible: N x N
              jittered strata, one thread (on today's tracer: its per-ray gains count for it too);
-  uniform    vdmrender.reference.filtered with every sample for every pixel (adaptive=False: correlated
+  uniform    vdmrender.tracing.reference.filtered with every sample for every pixel (adaptive=False: correlated
              multi-jittered, every core), as it was before adaptive sampling;
-  ours-1     vdmrender.reference.filtered on one thread (adaptive: N samples first, the rest where they disagree;
+  ours-1     vdmrender.tracing.reference.filtered on one thread (adaptive: N samples first, the rest where they disagree;
              spp is the budget of the hardest pixels, `mean_spp` what it traced);
   ours       the same on every core;
   mitsuba-1  Mitsuba 3 `scalar_rgb`, `direct` integrator (1 emitter sample, no BSDF sample), `multijitter` sampler,
@@ -42,8 +42,10 @@ import numpy as np
 
 from vdmbake.assets.meshes import load_mesh_file, resolve_path
 from vdmbake.scene import Light, Material
-from vdmrender import images, metrics, reference
-from vdmrender.camera import Camera, clip_planes
+from vdmrender.reporting import images
+from vdmrender.comparing import metrics
+from vdmrender.tracing import reference
+from vdmrender.views.camera import Camera, clip_planes
 from tools.make_docs import markdown
 
 MESH = "pkg:pymeshfix/examples/StanfordBunny.ply"

@@ -9,7 +9,7 @@
    subdivision levels, and the plain base mesh, against the displaced geometry traced by Embree; then,
    interleaved in one process, the first implementation's VDM lookup against today's, 8-bit against
    float32 weights, the refine settings against POM, relief and displacement, and the frame pass's costs
-   per covered pixel (vdmrender/counters.py: fragments, texture fetches, search steps, searches).
+   per covered pixel (vdmrender/measuring/counters.py: fragments, texture fetches, search steps, searches).
 
     python -m bench.vdm -o out/bench [--quick]
 """
@@ -28,7 +28,9 @@ from vdmbake.kernels import vdm, vdm_storage
 
 from bench import interleave
 from bench.quadrics import measure_scene
-from vdmrender import gl, progress, report
+from vdmrender.gpu import gl
+from vdmrender import progress
+from vdmrender.reporting import report
 from vdmrender.techniques import Source, variants
 from vdmrender.techniques.vdm import VDMPass
 
@@ -161,7 +163,7 @@ def _markdown(paper: dict, rows: list[dict], device: str, inter: dict) -> str:
         for k, r in m["rows"].items():
             lines.append(f"| {k} | {r['median_ms']:.1f} | {r['median_cpu_ms']:.1f} | {r['median_cpu_ms'] / base:.2f} | "
                          f"{r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
-        lines += ["", "The frame pass's costs per covered pixel (instrumented builds, vdmrender/counters.py; fragments: "
+        lines += ["", "The frame pass's costs per covered pixel (instrumented builds, vdmrender/measuring/counters.py; fragments: "
                   "every one the stage ran, discarded ones too), and its fetches per fragment:", "",
                   "| variant | fragments | texture fetches | search steps | searches | fetches / fragment |",
                   "|---|---:|---:|---:|---:|---:|"]

@@ -1,8 +1,8 @@
 #version 430
-// Supersampling's resolve (vdmrender/antialias.py): each pixel the box-filtered mean of its K x K texels of
+// Supersampling's resolve (vdmrender/measuring/antialias.py): each pixel the box-filtered mean of its K x K texels of
 // the frame rendered K times larger, in linear colour (a mean of sRGB-encoded values would darken edges).
 // Colour is premultiplied by coverage (cleared to 0, covered texels have alpha 1), so the mean is what a
-// viewer sees over the background: rgb + (1 - alpha) background (vdmrender.images.encode).
+// viewer sees over the background: rgb + (1 - alpha) background (vdmrender.reporting.images.encode).
 #include "cost_count.glsl"
 uniform sampler2D u_frame;   // the supersampled frame, RGBA32F, nearest
 uniform int u_k;             // K

@@ -1,4 +1,4 @@
-"""Every test runs with strict GL (vdmrender.gl.strict): a uniform or vertex attribute that a shader
+"""Every test runs with strict GL (vdmrender.gpu.gl.strict): a uniform or vertex attribute that a shader
 does not have fails the test instead of being skipped. Set here, before any test imports the renderer,
 so the CLI runs under CliRunner and in subprocesses are strict too. Also the fixtures several test files
 share and the order make test runs the files in (docs/testing.md)."""
@@ -19,8 +19,8 @@ def pytest_collection_modifyitems(items):
 
 @pytest.fixture(scope="module")
 def ctx():
-    """One headless GL context per test module (vdmrender.gl: EGL, llvmpipe where there is no GPU)."""
-    from vdmrender import gl
+    """One headless GL context per test module (vdmrender.gpu.gl: EGL, llvmpipe where there is no GPU)."""
+    from vdmrender.gpu import gl
 
     c = gl.create_context()
     yield c
@@ -29,13 +29,13 @@ def ctx():
 
 @pytest.fixture
 def no_warm_up(monkeypatch):
-    """No warm-up before timing (vdmrender.timing.warm_up, as the rows and the benches' interleaved loops call
+    """No warm-up before timing (vdmrender.measuring.timing.warm_up, as the rows and the benches' interleaved loops call
     it, with warmup = 0 and warmup_s = 0). The bench smoke tests prove a bench's plumbing; waiting for llvmpipe's
     frame times to agree (up to warmup_max_s per variant on a loaded machine) proves nothing there, and the
     warm-up rule itself is test_timing's."""
     from dataclasses import replace
 
-    from vdmrender import timing
+    from vdmrender.measuring import timing
 
     warm_up = timing.warm_up
     monkeypatch.setattr(timing, "warm_up", lambda timer, renderer, cams, budget:
@@ -46,7 +46,7 @@ def no_warm_up(monkeypatch):
 def gl_context_ok():
     """vdmrender error cases that are reached only after the GL context is made need EGL (llvmpipe works)."""
     from vdmbake.errors import InputError
-    from vdmrender import gl
+    from vdmrender.gpu import gl
 
     try:
         ctx = gl.create_context(None)

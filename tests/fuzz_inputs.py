@@ -142,7 +142,7 @@ def check_manifest(bundle: Path, manifest) -> None:
     line), and every object's cameras and the memory guard work from what was accepted."""
     from vdmbake.bundle.directory import Bundle
     from vdmbake.bundle.parts import KINDS
-    from vdmrender.camera import cameras_for
+    from vdmrender.views.camera import cameras_for
     from vdmrender.render import held_geometry
 
     (bundle / "manifest.json").write_text(json.dumps(manifest))
@@ -834,10 +834,11 @@ def baseline_text(draw, fuzz_report: Quiet):
 
 
 def check_baseline(path: Path, text, new: dict) -> None:
-    """vdmrender.baseline.load on a (damaged) report: an InputError of one line naming --baseline; or a baseline
+    """vdmrender.deciding.baseline.load on a (damaged) report: an InputError of one line naming --baseline; or a baseline
     whose every value compare() reads has its type, and which compare(), table() and to_csv() take without error
     against `new` (a real run's report) and against itself, in both roles. A hang fails by time_limit."""
-    from vdmrender import baseline, report
+    from vdmrender.deciding import baseline
+    from vdmrender.reporting import report
 
     path.write_bytes(text if isinstance(text, bytes) else text.encode("utf-8", "surrogatepass"))
     with time_limit(20, "baseline.load"):

@@ -3,9 +3,9 @@ includes (shaders/include/) with their numpy twins (tests/test_twins.py), usable
 
 `evaluate` draws one fullscreen pass into RGBA32F targets, one fragment per element: the fragment reads
 its element's inputs (vec4 texels of RGBA32F textures, fetched without filtering), runs `body`, and writes
-out0, out1, ... (vec4 each), read back as float32. Only the public helpers of vdmrender.gl are used
+out0, out1, ... (vec4 each), read back as float32. Only the public helpers of vdmrender.gpu.gl are used
 (expand, source, set_uniforms, release), and the program is strict as every other one (a uniform given
-that the program does not have is an error, vdmrender.gl.strict).
+that the program does not have is an error, vdmrender.gpu.gl.strict).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from vdmrender import gl
+from vdmrender.gpu import gl
 
 MAX_WIDTH = 1024    # elements per row of the targets
 
@@ -40,7 +40,7 @@ def evaluate(ctx, includes: list[str], body: str, inputs: np.ndarray | dict[str,
         (initialised to zero). An array `inputs` (N,) or (N, k <= 4) is read as vec4 `inp`; a dict
         {name: (N,) or (N, k <= 4)} as one vec4 per name. Missing components are 0. `idx` is the
         element's index (int). Values reach the shader as float32: round a twin's inputs the same way.
-    uniforms: set by vdmrender.gl.set_uniforms (a 4x4 array is a matrix given row-major).
+    uniforms: set by vdmrender.gpu.gl.set_uniforms (a 4x4 array is a matrix given row-major).
     textures: {sampler uniform: a moderngl texture (bound as it is, owned by the caller) or an array
         (H, W, C <= 4) uploaded as a float32 texture with nearest filtering and released here}.
     """

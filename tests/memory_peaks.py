@@ -8,7 +8,7 @@ for it: run as `python tests/memory_peaks.py KIND ARGS...`, alone in its process
   geometry parts.
 * displaced SIZE: a torus under a `bricks` mesostructure of SIZE texels, tiling 2 x 2: the displaced reference
   (mesh and Embree scene), and the same surface built again and uploaded, as the change's full asset is
-  (vdmrender.change); estimated: the displaced reference part.
+  (vdmrender.comparing.change); estimated: the displaced reference part.
 * quadrics COUNT SIZE: COUNT random spheres' reference, one frame; estimated: the reference and geometry parts.
 * targets SIZE MODE: the harness's targets under anti-aliasing MODE, cleared, resolved and read back;
   estimated: the targets part.
@@ -34,7 +34,7 @@ def _reset() -> int:
 
 
 def _camera(size: int):
-    from vdmrender.camera import Camera
+    from vdmrender.views.camera import Camera
     return Camera(np.array([0.0, -4.0, 1.0]), np.zeros(3), np.array([0.0, 0.0, 1.0]), 40.0, size, size, 0.1, 20.0)
 
 
@@ -48,7 +48,8 @@ def mesh(segments: int, size: int, spp: int, threads: int, cameras: int) -> dict
     from vdmbake.assets.primitives import torus
     from vdmbake.bundle import budget
     from vdmbake.scene import Light, Material
-    from vdmrender import gl, reference
+    from vdmrender.gpu import gl
+    from vdmrender.tracing import reference
     from vdmrender.passes.raster import RasterMesh
 
     ctx = gl.create_context()
@@ -72,7 +73,8 @@ def displaced(size: int) -> dict:
     from vdmbake.common import geometry
     from vdmbake.kernels import vdm
     from vdmbake.scene import Light, Material
-    from vdmrender import gl, reference
+    from vdmrender.gpu import gl
+    from vdmrender.tracing import reference
     from vdmrender.passes.raster import RasterMesh
 
     ctx = gl.create_context()
@@ -95,7 +97,7 @@ def quadrics(count: int, size: int) -> dict:
     from vdmbake.bundle import budget
     from vdmbake.kernels.quadrics import inline
     from vdmbake.scene import Light, Material
-    from vdmrender import reference
+    from vdmrender.tracing import reference
 
     rng = np.random.default_rng(1)
     q, cam = inline(np.c_[rng.uniform(-1, 1, (count, 3)), np.full(count, 0.02)], [], (0.5, 0.5, 0.5)), _camera(size)
@@ -110,7 +112,8 @@ def quadrics(count: int, size: int) -> dict:
 
 def targets(size: int, mode: str) -> dict:
     from vdmbake.bundle import budget
-    from vdmrender import antialias, gl
+    from vdmrender.gpu import gl
+    from vdmrender.measuring import antialias
 
     ctx = gl.create_context()
     before = _reset()

@@ -10,7 +10,7 @@ import numpy as np
 from PIL import Image
 
 from vdmbake.assets import primitives
-from vdmrender.metrics import delta_luv
+from vdmrender.comparing.metrics import delta_luv
 
 from scenes import bake_and_render, rows_by_label
 

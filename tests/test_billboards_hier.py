@@ -15,8 +15,9 @@ from vdmbake.assets import primitives
 from vdmbake.kernels import billboards as bb
 from vdmbake.common import pyramid as P
 from vdmbake.common.mesh import TriMesh, vertex_normals
-from vdmrender import images, metrics
-from vdmrender.camera import Camera, clip_planes
+from vdmrender.reporting import images
+from vdmrender.comparing import metrics
+from vdmrender.views.camera import Camera, clip_planes
 from vdmrender.techniques.billboards_hier import HierBillboards
 
 from frames import BG, LIGHT, MATERIAL, SHADOW, draw, model, orbit_camera, render, score
@@ -271,7 +272,7 @@ def test_no_curtain_below_a_depth_discontinuity(ctx):
     cam = orbit_camera(mesh, 30, 6, distance=2.2)
     frame = render_hier(ctx, hier_boards(baked), cam, bounds=mesh.bounding_sphere())
     err, iou = score(frame, mesh, cam)
-    from vdmrender import reference
+    from vdmrender.tracing import reference
     ref = images.encode(reference.MeshReference(mesh, LIGHT, MATERIAL).render(cam), BG)
     extra = int(((images.encode(frame, BG)[..., 3] > 0) & (ref[..., 3] == 0)).sum())
     assert err < 9.0 and iou > 0.91 and extra < 140, (err, iou, extra)   # measured 7.84, 0.9207, 109
@@ -285,7 +286,7 @@ def test_no_pinholes_without_the_coarse_mesh(ctx):
     has the counts); the exact hierarchical march leaves none."""
     from scipy import ndimage
 
-    from vdmrender import reference
+    from vdmrender.tracing import reference
 
     mesh, baked, _ = model("torus")
     boards, bounds = hier_boards(baked), mesh.bounding_sphere()

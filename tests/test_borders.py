@@ -1,5 +1,5 @@
 """Open boundaries (VDM sec. 5, issue 10): the shell's side wall along a base mesh's borders
-(vdmbake.common.geometry.skirt), the pixel classes the reference and the metric agree on (vdmrender/borders.py),
+(vdmbake.common.geometry.skirt), the pixel classes the reference and the metric agree on (vdmrender/tracing/borders.py),
 and a plane with a real elevation model scored on its surface, its border and inside apart.
 
 Bounds are the figures measured on Mesa llvmpipe with some headroom, the measurement beside them."""
@@ -12,9 +12,9 @@ from vdmbake.common import geometry
 from vdmbake.assets import primitives
 from vdmbake.common.embree import RayScene
 from vdmbake.assets.meshes import load_mesh_file
-from vdmrender import borders as pixel_classes
-from vdmrender.camera import Camera
-from vdmrender.metrics import compare
+from vdmrender.tracing import borders as pixel_classes
+from vdmrender.views.camera import Camera
+from vdmrender.comparing.metrics import compare
 
 from scenes import bake_and_render, rows_by_label
 from meso_scenes import dem, torus_obj, write_png16

@@ -1,5 +1,5 @@
 """What a switch changes (issue 39): every row's frames against its object's full asset drawn the same way
-(vdmrender.change), the floor and the reference's noise beside it, and render settings that do not re-bake."""
+(vdmrender.comparing.change), the floor and the reference's noise beside it, and render settings that do not re-bake."""
 from __future__ import annotations
 
 import json

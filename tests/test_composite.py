@@ -1,4 +1,4 @@
-"""Composite frames (render.composite, vdmrender.composite): every object in one frame with one depth
+"""Composite frames (render.composite, vdmrender.views.composite): every object in one frame with one depth
 buffer and one shadow map of the scene, against a reference tracing every object together."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from click.testing import CliRunner
 from PIL import Image
 
 from vdmbake.cli import main as vdmbake_main
-from vdmrender.camera import enclosing_sphere
-from vdmrender.metrics import delta_luv
+from vdmrender.views.camera import enclosing_sphere
+from vdmrender.comparing.metrics import delta_luv
 
 from scenes import bake_and_render
 
@@ -80,10 +80,12 @@ def test_depth_order_between_techniques(tmp_path):
     # The test measures occlusion: in each frame the objects overlap on screen, and which is in front
     # changes between the two frames (the reference's own per-object depths say so).
     from vdmbake.bundle.directory import Bundle
-    from vdmrender.composite import scene_sphere
-    from vdmrender import images, metrics, reference
-    from vdmrender.camera import cameras_for
-    from vdmrender.refcache import object_reference
+    from vdmrender.views.composite import scene_sphere
+    from vdmrender.reporting import images
+    from vdmrender.comparing import metrics
+    from vdmrender.tracing import reference
+    from vdmrender.views.camera import cameras_for
+    from vdmrender.tracing.refcache import object_reference
 
     bundle = Bundle(tmp_path / "b.bundle")
     scene = bundle.scene

@@ -1,4 +1,4 @@
-"""The device-independent cost counters (vdmrender/counters.py, shaders/include/cost_count.glsl): every
+"""The device-independent cost counters (vdmrender/measuring/counters.py, shaders/include/cost_count.glsl): every
 fragment stage counts, the instrumented build draws the very frame the normal one draws (it only adds
 atomics), the counts are what the stages do on cases whose work is known exactly, and they repeat."""
 from __future__ import annotations
@@ -16,9 +16,10 @@ from vdmbake.kernels import billboards as bb
 from vdmbake.bake import bake
 from vdmbake.common.mesh import TriMesh
 from vdmbake.scene import Light, Material
-from vdmrender import counters, gl
-from vdmrender import quadric_math as qm
-from vdmrender.camera import Camera, clip_planes
+from vdmrender.measuring import counters
+from vdmrender.gpu import gl
+from vdmrender.tracing import quadric_math as qm
+from vdmrender.views.camera import Camera, clip_planes
 from vdmrender.techniques import variants
 from vdmrender.techniques.billboards import Billboards
 from vdmrender.techniques.billboards_hier import HierBillboards

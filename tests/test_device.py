@@ -1,11 +1,11 @@
-"""vdmrender.device: --device parsing (EGL index or cuda:N), the GL device description, NVML clocks."""
+"""vdmrender.gpu.device: --device parsing (EGL index or cuda:N), the GL device description, NVML clocks."""
 import sys
 import types
 
 import pytest
 
 from vdmbake.errors import InputError
-from vdmrender import device
+from vdmrender.gpu import device
 
 
 def test_spec_default_and_index():
@@ -115,7 +115,7 @@ def test_cuda_without_nvidia_lists_devices(monkeypatch):
 
 
 def _renderer() -> str:
-    from vdmrender import gl
+    from vdmrender.gpu import gl
 
     ctx = gl.create_context()
     try:

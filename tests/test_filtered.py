@@ -14,8 +14,11 @@ from vdmbake.assets import primitives
 from vdmbake.common.colour import srgb8_to_linear
 from vdmbake.kernels.quadrics import QuadricSet
 from vdmbake.scene import Light, Material
-from vdmrender import antialias, gl, images, reference
-from vdmrender.camera import Camera, clip_planes
+from vdmrender.measuring import antialias
+from vdmrender.gpu import gl
+from vdmrender.reporting import images
+from vdmrender.tracing import reference
+from vdmrender.views.camera import Camera, clip_planes
 from vdmrender.passes.raster import RasterMesh
 
 SIZE, FOV, DISTANCE, RADIUS = 40, 40.0, 4.0, 1.0
@@ -66,7 +69,7 @@ def test_the_noise_estimate_from_two_halves_of_the_strata_is_the_true_error():
     samples are adaptive) against its true error, the filtered frame against the sphere's exact coverage (both
     encoded over the background, mean ΔLuv over the pixels either covers): within 30% of it at 16, 36 and 64 spp,
     falling as the samples grow; 0 for a frame whose every sample agrees (the inside of the silhouette)."""
-    from vdmrender import metrics, scoring
+    from vdmrender.comparing import metrics, scoring
 
     ref, cam, exact = sphere_reference(), camera(), coverage()
     bg = np.array([0.1, 0.2, 0.3])
@@ -204,7 +207,7 @@ def test_filtered_error_falls_with_screen_size(tmp_path):
 def test_a_baseline_measured_otherwise_is_not_compared_for_error(tmp_path):
     """Errors against a 1-spp reference and against a 16-spp one are different measures: --max-error-increase
     across them is refused (exit 2), and without it the change table leaves the error changes out, saying why."""
-    from vdmrender import baseline
+    from vdmrender.deciding import baseline
 
     old = {"filtering": {"reference_spp": 1, "antialias": "none"}}
     assert baseline.errors_comparable(old, {"reference_spp": 1, "antialias": "none"}) is None

@@ -140,7 +140,7 @@ def fuzz_report(tmp_path_factory) -> dict:
 
     from scenes import bake_and_render
     from vdmbake.errors import InputError
-    from vdmrender import gl
+    from vdmrender.gpu import gl
 
     try:
         gl.create_context(None).release()
@@ -161,7 +161,7 @@ def test_fuzz_baseline(fuzz_report, tmp_path_factory, data):
 def test_fuzz_baseline_is_accepted_unmutated(fuzz_report, tmp_path):
     import json
 
-    from vdmrender import baseline
+    from vdmrender.deciding import baseline
 
     report, = fuzz_report
     (tmp_path / "report.json").write_text(json.dumps(report))

@@ -37,9 +37,10 @@ from PIL import Image
 from vdmbake.bake import bake
 from vdmbake.bundle.directory import Bundle
 from vdmbake.scene import Scene, parse_scene_dict
-from vdmrender import gl, images
-from vdmrender.camera import cameras_for
-from vdmrender.metrics import compare
+from vdmrender.gpu import gl
+from vdmrender.reporting import images
+from vdmrender.views.camera import cameras_for
+from vdmrender.comparing.metrics import compare
 from vdmrender.techniques import variants
 
 GOLDEN = Path(__file__).parent / "golden"

@@ -504,7 +504,7 @@ def test_full_disk_is_exit_2(tmp_path, monkeypatch):
 
 
 def test_shader_compile_error_is_exit_2_with_the_log(monkeypatch):
-    from vdmrender import gl
+    from vdmrender.gpu import gl
 
     try:
         ctx = gl.create_context(None)

@@ -10,7 +10,7 @@ import pytest
 
 from vdmbake.assets import heightfields
 from vdmbake.common import pyramid as P
-from vdmrender import gl
+from vdmrender.gpu import gl
 from vdmrender.passes import hftrace
 
 from hf_cases import fields, random_rays, slot_field

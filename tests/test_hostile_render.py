@@ -15,7 +15,8 @@ import pytest
 from click.testing import CliRunner
 
 from vdmbake.cli import main as bake_main
-from vdmrender import gl, report
+from vdmrender.gpu import gl
+from vdmrender.reporting import report
 from vdmrender.cli import main as render_main
 
 from scenes import TINY_HEAD

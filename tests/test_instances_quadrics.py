@@ -78,7 +78,7 @@ def test_one_copy_in_place_gives_the_same_floats(ctx):
     """The renderers' float frames, not only their 8-bit encodings: a copy at the identity is drawn through the
     storage buffers (INSTANCED) exactly as the object through its per-instance attributes."""
     from vdmbake.kernels import quadrics
-    from vdmrender.camera import Camera
+    from vdmrender.views.camera import Camera
     from vdmrender.techniques.impostor import Impostors
     from vdmrender.techniques.tessellated import Tessellated
     from frames import LIGHT as L, MATERIAL, draw
@@ -99,7 +99,7 @@ def shadowed_share(bundle_path, name: str) -> float:
     float64 tracer): what the pair's agreement on shadows is about."""
     from vdmbake.bundle import parts
     from vdmbake.bundle.directory import Bundle
-    from vdmrender.reference import QuadricTracer
+    from vdmrender.tracing.reference import QuadricTracer
     from vdmbake.common.instances import placed_quadrics
 
     bundle = Bundle(bundle_path)
@@ -202,11 +202,12 @@ def test_copies_far_from_the_origin_keep_float32_precision(tmp_path):
 
 @pytest.mark.gl
 def test_place_draws_the_copies_it_is_given(ctx):
-    """A per-copy LOD mix (vdmrender.lodmix.LodMix) hands each variant, per frame, the copies whose band names it:
+    """A per-copy LOD mix (vdmrender.views.lodmix.LodMix) hands each variant, per frame, the copies whose band names it:
     `place` sets how many copies the next frame draws, from the buffer sized for all of them."""
     from vdmbake.kernels import quadrics
-    from vdmrender import counters, gl
-    from vdmrender.camera import Camera
+    from vdmrender.measuring import counters
+    from vdmrender.gpu import gl
+    from vdmrender.views.camera import Camera
     from vdmrender.techniques.impostor import Impostors
     from vdmrender.techniques.tessellated import Tessellated
     from frames import LIGHT as L, MATERIAL

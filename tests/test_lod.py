@@ -1,4 +1,4 @@
-"""Error and cost against screen size (vdmrender.sweep), LOD chains picked from them (vdmrender.lod), and their
+"""Error and cost against screen size (vdmrender.views.sweep), LOD chains picked from them (vdmrender.deciding.lod), and their
 export for engines (vdmbake.export): glTF 2.0 with MSFT_lod checked by the Khronos validator and read back by an
 independent reader (pygltflib)."""
 import json
@@ -14,8 +14,9 @@ from scenes import BRICK_PLANE, RENDER, bake_and_render
 from vdmbake.bundle.directory import Bundle
 from vdmbake.export.gltf import safe, up_to_y
 from vdmbake.scene import Thresholds
-from vdmrender import lod, metrics, pricing, scoring
-from vdmrender.sweep import distance_for
+from vdmrender.deciding import lod, pricing
+from vdmrender.comparing import metrics, scoring
+from vdmrender.views.sweep import distance_for
 
 SWEEP = """
 [render.sweep]
@@ -83,7 +84,7 @@ def test_sweep_renders_each_size_and_picks_chains(tmp_path):
 
 
 def clearly_slower(paired: dict, label: str) -> bool:
-    """An oracle apart from vdmrender.pricing: the exact one-sided sign test (scipy) that `label`'s frames cost more
+    """An oracle apart from vdmrender.deciding.pricing: the exact one-sided sign test (scipy) that `label`'s frames cost more
     than 1 + EQUAL times their partners' of the fastest (the least median) in most pairs, at the 1% level. Where
     pricing finds a variant not slower (its 95% interval of the median log-ratio reaching below log(1 + EQUAL)),
     at most n/2 + 0.98 sqrt(n) pairs lie above, and this test gives p >= 0.03 for every n < 200; so it fails

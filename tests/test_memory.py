@@ -76,8 +76,8 @@ def test_one_message_names_the_parts_the_sum_the_limit_and_the_setting():
         budget.check_render(r, free=need - 1)
     message = str(e.value)
     assert message.startswith("the render (reference ")
-    for needle in ("640x480 at 16 spp on 3 threads, 4 cameras", f"geometry {2_000 * 8192 / 2**30:.3g} GiB: object 'b'", "targets",
-                   "ssaa2", f"needs about {need / 2**30:.1f} GiB", "memory available now",
+    for needle in ("640x480 at 16 spp on 3 threads, 4 cameras", f"geometry {2_000 * 8192 / 2**30:.3g} GiB: object 'b'",
+                   "targets", "ssaa2", f"needs about {need / 2**30:.1f} GiB", "memory available now",
                    "lower the reference: render.resolution (--resolution), render.reference_spp"):
         assert needle in message, (needle, message)
     assert "displaced reference" not in message        # a part of nothing is left out
@@ -94,7 +94,8 @@ def test_held_to_the_budget_however_much_is_free(monkeypatch):
 
 def _no_tracing(monkeypatch):
     """Fail the test if the run reaches a reference or a GL context."""
-    from vdmrender import gl, refcache
+    from vdmrender.gpu import gl
+    from vdmrender.tracing import refcache
 
     def reached(*args, **kwargs):
         raise AssertionError("the run started work before its memory was checked")

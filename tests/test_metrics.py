@@ -1,4 +1,4 @@
-"""vdmrender.metrics and vdmrender.shading, checked against colour-science (an independent
+"""vdmrender.comparing.metrics and vdmrender.tracing.shading, checked against colour-science (an independent
 implementation of the sRGB transfer functions, the sRGB -> XYZ matrix and CIE 1976 L*u*v*)
 and against hand-computed shading values."""
 from __future__ import annotations
@@ -16,7 +16,8 @@ with warnings.catch_warnings():
 
 from vdmbake.common.colour import srgb_encode, to_srgb8
 from vdmbake.scene import Light, Material
-from vdmrender import metrics, shading
+from vdmrender.comparing import metrics
+from vdmrender.tracing import shading
 
 D65_XY = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]  # (0.3127, 0.3290)
 

@@ -15,8 +15,9 @@ from vdmbake.common.mesh import TriMesh
 from vdmbake.bake import bake
 from vdmbake.common import texture
 from vdmbake.scene import Light, Material
-from vdmrender import counters, gl
-from vdmrender.camera import Camera, clip_planes
+from vdmrender.measuring import counters
+from vdmrender.gpu import gl
+from vdmrender.views.camera import Camera, clip_planes
 from vdmrender.passes.raster import RasterMesh
 from vdmrender.techniques import variants
 

@@ -12,7 +12,9 @@ import pytest
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from vdmrender import lod, report, sweep  # noqa: E402
+from vdmrender.deciding import lod
+from vdmrender.reporting import report
+from vdmrender.views import sweep
 
 # (lowest, highest) time in ms: a few percent, within one decade, a decade and a half, several decades
 SPANS = [(100.0, 100.6), (210.0, 229.0), (21.0, 60.0), (3.0, 70.0), (0.05, 500.0), (0.002, 4000.0)]

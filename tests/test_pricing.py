@@ -1,10 +1,10 @@
-"""Deciding which variant is cheaper so that two runs decide alike (vdmrender.pricing): the median's confidence
+"""Deciding which variant is cheaper so that two runs decide alike (vdmrender.deciding.pricing): the median's confidence
 interval, the verdicts on paired frames under a load that moves, and the LOD chain's choice from them."""
 from __future__ import annotations
 
 import numpy as np
 
-from vdmrender import lod, pricing
+from vdmrender.deciding import lod, pricing
 
 
 def test_median_interval_holds_the_median_at_its_stated_rate():
@@ -64,7 +64,7 @@ class _Timer:
         self.drawn = []
 
     def frame(self, renderer, camera, index=0):
-        from vdmrender.timing import Sample
+        from vdmrender.measuring.timing import Sample
 
         self.drawn.append(renderer.label)
         return Sample(index, 1.0, 1.0, 0.0, {"frame": 1.0})
@@ -84,7 +84,7 @@ def test_interleaved_pricing_warms_up_each_candidate_by_the_rows_rule():
     with no warm-up asked for, it times from the first frame."""
     from types import SimpleNamespace
 
-    from vdmrender.timing import Budget
+    from vdmrender.measuring.timing import Budget
 
     cams = ["c0", "c1"]
     for budget, warm in ((Budget(warmup=5, warmup_s=0.0), 10), (Budget(warmup=0, warmup_s=0.0), 0)):

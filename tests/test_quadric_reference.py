@@ -1,4 +1,4 @@
-"""The quadric reference's tracer (grouped boxes, vdmrender.quadric_groups) against brute force over
+"""The quadric reference's tracer (grouped boxes, vdmrender.tracing.quadric_groups) against brute force over
 every quadric: rounded coordinates whose box faces line up, a real molecule in two styles, and the
 pieces it is built from."""
 from __future__ import annotations
@@ -11,9 +11,9 @@ import pytest
 from vdmbake.assets.meshes import resolve_path
 from vdmbake.assets.molecules import load_molecule
 from vdmbake.kernels.quadrics import QuadricSet
-from vdmrender import quadric_groups
-from vdmrender import quadric_math as qm
-from vdmrender.reference import QuadricTracer
+from vdmrender.tracing import quadric_groups
+from vdmrender.tracing import quadric_math as qm
+from vdmrender.tracing.reference import QuadricTracer
 
 
 def unit(v):

@@ -10,8 +10,8 @@ from click.testing import CliRunner
 
 from vdmbake.cli import main as bake_main
 from vdmbake.common.geometry import onb
-from vdmrender import quadric_math as qm
-from vdmrender.camera import Camera
+from vdmrender.tracing import quadric_math as qm
+from vdmrender.views.camera import Camera
 
 from scenes import bake_and_render, rows_by_label
 
@@ -282,7 +282,7 @@ def test_tracer_from_inside_overlapping_quadrics_matches_brute_force():
     of every quadric tested by brute force (the old walk got many of them wrong), and shadow rays (any hit) with
     a short range agree on whether something lies within it."""
     from vdmbake.kernels.quadrics import QuadricSet
-    from vdmrender.reference import QuadricTracer
+    from vdmrender.tracing.reference import QuadricTracer
 
     rng = np.random.default_rng(3)
     s = np.c_[rng.uniform(-3, 3, (300, 3)), rng.uniform(0.4, 0.9, 300)]

@@ -31,9 +31,10 @@ def stage_errors(tmp_path, out, *defines_list, iterations=32):
     cameras, against the reference the CLI run traced."""
     from vdmbake.formats import exr
     from vdmbake.scene import parse_scene_dict
-    from vdmrender import gl, images
-    from vdmrender.camera import cameras_for
-    from vdmrender.metrics import compare
+    from vdmrender.gpu import gl
+    from vdmrender.reporting import images
+    from vdmrender.views.camera import cameras_for
+    from vdmrender.comparing.metrics import compare
     from vdmrender.techniques import Source
     from vdmrender.techniques.relief import ReliefPass
     b = Bundle(tmp_path / "b.bundle")

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from PIL import Image
 
 from vdmbake.cli import main as bake_main
-from vdmrender import gl
+from vdmrender.gpu import gl
 from vdmrender.cli import main as render_main
 
 import scenes

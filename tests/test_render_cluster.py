@@ -66,7 +66,8 @@ def test_a_local_cluster_renders_what_one_machine_renders(library, tmp_path):
 def test_times_from_several_devices_are_not_compared():
     """Runs on workers with different devices make a combined report whose device names them all: a baseline from
     any one device does not compare its times with it (nor it with another one), unless --compare-devices."""
-    from vdmrender import baseline, many
+    from vdmrender.deciding import baseline
+    from vdmrender import many
 
     gpu = {"time": "gpu", "device": "NVIDIA H200"}
     assert many.device(["NVIDIA H200", "NVIDIA H200"]) == "NVIDIA H200"

@@ -1,4 +1,4 @@
-"""report.html (vdmrender.html, issues 35 and 44): the page of a small real render with a sweep and an LOD chain,
+"""report.html (vdmrender.reporting.html, issues 35 and 44): the page of a small real render with a sweep and an LOD chain,
 of one without, of a --baseline run with a regression, and of a many-bundle run; self-contained (no network
 address loaded), every image it names on disk, a table row per report row, the verdict first; and the page in a
 real browser (Debian's headless Chromium, `make sysdeps`): its script runs without an error, images load, the
@@ -22,8 +22,8 @@ from click.testing import CliRunner
 from PIL import Image
 
 from scenes import TINY_HEAD, bake_and_render
-from vdmrender import html as vhtml
-from vdmrender import measure
+from vdmrender.reporting import html as vhtml
+from vdmrender.measuring import measure
 from vdmrender.cli import main as render_main
 
 pytestmark = pytest.mark.gl

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image, ImageDraw
 
-from vdmrender import images, report
+from vdmrender.reporting import images, report
 
 LABELS = ["mesh", "coarse@0.1", "billboards@greedy-hier+coarse", "billboards@greedy-improved+coarse"]
 

@@ -8,7 +8,7 @@ from click.testing import CliRunner
 
 from scenes import RENDER, bake_and_render
 from vdmbake.errors import InputError
-from vdmrender import baseline
+from vdmrender.deciding import baseline
 from vdmrender.cli import main as render_main
 
 BALL = """

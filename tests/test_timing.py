@@ -1,4 +1,4 @@
-"""GPU time by timer queries (vdmrender.timing): the warm-up's steady-state rule, the within-camera spread,
+"""GPU time by timer queries (vdmrender.measuring.timing): the warm-up's steady-state rule, the within-camera spread,
 the harness's clear kept out of every technique's time, --baseline that knows noise (on scripted reports), and
 a doubled pass (the test-only knob VDM_TEST_DOUBLE_PASS) caught exactly by the counters."""
 from __future__ import annotations
@@ -9,7 +9,9 @@ import numpy as np
 from click.testing import CliRunner
 
 from scenes import TINY_HEAD, bake_and_render
-from vdmrender import baseline, gl, measure, timing
+from vdmrender.deciding import baseline
+from vdmrender.gpu import gl
+from vdmrender.measuring import measure, timing
 from vdmrender.cli import main as render_main
 
 

@@ -13,7 +13,10 @@ from click.testing import CliRunner
 import vdmbake
 import vdmbake.bake as bake_mod
 from vdmbake.cli import main as bake_main
-from vdmrender import baseline, gl, progress, refcache
+from vdmrender.deciding import baseline
+from vdmrender.gpu import gl
+from vdmrender import progress
+from vdmrender.tracing import refcache
 from vdmrender.cli import main as render_main
 
 from scenes import TINY_HEAD, bake_and_render, rows_by_label
@@ -56,9 +59,9 @@ def test_code_fingerprint_follows_imports_and_edits(tmp_path, monkeypatch):
 
 def test_reference_code_covers_what_the_reference_runs():
     mods = vdmbake.imported_closure(refcache.REFERENCE_ROOTS)
-    assert {"vdmrender.reference", "vdmrender.quadric_math", "vdmrender.shading", "vdmrender.camera",
+    assert {"vdmrender.tracing.reference", "vdmrender.tracing.quadric_math", "vdmrender.tracing.shading", "vdmrender.views.camera",
             "vdmbake.common.embree", "vdmbake.common.geometry", "vdmbake.common.instances"} <= set(mods)
-    assert "vdmrender.gl" not in mods                 # GL code does not invalidate the cached reference
+    assert "vdmrender.gpu.gl" not in mods                 # GL code does not invalidate the cached reference
     meso = vdmbake.imported_closure(["vdmrender.passes.mesostructure"])
     assert "vdmrender.passes.mesostructure" in meso
     assert refcache.reference_code(True) != refcache.reference_code(False)
@@ -189,7 +192,7 @@ def test_textures_are_bound_by_sampler_name():
 
 
 def test_no_dead_shadow_bias():
-    from vdmrender.gl import source
+    from vdmrender.gpu.gl import source
 
     assert "u_shadow_bias" not in source("mesh.frag") and "u_shadow_bias" not in source("sphere.frag")
 

@@ -24,9 +24,10 @@ from vdmbake.common import texspace, texture
 from vdmbake.common.geometry import onb
 from vdmbake.common.mesh import SurfaceFrame
 import curved_ray as cr
-from vdmrender import gl, quadric_math, shading
+from vdmrender.gpu import gl
+from vdmrender.tracing import quadric_math, shading
 from vdmrender.passes import hftrace
-from vdmrender.camera import Camera, pixel_ray, window_depth
+from vdmrender.views.camera import Camera, pixel_ray, window_depth
 from glsl_eval import evaluate
 
 

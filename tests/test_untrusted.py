@@ -332,7 +332,7 @@ def test_an_atlas_is_built_within_the_side_gl_reads(tmp_path):
 
 def test_a_supersampled_target_over_the_device_limit_is_refused(ctx):
     """Failed before: --antialias ssaa4 --resolution 8192x16 gave a moderngl traceback (a target 32768 wide)."""
-    from vdmrender import antialias
+    from vdmrender.measuring import antialias
 
     most = ctx.info["GL_MAX_TEXTURE_SIZE"]
     with pytest.raises(InputError, match=rf"--antialias ssaa4 at {most // 2} x 16: the supersampled target of "
@@ -344,7 +344,7 @@ def test_a_supersampled_target_over_the_device_limit_is_refused(ctx):
 
 def test_an_albedo_texture_over_the_device_limit_is_refused(ctx):
     """A bundle baked elsewhere (or edited) can hold a map wider than this device reads: refused, not drawn black."""
-    from vdmrender import gl
+    from vdmrender.gpu import gl
 
     most = ctx.info["GL_MAX_TEXTURE_SIZE"]
     with pytest.raises(InputError, match=rf"the albedo map of {most + 1} x 1 is over .*'s GL_MAX_TEXTURE_SIZE of "
@@ -378,7 +378,7 @@ def test_runs_md_escapes_what_it_prints():
 
 
 def test_baseline_md_escapes_what_it_prints():
-    from vdmrender import baseline
+    from vdmrender.deciding import baseline
 
     row = {k: None for k in ("old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv", "new_p95_dluv",
                              "d_p95_dluv", "d_flip", "old_ms", "new_ms", "time_ratio", "noise_ms")}

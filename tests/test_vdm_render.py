@@ -233,7 +233,7 @@ def test_object_without_vdm_gets_no_tables(tmp_path):
 def dark_fractions(tmp_path, out, label):
     """Over the pixels both cover, the fraction shaded with the ambient only (shadowed, or facing away
     from the light) in the frame but not in the reference (false dark), and the reverse (missed dark)."""
-    from vdmrender.images import encode
+    from vdmrender.reporting.images import encode
 
     sc = json.loads((tmp_path / "b.bundle/manifest.json").read_text())["scene"]
     amb = np.array(sc["light"]["ambient"]) * np.array(sc["objects"][0]["material"]["albedo"])
@@ -286,7 +286,7 @@ def test_refine_brings_vdm_below_pom(tmp_path):
 
 
 def test_costs_per_fragment(tmp_path):
-    """The cost counters (vdmrender/counters.py) of vdm.frag at k = 8 (two RGBA groups), per what a fragment
+    """The cost counters (vdmrender/measuring/counters.py) of vdm.frag at k = 8 (two RGBA groups), per what a fragment
     does past its V.z test: the view ray is a search, and so is the light ray where the light is above the
     surface. The paper's algorithm (refine 0) looks each up with 2 x 2 weight fetches (phi interpolated) and 2 x
     2 eigenfunction fetches; unless the MVM says miss, the height at T', the normal and the shadow map follow:
@@ -295,7 +295,8 @@ def test_costs_per_fragment(tmp_path):
     each a step and a fetch, then the 3: view searches V = steps - 4 searches, light searches 5 searches -
     steps, and fetches - 6 V - steps in [0, 3 V]."""
     from bench.interleave import scene_of
-    from vdmrender import counters, gl
+    from vdmrender.measuring import counters
+    from vdmrender.gpu import gl
     from vdmrender.techniques import Source
     from vdmrender.techniques.vdm import VDMPass
 

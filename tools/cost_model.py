@@ -2,7 +2,7 @@
 rows of vdmrender reports made there.
 
 Per frame, time = c0 + c_fragment * fragments + c_fetch * fetches + c_step * steps + c_primitive * primitives
-+ c_light * light-pass fragments (vdmrender.counters; the light's pass apart, since it works at the shadow
++ c_light * light-pass fragments (vdmrender.measuring.counters; the light's pass apart, since it works at the shadow
 map's size), with every coefficient >= 0, fitted by least squares on the relative error (so fast and slow
 rows weigh alike). Reported: the fitted costs, Spearman's rank correlation of predicted and measured times,
 and the median relative error both in the fit and leaving each row out (prediction, not description).
@@ -18,13 +18,13 @@ from pathlib import Path
 import click
 import numpy as np
 
-from vdmrender.measure import is_light_pass
+from vdmrender.measuring.measure import is_light_pass
 
 FEATURES = ("fragments", "fetches", "steps", "primitives", "light fragments")
 
 
 def features(row: dict) -> list[float]:
-    """The row's counters per frame, camera passes and the light's pass apart (vdmrender.measure)."""
+    """The row's counters per frame, camera passes and the light's pass apart (vdmrender.measuring.measure)."""
     frames = row["frames"]
     cam = {k: 0 for k in ("fragments", "fetches", "steps")}
     light = 0

@@ -2,9 +2,9 @@
 timed another way, and the two compared per camera.
 
 vdmrender times every pass of every frame in its own GL_TIME_ELAPSED query after its warm-up rule
-(vdmrender.timing). Here, after a fixed sustained warm-up (default 2 s of continuous rendering), one
+(vdmrender.measuring.timing). Here, after a fixed sustained warm-up (default 2 s of continuous rendering), one
 query spans N whole frames (the target's clear, then renderer.render through the kept view) and a second
-one N clears alone; a frame's time is their difference over N. Nothing of vdmrender.timing is used.
+one N clears alone; a frame's time is their difference over N. Nothing of vdmrender.measuring.timing is used.
 
     python tools/timer_check.py BUNDLE REPORT.json -o check.json [--frames 200] [--warmup-s 2]
 """
@@ -17,8 +17,8 @@ from pathlib import Path
 import click
 
 from vdmbake.bundle.directory import Bundle
-from vdmrender import gl
-from vdmrender.camera import cameras_for
+from vdmrender.gpu import gl
+from vdmrender.views.camera import cameras_for
 from vdmrender.techniques import variants
 
 

@@ -45,7 +45,7 @@ class VariantSets(Type):
 
 
 # What a LOD chain's limits bound (Thresholds.limit_on): each limit's report field, against the full asset or the
-# reference (vdmrender.change).
+# reference (vdmrender.comparing.change).
 LIMIT_ON = {"change": {"mean_dluv": "change_dluv", "p95_dluv": "change_p95_dluv", "flip": "change_flip",
                        "iou": "change_iou"},
             "reference": {"mean_dluv": "mean_dluv", "p95_dluv": "p95_dluv", "flip": "flip_mean", "iou": "iou"}}
@@ -53,7 +53,7 @@ LIMIT_ON = {"change": {"mean_dluv": "change_dluv", "p95_dluv": "change_p95_dluv"
 
 @dataclass(frozen=True)
 class Thresholds:
-    """One LOD chain's limits (vdmrender.lod): a variant may be chosen at a screen size only if what the limits are
+    """One LOD chain's limits (vdmrender.deciding.lod): a variant may be chosen at a screen size only if what the limits are
     on (`limit_on`) stays under every limit given there, over all the views together."""
     name: str = setting(REQUIRED, Text("1-64 characters from A-Z a-z 0-9 _ -", r"[A-Za-z0-9_-]{1,64}"),
                         "the chain's name (lod.json, the report)")
@@ -81,7 +81,7 @@ class Thresholds:
 
 @dataclass(frozen=True)
 class Sweep:
-    """Error and cost against screen size (vdmrender.sweep): every view again with the camera moved along its
+    """Error and cost against screen size (vdmrender.views.sweep): every view again with the camera moved along its
     line of sight until the object's bounding sphere spans each size on screen; the frame size stays."""
     sizes: tuple[int, ...] = setting(REQUIRED, ListOf(Integer(2, 4 * MAX_SIDE)),
                                      "the bounding sphere's projected diameter in pixels, e.g. [512, 256, 128, 64, 32, "

@@ -26,9 +26,9 @@ def reference() -> str:
     """The markdown of every scene key, primitive parameter and technique setting."""
     out = _table("`[render]`", markdown(Render))
     out += _table("`[render.sweep]`", markdown(Sweep)[:1] + markdown(Thresholds, "lod[]."),
-                  "Every view again with the object at each size on screen (vdmrender.sweep), and per "
+                  "Every view again with the object at each size on screen (vdmrender.views.sweep), and per "
                   "`[[render.sweep.lod]]` a LOD chain: per band of sizes the cheapest variant within its limits "
-                  "(`lod.json`; vdmrender.lod).")
+                  "(`lod.json`; vdmrender.deciding.lod).")
     out += _table("`[camera]`", markdown(Cameras)[:1] + markdown(Orbit, "orbit.") + markdown(Pose, "poses[]."),
                   "Without `poses`, or with an `orbit` table beside them, each object gets the orbit cameras, "
                   "framed on its bounding sphere; `[[camera.poses]]` add cameras at absolute positions.")
@@ -46,7 +46,7 @@ def reference() -> str:
                   "bounding-sphere centre. The cameras frame every copy, the shadow map spans them, and the "
                   "reference traces them all, merged (the memory guard counts each copy's faces). With "
                   "`[[render.sweep.lod]]`, the sweep draws one copy, and each chain adds a row `lod@CHAIN`: per frame "
-                  "every copy drawn by the variant its screen size selects, as an engine would (vdmrender.lodmix.LodMix).")
+                  "every copy drawn by the variant its screen size selects, as an engine would (vdmrender.views.lodmix.LodMix).")
     out += _table("`[objects.mesostructure]`", markdown(Mesostructure),
                   "Mesh or primitive objects with texture coordinates; needed by `vdm`, `pom`, `bump`, `displaced`.")
     out += ["#### Techniques (`[objects.techniques]`)", "",

@@ -13,9 +13,9 @@ from vdmbake.errors import InputError, escaped, fail, guarded
 from vdmbake.cluster import check_address
 from vdmbake.scene import ANTIALIAS, MAX_SIDE, MAX_SPP, REGISTRY
 
-from . import gl
+from .gpu import gl
 from . import many as many_bundles
-from .baseline import table as baseline_table
+from .deciding.baseline import table as baseline_table
 from .render import Options, run
 
 

@@ -20,8 +20,9 @@ from vdmbake.bundle.staging import StagedDir
 from vdmbake.errors import InputError, paragraph
 from vdmbake.cluster import handed_back
 
-from . import baseline, html, report
-from .markdown import cell
+from .deciding import baseline
+from .reporting import html, report
+from .reporting.markdown import cell
 from .render import run
 
 
@@ -138,7 +139,7 @@ def _combine(done: list[dict], staged: StagedDir, opts, old) -> dict:
 def device(devices: list[str]) -> str | None:
     """The combined report's device: the runs' one, or, for runs on several (a cluster's workers), every one named,
     so that --baseline compares no times across devices unless --compare-devices
-    (vdmrender.baseline.times_comparable)."""
+    (vdmrender.deciding.baseline.times_comparable)."""
     devices = list(dict.fromkeys(devices))
     return devices[0] if len(devices) == 1 else f"several devices: {'; '.join(devices)}" if devices else None
 

@@ -18,11 +18,15 @@ from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
-from . import (baseline, change, composite, gl, html, images, lod, lodmix, measure, pricing, refcache, reference,
-               report, scoring, sweep, timing)
-from . import device as gpu
-from .camera import cameras_for, framed
-from .metrics import summarise
+from .comparing import change, scoring
+from .comparing.metrics import summarise
+from .deciding import baseline, lod, pricing
+from .gpu import device as gpu, gl
+from .measuring import measure, timing
+from .reporting import html, images, report
+from .tracing import refcache, reference
+from .views import composite, lodmix, sweep
+from .views.camera import cameras_for, framed
 from .techniques import variants
 
 
@@ -66,11 +70,11 @@ class Options:
     heat_max: float = 10.0                       # delta-Luv at the top of the heat-map colour scale
     flip: bool = True                            # also score each frame with NVIDIA FLIP
     baseline: Path | None = None                 # an earlier run's report.json to compare with
-    max_error_increase: float | None = None      # its thresholds (vdmrender.baseline)
+    max_error_increase: float | None = None      # its thresholds (vdmrender.deciding.baseline)
     max_slowdown: float | None = None
     compare_devices: bool = False                # compare times with a baseline from another device
-    counters: bool = True                        # count each variant's work (vdmrender.counters)
-    sizes: tuple[int, ...] | None = None         # screen-size sweep (vdmrender.sweep), overrides render.sweep.sizes
+    counters: bool = True                        # count each variant's work (vdmrender.measuring.counters)
+    sizes: tuple[int, ...] | None = None         # screen-size sweep (vdmrender.views.sweep), overrides render.sweep.sizes
     reference_spp: int | None = None             # the reference's samples per pixel, overrides render.reference_spp
     antialias: str | None = None                 # the variants' anti-aliasing (vdmbake.scene.ANTIALIAS), overrides render.antialias
 
@@ -123,11 +127,11 @@ CHANGE = ("change_*: the variant's frames against its object's full asset (chang
           "change when the full asset is swapped for the variant; the full asset's own row changes nothing. "
           "floor_dluv, floor_p95_dluv, floor_iou: the full asset's error against the reference at the same views, what the "
           "pipeline costs whatever the representation; reference_noise_dluv: the reference's own sampling noise, "
-          "from two halves of its strata (vdmrender.scoring.noise), below which no two errors can be told apart")
+          "from two halves of its strata (vdmrender.comparing.scoring.noise), below which no two errors can be told apart")
 
 
 SWEEP = ("every view again with the camera moved along its line of sight, aimed at the object's bounding-sphere "
-         "centre, to where the sphere's silhouette is size_px pixels across (vdmrender.sweep.distance_for; "
+         "centre, to where the sphere's silhouette is size_px pixels across (vdmrender.views.sweep.distance_for; "
          "distance_radii: the first view's eye distance in radii); frame size, field of view and timing as the rows'; frames "
          "under sizes/NNNpx/")
 
@@ -164,7 +168,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         sizes = sorted(opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ()), reverse=True)
         lod_sets = scene.render.sweep.lod if sizes and scene.render.sweep else ()
         rows, sweep_rows, per_object = [], [], {}
-        for obj in scene.objects:   # each object once: its sweep, its chains, then its cameras (vdmrender.lodmix)
+        for obj in scene.objects:   # each object once: its sweep, its chains, then its cameras (vdmrender.views.lodmix)
             views = render_views(harness, out, bundle, scene, obj, only, opts, device, log, sizes, lod_sets)
             rows += views.rows
             sweep_rows += views.sweep
@@ -194,7 +198,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                           "pixels as the error (flip_mean pools a variant's frames like mean_dluv)" if opts.flip else "not computed",
                   "heatmap_max_dluv": opts.heat_max, "rows": rows,
                   "filtering": {**filtering_note(opts), **refcache.samples_traced(out.tmp)}}
-        if composite_rows:   # render.composite: every object in one frame, per variant set (vdmrender.composite)
+        if composite_rows:   # render.composite: every object in one frame, per variant set (vdmrender.views.composite)
             result["composite"] = composite_rows
         result.update(sized)
         if old is not None:
@@ -296,9 +300,9 @@ class Views:
 
 def render_views(harness, out, bundle, scene, obj, only, opts, device, log, sizes, lod_sets) -> Views:
     """One object, once: its variants at each screen size of the sweep (one copy: the chain is the object's), its
-    LOD chains chosen from those rows (vdmrender.lod, no drawing), then its variants from its cameras, an instanced
+    LOD chains chosen from those rows (vdmrender.deciding.lod, no drawing), then its variants from its cameras, an instanced
     object's also per chain with each copy drawn by the variant its screen size selects (lod@CHAIN:
-    vdmrender.lodmix)."""
+    vdmrender.views.lodmix)."""
     entry = bundle.manifest["objects"][obj.name]
     chosen = variants(obj, entry, bundle, scene, only)
     if not chosen:
@@ -322,7 +326,7 @@ def render_views(harness, out, bundle, scene, obj, only, opts, device, log, size
 
 
 def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) -> tuple[list[dict], dict]:
-    """An object's variants at each screen size (vdmrender.sweep), an instanced object's as one copy: rows as
+    """An object's variants at each screen size (vdmrender.views.sweep), an instanced object's as one copy: rows as
     render_object's, with size_px; and the frames, {size: {label: sRGB frames}} (the LOD chains' pops)."""
     width, height = harness.target.size
     entry = bundle.manifest["objects"][obj.name]
@@ -339,7 +343,7 @@ def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) -> 
                 for r in render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, device, log,
                                        f"sizes/{size}px/", f"{obj.name} @{size}px", frames.setdefault(size, {}))]
         contest = lod.contenders(here, scene.render.sweep.lod if scene.render.sweep else ())
-        if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.pricing)
+        if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.deciding.pricing)
             times = pricing.interleaved(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
                                                   if v.label in contest}, cams)
             for r in here:

@@ -63,8 +63,8 @@ def interleaved(bundle_path: Path, render_dir: Path) -> dict:
     from vdmbake.bundle import parts
     from vdmbake.bundle.directory import Bundle
     from vdmbake.assets.meshes import TriMesh
-    from vdmrender import gl
-    from vdmrender.camera import cameras_for
+    from vdmrender.gpu import gl
+    from vdmrender.views.camera import cameras_for
     from vdmrender.techniques import Source
     from vdmrender.techniques.billboards_hier import HierBillboards
     from vdmrender.techniques.octahedral import Octahedral, shadow_size

@@ -19,8 +19,10 @@ from vdmbake.formats import exr
 from vdmbake.bundle import parts
 from vdmbake.bundle.directory import Bundle
 from vdmbake.common.colour import srgb8_to_linear
-from vdmrender import gl, images, metrics
-from vdmrender.camera import cameras_for
+from vdmrender.gpu import gl
+from vdmrender.reporting import images
+from vdmrender.comparing import metrics
+from vdmrender.views.camera import cameras_for
 from vdmrender.techniques import variants
 
 

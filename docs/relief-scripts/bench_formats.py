@@ -4,7 +4,7 @@ import sys, time, statistics
 import numpy as np, moderngl
 from vdmbake.common import pyramid as P
 from vdmbake.assets import heightfields
-from vdmrender import gl
+from vdmrender.gpu import gl
 from vdmrender.passes import hftrace
 
 FS = """#version 430

@@ -3,7 +3,7 @@ band (pixels within 2 px of the coverage boundary of the reference or of the fra
 import sys, glob, os, numpy as np
 from PIL import Image
 from scipy import ndimage
-from vdmrender.metrics import delta_luv
+from vdmrender.comparing.metrics import delta_luv
 
 def split(run, obj):
     refs = sorted(glob.glob(f"{run}/reference/{obj}/*.png"))

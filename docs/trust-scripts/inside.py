@@ -4,7 +4,7 @@ import sys
 import numpy as np
 from pathlib import Path
 from vdmbake.bake import bake
-from vdmrender import reference
+from vdmrender.tracing import reference
 from vdmrender.render import Options, run
 
 HEAD = """[render]

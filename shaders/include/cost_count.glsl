@@ -1,4 +1,4 @@
-// Device-independent cost counters, read by vdmrender/counters.py. A fragment stage compiled with COUNT
+// Device-independent cost counters, read by vdmrender/measuring/counters.py. A fragment stage compiled with COUNT
 // (counters.counting: gl.program defines it for the fragment stage) adds, by atomics, to four counters in
 // one shader storage buffer at binding 7 (each 64 bits, below):
 //   [0] fragments  COUNT_FRAGMENT(), first in every fragment stage's main: each rasterised fragment that runs
@@ -18,7 +18,7 @@
 // expression itself or nothing, and the normal build is what it was.
 // Each counter is 64 bits made of two 32-bit words (atomics on 64-bit integers are an extension llvmpipe lacks):
 // the add that wraps the low word (it returns 0xFFFFFFFF) carries one into the high word, so the counts are exact
-// past 2^32 (a supersampled 4K frame's fetches reach it; vdmrender/counters.py joins the words).
+// past 2^32 (a supersampled 4K frame's fetches reach it; vdmrender/measuring/counters.py joins the words).
 #ifdef COUNT
 layout(std430, binding = 7) buffer CostCounts {
     uint cost_counts[8];   // low words [0..3], high words [4..7]

@@ -1,5 +1,5 @@
 // Ray casting of quadrics per pixel (Sigg2006, as re-implemented by
-// dePoel2009 §3). Twin of vdmrender/quadric_math.py. Coordinates are anchor-relative world space.
+// dePoel2009 §3). Twin of vdmrender/tracing/quadric_math.py. Coordinates are anchor-relative world space.
 #include "camera.glsl"
 uniform mat4 u_view_proj;       // clip space from anchor-relative world
 uniform mat4 u_inv_view_proj;

@@ -1,7 +1,7 @@
 // The shared shading model: Lambert diffuse plus Blinn-Phong specular from one directional light,
 // a constant ambient term, ambient only where shadowed (as in Wang2003 §3.2, pixel shading). Passes
 // write linear radiance; vdmbake/common/colour.py (to_srgb8) encodes it to sRGB.
-// Its numpy twin is vdmrender/shading.py; the constants come from the scene.
+// Its numpy twin is vdmrender/tracing/shading.py; the constants come from the scene.
 uniform vec3 u_light_dir;    // unit vector towards the light, world space
 uniform vec3 u_light_color;
 uniform vec3 u_ambient;

@@ -26,7 +26,7 @@ from ..formats.safeio import read_regular
 
 MAX_FILE_BYTES = 2 << 30   # the largest mesh file or file it names (an OBJ of 16 M faces is about 1 GB)
 MAX_TEXTURE_SIDE = 16384   # an albedo map's longest side: GL 4.5's least GL_MAX_TEXTURE_SIZE, so every device reads
-                           # it (a wider texture samples as black: vdmrender.gl.albedo_texture refuses it)
+                           # it (a wider texture samples as black: vdmrender.gpu.gl.albedo_texture refuses it)
 
 
 def references(kind: str, data: bytes, textures: bool, origin: str) -> list[tuple[str, str]]:

@@ -71,8 +71,8 @@ BYTES_PER_QUADRIC = 8192
 # 240-245 bytes of peak RSS over 590k -> 2.4M faces.
 DISPLACE_BYTES_PER_FACE = 512
 # The displaced reference of a mesostructure, per face: its mesh and Embree scene (192 bytes held), and the same
-# surface built again and uploaded as the full asset the variants' change is measured against (vdmrender.change):
-# 374-392 bytes a face of peak RSS over 590k -> 2.4M faces.
+# surface built again and uploaded as the full asset the variants' change is measured against
+# (vdmrender.comparing.change): 374-392 bytes a face of peak RSS over 590k -> 2.4M faces.
 DISPLACED_BYTES_PER_FACE = 768
 # Render targets, per pixel of the frame: a single-sample target (RGBA32F colour, float depth) with its read-back
 # (the bytes and the array), 36 bytes over 512^2 -> 1024^2 and 62 at 512^2 with llvmpipe's first frame; per sample
@@ -93,7 +93,8 @@ class Geometry:
 
     def bytes(self) -> tuple[int, int]:
         """(geometry, displaced reference) bytes."""
-        return self.faces * BYTES_PER_FACE + self.quadrics * BYTES_PER_QUADRIC, self.displaced * DISPLACED_BYTES_PER_FACE
+        return (self.faces * BYTES_PER_FACE + self.quadrics * BYTES_PER_QUADRIC,
+                self.displaced * DISPLACED_BYTES_PER_FACE)
 
 
 @dataclass(frozen=True)

@@ -189,7 +189,7 @@ def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: fl
 # plane, an open mesh) the shell is open there, and what a view sees through that side is modelled by no
 # per-pixel method (they all start their rays on the base surface), while the displaced reference sheet
 # shows its cut edge and, from behind, its underside. The side wall, the `skirt`, is every border edge
-# swept from the base surface to the shell's floor; vdmrender/borders.py scores the pixels that see it
+# swept from the base surface to the shell's floor; vdmrender/tracing/borders.py scores the pixels that see it
 # apart from the surface. Borders are found on the surface, not on its UV charts (welded by position),
 # so a UV seam is never a border.
 

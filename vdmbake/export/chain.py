@@ -22,7 +22,7 @@ from ..schema import REQUIRED, Boolean, Integer, Invalid, Reader, Text, Type, Ve
 from ..techniques import REGISTRY
 from .gltf import Writer
 
-TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF carries as they are (vdmrender.lod's meshes_only)
+TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF carries as they are (vdmrender.deciding.lod's meshes_only)
 SIDECAR = "vdm-impostors"
 
 
@@ -80,7 +80,7 @@ class Measured(Type):
 
 
 PX = Integer(0, MAX_PX)
-# The keys of lod.json this export reads (schema.Reader, as vdmrender.baseline reads a report): (type, default).
+# The keys of lod.json this export reads (schema.Reader, as vdmrender.deciding.baseline reads a report): (type, default).
 TOP = {"device": (String(), REQUIRED), "resolution": (Vector(2, 1, MAX_SIDE, integer=True), REQUIRED),
        "band": (String(), "")}
 CHAIN = {"name": (Text("1-64 characters from A-Z a-z 0-9 _ - (it becomes part of file names)", r"[A-Za-z0-9_-]{1,64}"),

@@ -7,7 +7,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from .. import gl
+from ..gpu import gl
 from .raster import MeshInputs
 from .shadowmap import translation
 

@@ -6,7 +6,7 @@ import moderngl
 
 from vdmbake.common import pyramid
 
-from .. import gl
+from ..gpu import gl
 
 
 def pyramid_texture(ctx, p: pyramid.Pyramid):

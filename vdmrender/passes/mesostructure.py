@@ -12,7 +12,7 @@ from vdmbake.bundle import parts
 from vdmbake.common.embree import RayScene
 from vdmbake.errors import InputError
 
-from .. import gl
+from ..gpu import gl
 from .raster import RasterPasses
 
 def maps(src) -> parts.MesostructureMaps:

@@ -7,13 +7,13 @@ import numpy as np
 
 from vdmbake.common import instances as copies
 
-from .. import gl
+from ..gpu import gl
 from .shadowmap import ShadowMap, translation
 
 
 class Passes:
     """A renderer whose frame is a list of passes (`passes`: (name, callable) in order): render runs
-    them; vdmrender.timing times each."""
+    them; vdmrender.measuring.timing times each."""
 
     def passes(self, camera, target) -> list:
         raise NotImplementedError

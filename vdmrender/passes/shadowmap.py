@@ -4,8 +4,8 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from .. import gl
-from ..camera import Camera
+from ..gpu import gl
+from ..views.camera import Camera
 
 
 def ortho(half: float, near: float, far: float) -> np.ndarray:
@@ -55,7 +55,7 @@ class ShadowMap:
 
 
 class ShadowView(ShadowMap):
-    """One object's view of a scene-wide shadow map (vdmrender.composite): the scene's texture, in
+    """One object's view of a scene-wide shadow map (vdmrender.views.composite): the scene's texture, in
     coordinates relative to the object's anchor (`offset`: anchor minus the map's centre). Its light pass
     draws into the map without clearing it (the composite frame clears it once, before every object's
     pass), so every object casts shadows on every other; the map belongs to the composite, not to it."""

@@ -48,10 +48,11 @@ from vdmbake.bundle import parts
 from vdmbake.common import instances as copies
 from vdmbake.errors import InputError
 
-from .. import gl
+from ..gpu import gl
 from .billboards_hier import HierBillboards
-from ..passes.boards import (BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS,
-                             albedo_maps, coarse_draws, infinite_far, pushed)
+from ..passes.boards import (
+    BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS, albedo_maps, coarse_draws, infinite_far,
+    pushed)
 from ..passes.raster import Passes, RasterPasses
 from ..passes.shadowmap import ShadowMap, translation
 

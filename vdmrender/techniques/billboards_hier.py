@@ -37,9 +37,10 @@ from vdmbake.common import instances as copies
 from vdmbake.common import pyramid
 from vdmbake.errors import InputError
 
-from .. import gl
-from ..passes.boards import (BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS,
-                             albedo_maps, coarse_draws, infinite_far, pushed)
+from ..gpu import gl
+from ..passes.boards import (
+    BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS, albedo_maps, coarse_draws, infinite_far,
+    pushed)
 from ..passes.raster import Passes, RasterPasses
 from ..passes.shadowmap import ShadowMap, translation
 

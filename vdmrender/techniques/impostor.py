@@ -12,7 +12,7 @@ import numpy as np
 from vdmbake.bundle import parts
 from vdmbake.common import instances as placing
 
-from .. import gl
+from ..gpu import gl
 from ..passes.raster import Passes
 from ..passes.shadowmap import ShadowMap, translation
 

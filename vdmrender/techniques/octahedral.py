@@ -41,7 +41,7 @@ from vdmbake.bundle import parts
 from vdmbake.common import instances as copies
 from vdmbake.errors import InputError
 
-from .. import gl
+from ..gpu import gl
 from ..passes.boards import covered_colours
 from ..passes.raster import Passes
 from ..passes.shadowmap import ShadowMap, translation

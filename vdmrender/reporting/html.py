@@ -21,7 +21,7 @@ from urllib.parse import quote
 from vdmbake.bundle import staging
 from vdmbake.scene import LIMIT_ON
 
-from .lod import CHANGE
+from ..deciding.lod import CHANGE
 
 # Files a render folder may hold, linked from the header where present (docs/guide.md lists what each is).
 RAW = ("report.json", "report.csv", "error_vs_time.png", "sweep.csv", "error_vs_size.png", "cost_vs_size.png",
@@ -80,7 +80,7 @@ LEGEND_TEXT, LEGEND_BACKGROUND = "#1a1a1a", "#f4f4f4"
 # matplotlib's tab10: the variants' colours in the plots, as in the PNG plots
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
            "#17becf")
-# inferno at 0, 1/4, 1/2, 3/4, 1: the heat maps' scale (vdmrender.images.heatmap)
+# inferno at 0, 1/4, 1/2, 3/4, 1: the heat maps' scale (vdmrender.reporting.images.heatmap)
 INFERNO = ("#000004", "#57106e", "#bc3754", "#f98e09", "#fcffa4")
 ALL_AT_ONCE = 6   # up to this many objects the page shows them all at first; more, one at a time
 

@@ -35,7 +35,7 @@ def strict() -> bool:
 
 def create_context(device: str | None = None):
     """A standalone OpenGL 4.3+ context through EGL. `device` (or $VDM_GL_DEVICE): an EGL device index N, or
-    cuda:N, the GPU CUDA numbers N (vdmrender.device)."""
+    cuda:N, the GPU CUDA numbers N (vdmrender.gpu.device)."""
     from .device import egl_device_index
 
     spec = device if device not in (None, "") else os.environ.get("VDM_GL_DEVICE", "")
@@ -84,7 +84,7 @@ def program(ctx, vertex: str, fragment: str, defines: tuple[str, ...] = (), may_
     `defines` select a pass variant of a stage (e.g. DIRECT, GBUFFER). `may_lack`: the uniforms and
     vertex attributes this pass variant legitimately compiles away (set_uniforms and vertex_array
     then skip them even when strict); name them here, next to the defines that drop them.
-    While counting is on for the context (vdmrender.counters.counting), the fragment stage is compiled
+    While counting is on for the context (vdmrender.measuring.counters.counting), the fragment stage is compiled
     with COUNT too (shaders/include/cost_count.glsl: the same picture, plus atomics adding to the cost
     counters; it reads the same uniforms, so strictness holds for it as for the normal build)."""
     if ctx.extra is None:

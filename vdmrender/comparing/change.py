@@ -7,7 +7,7 @@ and the reference's sampling noise is as large as the differences between varian
 variant, so the change against the full asset is what a level-of-detail switch is decided on (the rule of
 engines' LOD tools, which compare each level's render with the full model's at that size); the full asset's
 fidelity is the floor, what the pipeline and not the representation costs (a variant lands below it only where it
-smooths what the full asset aliases), reported beside it with the reference's noise (vdmrender.scoring)."""
+smooths what the full asset aliases), reported beside it with the reference's noise (vdmrender.comparing.scoring)."""
 from __future__ import annotations
 
 import dataclasses
@@ -19,11 +19,11 @@ from vdmbake.bundle import parts
 from vdmbake.common import geometry
 from vdmbake.scene import LIMIT_ON, REGISTRY
 
-from . import images
+from ..reporting import images
 from .metrics import compare, flip_values, pooled
-from .passes.mesostructure import reference_mesh
-from .passes.raster import RasterMesh
-from .techniques import Source, Variant, variants
+from ..passes.mesostructure import reference_mesh
+from ..passes.raster import RasterMesh
+from ..techniques import Source, Variant, variants
 
 # The row fields of the change against the full asset, by the field of the same error against the reference.
 FIELDS = {LIMIT_ON["reference"][k]: LIMIT_ON["change"][k] for k in LIMIT_ON["change"]}

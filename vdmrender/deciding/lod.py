@@ -1,13 +1,13 @@
-"""Error-driven LOD chains (issue 22): from a screen-size sweep (vdmrender.sweep), per object and per set of
+"""Error-driven LOD chains (issue 22): from a screen-size sweep (vdmrender.views.sweep), per object and per set of
 limits (scene.Thresholds), the cheapest variant within the limits at each measured size, merged into bands of
 screen sizes; written as lod.json and lod.md.
 
 The limits bound what a switch changes (issue 39): each variant's frames against the object's full asset drawn the
-same way (vdmrender.change), or, where a chain says limit_on = "reference", the error against the reference. A
+same way (vdmrender.comparing.change), or, where a chain says limit_on = "reference", the error against the reference. A
 variant measured at size s is chosen for the band of sizes from s down to the next smaller measured size
 (exclusive): the band is judged at its largest size, where a fixed-resolution impostor's error is largest and a
 mesh's cost is about the same, so the choice is conservative within its band. Cheapest is decided on the variants'
-interleaved frames where the sweep timed them so (vdmrender.pricing: every variant within the limits and within
+interleaved frames where the sweep timed them so (vdmrender.deciding.pricing: every variant within the limits and within
 4x of the fastest's median, frame beside frame under the same load; a variant costs the same as the fastest
 unless the 95% confidence interval of their paired log-ratios lies wholly above 10%), else on separately timed
 medians (the same within their interquartile spreads together or 10% of the cheaper); of levels of detail that
@@ -32,13 +32,13 @@ from vdmbake.scene import LIMIT_ON
 
 from . import pricing
 from .baseline import POINT
-from .markdown import cell, number
-from .report import ERROR_LABEL
+from ..reporting.markdown import cell, number
+from ..reporting.report import ERROR_LABEL
 
 NOISE = 0.1   # separately timed medians (no interleaved times): a difference below this share is not one in cost
 TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
 BY_FACES = ("mesh", "coarse", "displaced", "tessellated")   # levels of detail ranked by their triangles
-CHANGE = LIMIT_ON["change"]["mean_dluv"]   # the mean change against the full asset (vdmrender.change)
+CHANGE = LIMIT_ON["change"]["mean_dluv"]   # the mean change against the full asset (vdmrender.comparing.change)
 MEASURED = ("mean_dluv", "p95_dluv", "flip_mean", "iou", "aliased_mean_dluv", *LIMIT_ON["change"].values(),
             "floor_dluv", "reference_noise_dluv", "median_ms", "spread_ms", "empty_frames")
 
@@ -178,7 +178,7 @@ def chain(rows: list[dict], limits: dict, height: int, pop=None, pop_dluv: float
 
 
 def floor(rows: list[dict]) -> list[dict]:
-    """Per size, from the largest, what no variant of the object can change (vdmrender.change): the full asset's
+    """Per size, from the largest, what no variant of the object can change (vdmrender.comparing.change): the full asset's
     mean and p95 ΔLuv against the reference and the reference's own noise, and of the pairs of variants measured
     there, how many differ in mean ΔLuv against the reference by less than the noise of both (ties by that error)."""
     out = []
@@ -231,7 +231,7 @@ def chains(per_object: dict[str, dict], sweep_rows: list[dict], lod_sets, device
 
 def priced_on_field(lod: dict, rows: list[dict]) -> None:
     """Chains priced where they are used: for an object drawn as many copies, its lod@CHAIN row (every copy by the
-    variant its size selects, vdmrender.lodmix.mixed) against every single variant drawing the same field. The
+    variant its size selects, vdmrender.views.lodmix.mixed) against every single variant drawing the same field. The
     cheapest of those within the chain's limits on the field (cheapest's rule) is what the field ships: where
     that is a single variant, the chain becomes that variant at every size (the sweep's chain kept as
     sweep_entries), so a chain is never slower than one representation meeting the same limits there. Where none

@@ -8,7 +8,7 @@ import json
 import math
 from pathlib import Path
 
-from . import baseline
+from ..deciding import baseline
 from .markdown import number
 
 COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "empty_frames", "median_ms", "min_ms",
@@ -19,7 +19,7 @@ COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "
            "reference_noise_dluv",
            "aliased_mean_dluv", "aliased_p95_dluv", "aliased_iou", "coverage",
            "nonfinite", "device",
-           # mesostructure objects (vdmrender.borders): pixels scored apart, and every pixel together
+           # mesostructure objects (vdmrender.tracing.borders): pixels scored apart, and every pixel together
            "surface_px", "border_px", "inside_px", "border_fraction", "inside_fraction", "mean_dluv_apart",
            "mean_dluv_all", "iou_all"]
 
@@ -78,7 +78,7 @@ def flat(row: dict) -> dict:
 
 
 def composite_table(report: dict) -> str:
-    """composite.md: per variant set of render.composite its variants, time and error (vdmrender.composite)."""
+    """composite.md: per variant set of render.composite its variants, time and error (vdmrender.views.composite)."""
     lines = [f"Composite frames, {report['resolution'][0]}x{report['resolution'][1]}, {report['device']}: every object "
              "in one frame, against the reference tracing every object together; frames in composite/frames/SET/, "
              "heat maps in composite/heatmaps/SET/, the sheet in composite/overview.png.", "",

@@ -1,5 +1,5 @@
 """Per-copy LOD drawn as an engine draws it (issue 23): every copy of an instanced object by the variant its screen
-size selects in a chain that vdmrender.lod chose, per frame; the lod@CHAIN variant a report row measures."""
+size selects in a chain that vdmrender.deciding.lod chose, per frame; the lod@CHAIN variant a report row measures."""
 from __future__ import annotations
 
 import math
@@ -10,11 +10,11 @@ from vdmbake.common import instances
 
 from .camera import framed
 from .composite import Composite
-from .techniques import Variant, variants
+from ..techniques import Variant, variants
 
 
 def screen_px(camera, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
-    """Each sphere's silhouette diameter in pixels as vdmrender.sweep measures it (seen at the image centre: what
+    """Each sphere's silhouette diameter in pixels as vdmrender.views.sweep measures it (seen at the image centre: what
     an engine's screen-size test computes), infinite for a sphere around the eye."""
     f = 0.5 * camera.height / math.tan(math.radians(camera.fov_deg) / 2)
     d2 = ((centres - camera.eye) ** 2).sum(1)
@@ -37,7 +37,7 @@ def chosen(entries: list[dict], camera, centres: np.ndarray, radii: np.ndarray) 
 class LodMix(Composite):
     """Per-instance LOD, as an engine does it: per frame every copy of the object is drawn by the variant its
     screen size selects in the chain (`entries`, lod.json's), all in one frame with one depth buffer and one
-    shadow map (vdmrender.composite.Composite: each copy casts what its variant casts). renderers: {variant label:
+    shadow map (vdmrender.views.composite.Composite: each copy casts what its variant casts). renderers: {variant label:
     renderer built with every copy, with `place`}; world: the copies' matrices; sphere: the object's bounding
     sphere (centre, radius); around: the sphere holding every copy."""
 

@@ -24,7 +24,7 @@ from vdmbake.errors import InputError, escaped
 from vdmbake.formats.safeio import read_regular
 from vdmbake.schema import REQUIRED, Integer, Invalid, Number, Reader, Text, Type, Vector
 
-from .markdown import cell, number
+from ..reporting.markdown import cell, number
 
 COLUMNS = ["object", "label", "status", "old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv",
            "new_p95_dluv", "d_p95_dluv", "old_flip", "new_flip", "d_flip", "old_ms", "new_ms", "time_ratio",

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .baseline import POINT
+from ..deciding.baseline import POINT
 from .camera import Camera, clip_planes
-from .report import ERROR_LABEL, log_ticks
-from .report import flat as report_flat
+from ..reporting.report import ERROR_LABEL, log_ticks
+from ..reporting.report import flat as report_flat
 
 COLUMNS = ["object", "size_px", "distance_radii", "label", "technique", "value", "median_ms", "spread_ms", "q1_ms",
            "q3_ms", "fragments_px", "fetches_px", "steps_px", "change_against", "change_dluv", "change_p95_dluv",

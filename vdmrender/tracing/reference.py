@@ -391,7 +391,7 @@ class Pattern:
 
 def in_first_half(k: int, n: int) -> bool:
     """Whether sample k of N x N belongs to the first half of the strata: the checkerboard's cells (i + j even).
-    The two halves are two estimates of the pixel, from which its noise is estimated (vdmrender.scoring.noise)."""
+    The two halves are two estimates of the pixel, from which its noise is estimated (vdmrender.comparing.scoring.noise)."""
     return (k % n + k // n) % 2 == 0
 
 
@@ -438,7 +438,7 @@ def _in_order(pool, fn, items, ahead: int):
 
 @dataclass
 class Halves:
-    """What a filtered reference keeps of each pixel for its noise (vdmrender.scoring.noise): `first`, the mean
+    """What a filtered reference keeps of each pixel for its noise (vdmrender.comparing.scoring.noise): `first`, the mean
     (premultiplied RGB, coverage) of its samples in the first half of the strata (in_first_half), and how many
     samples it got, `traced`, of which `in_first` in that half: (H, W) each."""
     first: np.ndarray
@@ -495,7 +495,7 @@ def filtered(render, camera, spp: int, threads: int | None = None,
     pixel's samples (Pattern) of linear RGB times coverage, and of coverage, i.e. premultiplied colour and the
     fraction of the pixel the object covers; what a viewer sees of the pixel over the background is then
     rgb + (1 - coverage) background (images.encode). With it, the Halves the frame's own sampling noise is estimated
-    from (vdmrender.scoring.noise); None at one sample per pixel.
+    from (vdmrender.comparing.scoring.noise); None at one sample per pixel.
 
     Adaptive (PBRT-v4's adaptive sampling, on the samples' agreement rather than their variance): every pixel first
     gets the N samples of first_pass, and only pixels whose samples disagree (Agreement: coverage, colour, an edge

@@ -12,14 +12,14 @@ variant draws into, and the resolve to one colour per pixel, timed as a pass of 
 Both targets keep the gl.Target interface the harness and the renderers use (clear, kept, begin, size, read),
 and `Resolved` appends the resolve to a renderer's passes, so the timer and the cost counters charge it to
 the variant like any pass. The colour is premultiplied by coverage, as the filtered reference's
-(vdmrender.reference.filtered)."""
+(vdmrender.tracing.reference.filtered)."""
 from __future__ import annotations
 
 import moderngl
 
 from vdmbake.errors import InputError
 
-from . import gl
+from ..gpu import gl
 
 
 # The device's limits a target's size is checked against (besides a texture's GL_MAX_TEXTURE_SIZE), before it is made.

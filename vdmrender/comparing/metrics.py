@@ -49,7 +49,7 @@ def compare(frame: np.ndarray, reference: np.ndarray, classes: np.ndarray | None
 
     Vichitvejpaisal2005 eq. 2.2 averages over object pixels; here those are the union of both coverage masks,
     so a missing or an extra silhouette pixel counts. The IoU weighs each pixel by its coverage (box-filtered
-    frames cover edge pixels in part; for frames covering pixels wholly or not at all it is the masks' IoU). `classes` (vdmrender.borders, (H, W)): pixels
+    frames cover edge pixels in part; for frames covering pixels wholly or not at all it is the masks' IoU). `classes` (vdmrender.tracing.borders, (H, W)): pixels
     that see an open border or the surface from inside are scored apart ("apart": their count and
     values); "mean" and "iou" are over the other, surface pixels, "mean_all" and "iou_all" over every
     pixel. A frame with no pixel to score has no data: it is `empty`, its mean and IoU are None, never
@@ -128,7 +128,7 @@ def summarise(scores: list[dict]) -> dict:
            "flip_mean": _rounded(fl.mean(), 5) if fl.size else None,
            "coverage": round(float(np.mean([s["coverage"] for s in scores])), 6),
            "nonfinite": sum(s["nonfinite"] for s in scores), "per_frame": per_frame}
-    if scores[0]["apart"]:   # scored apart (vdmrender.borders): the border and inside pixels, and every pixel
+    if scores[0]["apart"]:   # scored apart (vdmrender.tracing.borders): the border and inside pixels, and every pixel
         border, inside = (sum(s["apart"][c] for s in scores) for c in (1, 2))
         apart = np.concatenate([s["apart_values"] for s in scores])
         union = d.size + apart.size

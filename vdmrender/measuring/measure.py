@@ -1,8 +1,8 @@
 """What one variant costs, measured the same way for every row of a report (per object and composite):
-its GPU time by timer queries (vdmrender.timing), the GPU's clocks around the timing where NVML is there
-(vdmrender.device: a clock that moved means the time did not hold), its work in device-independent
-counters (vdmrender.counters: one more frame per camera from an instrumented build), and its frames read
-back for scoring: as shipped, under the run's anti-aliasing mode (vdmrender.antialias; what is timed and
+its GPU time by timer queries (vdmrender.measuring.timing), the GPU's clocks around the timing where NVML is there
+(vdmrender.gpu.device: a clock that moved means the time did not hold), its work in device-independent
+counters (vdmrender.measuring.counters: one more frame per camera from an instrumented build), and its frames read
+back for scoring: as shipped, under the run's anti-aliasing mode (vdmrender.measuring.antialias; what is timed and
 counted), and point-sampled, one sample per pixel (the `aliased_*` error beside the filtered one)."""
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ from typing import Callable
 
 import numpy as np
 
-from . import antialias, counters, device, gl, timing
+from . import antialias, counters, timing
+from ..gpu import device, gl
 
 
 # Test-only knob: VDM_TEST_DOUBLE_PASS=NAME runs every pass of that name twice, timed and counted (a regression
@@ -90,7 +91,7 @@ class Harness:
 
     def frames(self, build: Callable, cams) -> list:
         """A renderer's frames as shipped, untimed and uncounted (a full asset that is not a row of its own:
-        vdmrender.change)."""
+        vdmrender.comparing.change)."""
         renderer = build()
         try:
             shipped = self.as_shipped(renderer)

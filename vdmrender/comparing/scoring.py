@@ -1,4 +1,4 @@
-"""Scoring a variant's frames against the reference (vdmrender.metrics: ΔLuv, FLIP, coverage), writing the
+"""Scoring a variant's frames against the reference (vdmrender.comparing.metrics: ΔLuv, FLIP, coverage), writing the
 frames and heat maps, and the one line per measured row that vdmrender logs."""
 from __future__ import annotations
 
@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import images, progress
+from ..reporting import images
+from .. import progress
 from .metrics import compare, flip_values, pooled
 
 

@@ -8,14 +8,14 @@ the median of the log-ratios of those paired frames with its distribution-free 9
 statistics of the binomial sign test). Rounds go on until every candidate's interval against the fastest is
 either wholly above log(1 + EQUAL) (slower) or wholly below it (the same cost within EQUAL), or MAX_ROUNDS
 pass (then it counts as the same: the difference could not be shown). Equal costs are broken by the smaller
-error (vdmrender.lod.cheapest), which does not vary between runs."""
+error (vdmrender.deciding.lod.cheapest), which does not vary between runs."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-from . import measure, timing
+from ..measuring import measure, timing
 
 EQUAL = 0.10        # costs within 10% of each other are the same cost
 Z = 1.96            # 95% confidence

@@ -16,13 +16,15 @@ from vdmbake.common import instances
 from vdmbake.formats import exr
 from vdmbake.bundle import parts
 
-from . import borders, images, progress, reference
-from .techniques import Source
-from .passes import mesostructure
+from . import borders, reference
+from ..reporting import images
+from .. import progress
+from ..techniques import Source
+from ..passes import mesostructure
 
 
 # What every reference runs: the tracers, the cameras' pixel rays and the placing of an object's copies.
-REFERENCE_ROOTS = ("vdmrender.reference", "vdmrender.camera", "vdmbake.common.instances")
+REFERENCE_ROOTS = ("vdmrender.tracing.reference", "vdmrender.views.camera", "vdmbake.common.instances")
 
 
 def reference_code(mesostructure: bool) -> str:
@@ -64,8 +66,8 @@ _LAST = weakref.WeakKeyDictionary()
 
 
 def object_reference(obj, entry, bundle, scene):
-    """The object's reference tracer (vdmrender.reference), and for a mesostructure object the Embree
-    scene of its open border (vdmrender.borders; None otherwise); the same ones again while nothing they trace
+    """The object's reference tracer (vdmrender.tracing.reference), and for a mesostructure object the Embree
+    scene of its open border (vdmrender.tracing.borders; None otherwise); the same ones again while nothing they trace
     changed (_LAST). Their rays_cast counts every ray they traced: a caller counts its own as a difference."""
     key = json.dumps([obj.name, reference_geometry(obj, entry, bundle), asdict(scene.light), asdict(obj.material),
                       list(scene.camera.up)], sort_keys=True)
@@ -122,10 +124,10 @@ def save_reference(out, folder: str, key: str, frames, halves, classes, backgrou
     for k, (f, h, c) in enumerate(zip(frames, halves, classes)):
         n = f"{folder}/{k:03d}"
         layers = {"reference": {ch: f[..., i] for i, ch in enumerate("RGBA")}}
-        if h is not None:   # the frame's noise (vdmrender.scoring.noise)
+        if h is not None:   # the frame's noise (vdmrender.comparing.scoring.noise)
             layers["half"] = {ch: h.first[..., i] for i, ch in enumerate("RGBA")}
             layers["samples"] = {"N": h.traced.astype(np.float32), "A": h.in_first.astype(np.float32)}
-        if c is not None:   # which pixels see an open border or the inside (vdmrender.borders), as a mask too
+        if c is not None:   # which pixels see an open border or the inside (vdmrender.tracing.borders), as a mask too
             layers["classes"] = {"C": c.astype(np.float32)}
             images.save_rgb(out.file(n + "-classes.png"), np.dstack([borders.COLOURS[c], np.full(c.shape, 255, np.uint8)]))
         exr.write(out.file(n + ".exr"), layers)
@@ -169,7 +171,7 @@ def object_frames(out, obj, entry, bundle, scene, cams, log, folder: str | None 
                   what: str | None = None, spp: int = 1) -> tuple[list, list, dict]:
     """One object's reference frames (in `folder`, reference/OBJECT by default; logged as `what`) at `spp` samples
     per pixel (reference.filtered) and, for a mesostructure object, each frame's pixel classes
-    (vdmrender.borders: open border, inside; of the pixel centres)."""
+    (vdmrender.tracing.borders: open border, inside; of the pixel centres)."""
     key = reference_key(reference_geometry(obj, entry, bundle), cams, scene.light, obj.material,
                         scene.render.background, reference_code(obj.mesostructure is not None), spp)
 

@@ -20,14 +20,14 @@ How the techniques meet (GL):
 * The state each technique starts its frame passes with is the one its own light pass leaves (depth
   test on, no culling, no blending), whatever the technique before it left.
 
-The reference (vdmrender.reference.CompositeReference) traces every object's reference with the same
+The reference (vdmrender.tracing.reference.CompositeReference) traces every object's reference with the same
 pixel rays, keeps per pixel the nearest hit, shaded with that object's material and colours, and blocks
 every shadow ray by every object: the GL frame's shared shadow map and the reference agree on which
 objects shadow which. Open borders of mesostructure surfaces are not scored apart in composites (every
 pixel counts).
 
 Cameras frame the whole scene: the orbit is placed on a sphere holding every object's bounding sphere
-(vdmrender.camera.enclosing_sphere) and the near and far planes hug it.
+(vdmrender.views.camera.enclosing_sphere) and the near and far planes hug it.
 """
 from __future__ import annotations
 
@@ -36,12 +36,14 @@ from dataclasses import asdict
 import moderngl
 import numpy as np
 
-from . import change, images, refcache, reference, scoring
+from ..comparing import change, scoring
+from ..reporting import images
+from ..tracing import refcache, reference
 from .camera import cameras_for, enclosing_sphere
-from .metrics import summarise
-from .techniques import variants
-from .passes.raster import Passes
-from .passes.shadowmap import ShadowMap, ShadowView
+from ..comparing.metrics import summarise
+from ..techniques import variants
+from ..passes.raster import Passes
+from ..passes.shadowmap import ShadowMap, ShadowView
 
 FOLDER = "composite"   # OUT/composite/: reference/, frames/SET/, heatmaps/SET/, overview.png
 
@@ -159,7 +161,7 @@ def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[di
         drawn[label] = enc
         sheet += [(f"{k}: {label}", enc), (f"{k}: error", heats)]
         log(f"composite {k} ({label}): {scoring.row_line(row)}")
-    whole = {o: v.label for o, v in full.items()}   # every object by its full asset (vdmrender.change)
+    whole = {o: v.label for o, v in full.items()}   # every object by its full asset (vdmrender.comparing.change)
     change.attach(rows, drawn, set_label(whole), composed(whole), harness, cams, refs, opts.flip,
                   scene.render.background)
     images.overview(sheet, out.file(f"{FOLDER}/overview.png"), heat_max=opts.heat_max)
