@@ -24,17 +24,16 @@ ROOT = Path(__file__).resolve().parent.parent
 FACTOR = 4
 
 
+GL = pytest.mark.gl   # the case draws (llvmpipe), in its own process
+
+
 @pytest.mark.slow
-@pytest.mark.gl
 @pytest.mark.parametrize("case", [
-    "mesh 400 256 16 2 2",      # a 160k-face torus drawn and traced at 256^2, 16 spp on 2 threads, 2 cameras kept
-    "mesh 400 256 1 2 2",       # the same at 1 spp
-    "displaced 64",             # a torus under 64^2 bricks tiled 2 x 2: 590k displaced faces, twice, one uploaded
-    "quadrics 40000 128",       # 40k spheres' reference, a 128^2 frame
-    "targets 512 none",
-    "targets 512 msaa4",
-    "targets 512 ssaa2",
-    "targets 512 ssaa4",
+    pytest.param("mesh 400 256 16 2 2", marks=GL),   # a 160k-face torus drawn and traced at 256^2, 16 spp, 2 threads
+    pytest.param("mesh 400 256 1 2 2", marks=GL),    # the same at 1 spp (2 cameras' frames kept in both)
+    pytest.param("displaced 64", marks=GL),          # a torus under 64^2 bricks tiled 2 x 2: 590k faces, twice
+    "quadrics 40000 128",                            # 40k spheres' reference, a 128^2 frame
+    *(pytest.param(f"targets 512 {mode}", marks=GL) for mode in ("none", "msaa4", "ssaa2", "ssaa4")),
 ])
 def test_estimate_bounds_the_measured_peak(case):
     """Each kind in a process of its own (tests/memory_peaks.py: the growth of its peak resident set, Embree's and
