@@ -32,11 +32,11 @@ from vdmbake.common import instances
 from vdmbake.scene import Instances, Scatter
 
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.deciding import lod
 from vdmrender.views import lodmix, sweep
 from vdmrender.tracing import refcache
-from vdmrender.views.camera import Camera, cameras_for, clip_planes
+from vdmrender.common.camera import Camera, cameras_for, clip_planes
 from vdmrender.techniques import variants
 
 from .interleave import costs, measure

@@ -36,10 +36,10 @@ from vdmbake.techniques.octahedral import VARIANT as OCT_VARIANT
 
 from vdmrender.measuring import counters
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.tracing import reference
 from vdmrender import techniques
-from vdmrender.views.camera import cameras_for
+from vdmrender.common.camera import cameras_for
 from vdmrender.comparing.metrics import compare
 from vdmrender.techniques import octahedral
 from vdmrender.measuring.timing import Budget, FrameTimer, warm_up_each

@@ -42,10 +42,10 @@ import numpy as np
 
 from vdmbake.assets.meshes import load_mesh_file, resolve_path
 from vdmbake.scene import Light, Material
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
 from vdmrender.tracing import reference
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
 from tools.make_docs import markdown
 
 MESH = "pkg:pymeshfix/examples/StanfordBunny.ply"

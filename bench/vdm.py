@@ -29,7 +29,7 @@ from vdmbake.kernels import vdm, vdm_storage
 from bench import interleave
 from bench.quadrics import measure_scene
 from vdmrender.gpu import gl
-from vdmrender import progress
+from vdmrender.common import progress
 from vdmrender.reporting import report
 from vdmrender.techniques import Source, variants
 from vdmrender.techniques.vdm import VDMPass

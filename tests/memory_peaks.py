@@ -34,7 +34,7 @@ def _reset() -> int:
 
 
 def _camera(size: int):
-    from vdmrender.views.camera import Camera
+    from vdmrender.common.camera import Camera
     return Camera(np.array([0.0, -4.0, 1.0]), np.zeros(3), np.array([0.0, 0.0, 1.0]), 40.0, size, size, 0.1, 20.0)
 
 

@@ -22,10 +22,10 @@ from vdmbake.common.colour import srgb8_to_linear
 from vdmbake.errors import InputError
 from vdmbake.scene import load_scene
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
 from vdmrender.tracing import reference
-from vdmrender.views.camera import cameras_for
+from vdmrender.common.camera import cameras_for
 from vdmrender.techniques import Source, variants
 from vdmrender.passes import mesostructure
 

@@ -233,7 +233,7 @@ def test_object_without_vdm_gets_no_tables(tmp_path):
 def dark_fractions(tmp_path, out, label):
     """Over the pixels both cover, the fraction shaded with the ambient only (shadowed, or facing away
     from the light) in the frame but not in the reference (false dark), and the reverse (missed dark)."""
-    from vdmrender.reporting.images import encode
+    from vdmrender.common.images import encode
 
     sc = json.loads((tmp_path / "b.bundle/manifest.json").read_text())["scene"]
     amb = np.array(sc["light"]["ambient"]) * np.array(sc["objects"][0]["material"]["albedo"])

@@ -13,10 +13,10 @@ from vdmbake.errors import InputError, escaped, fail, guarded
 from vdmbake.cluster import check_address
 from vdmbake.scene import ANTIALIAS, MAX_SIDE, MAX_SPP, REGISTRY
 
-from .gpu import gl
 from . import many as many_bundles
-from .deciding.baseline import table as baseline_table
+from .gpu import gl
 from .render import Options, run
+from .reporting.report import baseline_table
 
 
 def _resolution(ctx, param, value):

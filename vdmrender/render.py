@@ -18,16 +18,17 @@ from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import REGISTRY
 
+from .common import images
+from .common.camera import cameras_for, framed
 from .comparing import change, scoring
 from .comparing.metrics import summarise
 from .deciding import baseline, lod, pricing
 from .gpu import device as gpu, gl
 from .measuring import measure, timing
-from .reporting import html, images, report
+from .reporting import chains, html, report
+from .techniques import variants
 from .tracing import refcache, reference
 from .views import composite, lodmix, sweep
-from .views.camera import cameras_for, framed
-from .techniques import variants
 
 
 def held_geometry(bundle) -> tuple[memory.Geometry, ...]:
@@ -210,7 +211,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         if "sweep" in result:
             sweep.write(out.tmp, result)
         if "lod" in result:
-            lod.write(out.tmp, result["lod"], result["sweep"]["rows"])
+            chains.write(out.tmp, result["lod"], result["sweep"]["rows"])
         html.write(out.tmp, result)   # last: it links the files written above
         out.commit()
     except BaseException:

@@ -19,7 +19,7 @@ from vdmbake.bundle import parts
 from vdmbake.common import geometry
 from vdmbake.scene import LIMIT_ON, REGISTRY
 
-from ..reporting import images
+from ..common import images
 from .metrics import compare, flip_values, pooled
 from ..passes.mesostructure import reference_mesh
 from ..passes.raster import RasterMesh

@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..reporting import images
-from .. import progress
+from ..common import images
+from ..common import progress
 from .metrics import compare, flip_values, pooled
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import progress
+from ..common import progress
 
 # moderngl reads a query's result as 32 bits: a pass over 4.29 s (llvmpipe's slowest benches) saturates there.
 SATURATED_NS = 2**32 - 1

@@ -17,14 +17,14 @@ from vdmbake.formats import exr
 from vdmbake.bundle import parts
 
 from . import borders, reference
-from ..reporting import images
-from .. import progress
-from ..techniques import Source
+from ..common import images
+from ..common import progress
 from ..passes import mesostructure
+from ..techniques import Source
 
 
 # What every reference runs: the tracers, the cameras' pixel rays and the placing of an object's copies.
-REFERENCE_ROOTS = ("vdmrender.tracing.reference", "vdmrender.views.camera", "vdmbake.common.instances")
+REFERENCE_ROOTS = ("vdmrender.tracing.reference", "vdmrender.common.camera", "vdmbake.common.instances")
 
 
 def reference_code(mesostructure: bool) -> str:
