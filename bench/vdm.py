@@ -31,7 +31,8 @@ from bench.quadrics import measure_scene
 from vdmrender.gpu import gl
 from vdmrender.common import progress
 from vdmrender.reporting import report
-from vdmrender.techniques import Source, variants
+from vdmrender.common.source import Source
+from vdmrender.techniques import variants
 from vdmrender.techniques.vdm import VDMPass
 
 # (name, primitive, params, tiling): tilings keep a tile about as long as it is wide

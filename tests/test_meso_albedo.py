@@ -26,8 +26,9 @@ from vdmrender.common import images
 from vdmrender.comparing import metrics
 from vdmrender.tracing import reference
 from vdmrender.common.camera import cameras_for
-from vdmrender.techniques import Source, variants
-from vdmrender.passes import mesostructure
+from vdmrender.common.source import Source
+from vdmrender.techniques import variants
+from vdmrender.common import mesostructure
 
 ALL = ('vdm = { k = [8], refine = [0, 4] }, pom = { steps = [16] }, relief = { iterations = [32] }, bump = {}, '
        'displaced = { levels = [2] }, mesh = {}')

@@ -297,7 +297,7 @@ def test_costs_per_fragment(tmp_path):
     from bench.interleave import scene_of
     from vdmrender.measuring import counters
     from vdmrender.gpu import gl
-    from vdmrender.techniques import Source
+    from vdmrender.common.source import Source
     from vdmrender.techniques.vdm import VDMPass
 
     text = scene(ORBIT.format(count=1), TORUS, 'vdm = { k = [8] }', size=16, tiling=(8, 2), res=32)

@@ -16,7 +16,8 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.common import geometry, instances
 from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
-from vdmbake.scene import REGISTRY
+from vdmbake.scene import REGISTRY, Scene
+from vdmbake.schema import overridable
 
 from .common import images
 from .common.camera import cameras_for, framed
@@ -59,12 +60,17 @@ def memory_need(bundle, width: int, height: int, opts: "Options") -> memory.Rend
                          together=bool(scene.render.composite))
 
 
+# The scene's settings a run overrides, each declared once in vdmbake.scene (`setting(..., flag=...)`): the
+# option `vdmrender --NAME` and the field NAME of Options, None for the scene's value.
+OVERRIDES = overridable(Scene)
+Overrides = dataclasses.make_dataclass(
+    "Overrides", [(f.name, f"{f.type} | None", dataclasses.field(default=None)) for _, f in OVERRIDES],
+    namespace={"__module__": __name__})
+
+
 @dataclass
-class Options:
+class Options(Overrides):
     techniques: tuple[str, ...] | None = None    # render only these (the scene's list otherwise)
-    resolution: tuple[int, int] | None = None    # override the scene's
-    repeats: int | None = None
-    warmup: int | None = None
     warmup_s: float | None = None                # timing.Budget: minimum warm-up time
     sample_s: float | None = None                # timing.Budget: minimum sampling time
     device: str | None = None
@@ -75,9 +81,6 @@ class Options:
     max_slowdown: float | None = None
     compare_devices: bool = False                # compare times with a baseline from another device
     counters: bool = True                        # count each variant's work (vdmrender.measuring.counters)
-    sizes: tuple[int, ...] | None = None         # screen-size sweep (vdmrender.views.sweep), overrides render.sweep.sizes
-    reference_spp: int | None = None             # the reference's samples per pixel, overrides render.reference_spp
-    antialias: str | None = None                 # the variants' anti-aliasing (vdmbake.scene.ANTIALIAS), overrides render.antialias
 
 
 def filtering(opts: Options, scene) -> Options:

@@ -114,8 +114,9 @@ class Render:
 
 def samples(antialias: str) -> int:
     """The samples per pixel of an anti-aliased target (msaaN: N; ssaaK: K^2); 0 without one."""
-    n = 0 if antialias == "none" else int(antialias[4:])
-    return n * n if antialias.startswith("ssaa") else n
+    from ..scene import ANTIALIAS   # here: the scene imports the bake steps, which import this module
+    kind, n = ANTIALIAS[antialias]
+    return {"none": 0, "msaa": n, "ssaa": n * n}[kind]
 
 
 def render_parts(r: Render) -> dict[str, tuple[int, str, str]]:
