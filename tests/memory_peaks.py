@@ -112,6 +112,7 @@ def quadrics(count: int, size: int) -> dict:
 
 def targets(size: int, mode: str) -> dict:
     from vdmbake.bundle import budget
+    from vdmbake.scene import ANTIALIAS
     from vdmrender.gpu import gl
     from vdmrender.measuring import antialias
 
@@ -128,7 +129,8 @@ def targets(size: int, mode: str) -> dict:
     ctx.finish()
     measured = _status("VmHWM") - before
     del frames
-    return {"measured": measured, "estimate": _parts(budget.Render(size, size, 1, antialias=mode), "targets")}
+    need = budget.Render(size, size, 1, antialias=ANTIALIAS[mode])
+    return {"measured": measured, "estimate": _parts(need, "targets")}
 
 
 KINDS = {"mesh": mesh, "displaced": displaced, "quadrics": quadrics, "targets": targets}

@@ -13,6 +13,7 @@ import pytest
 from vdmbake.bundle import budget
 from vdmbake.bundle.directory import Bundle
 from vdmbake.errors import InputError
+from vdmbake.scene import ANTIALIAS
 
 from helpers import assert_input_error, bake, render, write_scene
 from scenes import BALL, BRICK_PLANE, TINY_HEAD
@@ -46,7 +47,7 @@ def test_estimate_bounds_the_measured_peak(case):
 
 
 def _parts():
-    return budget.Render(640, 480, 4, spp=16, threads=3, antialias="ssaa2",
+    return budget.Render(640, 480, 4, spp=16, threads=3, antialias=ANTIALIAS["ssaa2"],
                          objects=(budget.Geometry("a", faces=10_000), budget.Geometry("b", quadrics=2_000),
                                   budget.Geometry("c", faces=100, displaced=1_000)))
 

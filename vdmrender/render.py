@@ -16,7 +16,7 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.common import geometry, instances
 from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
-from vdmbake.scene import REGISTRY, Scene
+from vdmbake.scene import ANTIALIAS, REGISTRY, Scene
 from vdmbake.schema import overridable
 
 from .common import images
@@ -56,7 +56,7 @@ def memory_need(bundle, width: int, height: int, opts: "Options") -> memory.Rend
     reference at this size on reference.workers() threads, every object's geometry, the targets."""
     scene = bundle.scene
     return memory.Render(width, height, len(cameras_for(scene.camera, (0.0, 0.0, 0.0), 1.0, width, height)),
-                         opts.reference_spp, reference.workers(), opts.antialias, held_geometry(bundle),
+                         opts.reference_spp, reference.workers(), ANTIALIAS[opts.antialias], held_geometry(bundle),
                          together=bool(scene.render.composite))
 
 

@@ -100,22 +100,22 @@ class Geometry:
 @dataclass(frozen=True)
 class Render:
     """A render's settings as far as its memory goes: the frame, how many cameras' frames it keeps, the reference's
-    samples per pixel and threads, the variants' anti-aliasing (vdmbake.scene.ANTIALIAS), the objects, and whether
-    their references are held at once (composite frames trace every object together) or one after the other."""
+    samples per pixel and threads, the variants' anti-aliasing (a mode's (kind, N) of vdmbake.scene.ANTIALIAS), the
+    objects, and whether their references are held at once (composite frames trace every object together) or one
+    after the other."""
     width: int
     height: int
     cameras: int
     spp: int = 1
     threads: int = 1
-    antialias: str = "none"
+    antialias: tuple[str, int] = ("none", 1)
     objects: tuple[Geometry, ...] = ()
     together: bool = False
 
 
-def samples(antialias: str) -> int:
+def samples(antialias: tuple[str, int]) -> int:
     """The samples per pixel of an anti-aliased target (msaaN: N; ssaaK: K^2); 0 without one."""
-    from ..scene import ANTIALIAS   # here: the scene imports the bake steps, which import this module
-    kind, n = ANTIALIAS[antialias]
+    kind, n = antialias
     return {"none": 0, "msaa": n, "ssaa": n * n}[kind]
 
 
@@ -143,7 +143,7 @@ def render_parts(r: Render) -> dict[str, tuple[int, str, str]]:
         "geometry": (geometry, f"{whose}: {o.faces:,} mesh faces, {o.quadrics:,} spheres and cylinders",
                      "fewer or simpler objects, or fewer instances"),
         "targets": (pixels * (TARGET_BYTES_PER_PIXEL * (2 if aa else 1) + BYTES_PER_SAMPLE * aa),
-                    f"{r.antialias}" + (f", {aa} samples a pixel" if aa else ""),
+                    f"{r.antialias[0]}{r.antialias[1]}, {aa} samples a pixel" if aa else "none",
                     "render.antialias (--antialias) or render.resolution (--resolution)")}
 
 
