@@ -28,7 +28,9 @@ import numpy as np
 
 from vdmbake.assets.meshes import resolve_path
 from vdmbake.assets.molecules import load_molecule
+from vdmbake.bundle import budget
 from vdmbake.common.geometry import onb
+from vdmbake.errors import InputError
 from vdmbake.kernels.quadrics import QuadricSet
 from vdmbake.scene import Cameras, Light, Material, Orbit
 
@@ -196,6 +198,11 @@ def main(out: Path, size: int, quick: bool):
         q = tiled(load_molecule(resolve_path(paths[name], Path(".")), "spacefill"), copies)
         label = name if copies == 1 else f"{name} x{copies}"
         cam = cameras_for(scene_camera, *q.bounding_sphere(), size, size)[0]
+        try:   # the render's memory rule, for one reference frame of these quadrics
+            budget.check_render(budget.Render(size, size, 1, objects=(
+                budget.Geometry(label, quadrics=len(q.spheres) + len(q.cylinders)),)))
+        except InputError as e:
+            raise click.BadParameter(str(e), param_hint="--size") from None
         timings, hits = measure(q, cam, rounds)
         rows.append({"molecule": label, "atoms": len(q.spheres), **timings, "exactness": exactness(q, cam, hits)})
         click.echo(f"{label}: " + ", ".join(f"{k} {v['rays_per_s_frame']} rays/s (frame), "
