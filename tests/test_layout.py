@@ -136,3 +136,39 @@ def test_shared_rooms_never_import_the_file_readers():
                 elif isinstance(node, ast.Import):
                     found |= {a.name for a in node.names}
             assert not {m for m in found if m.startswith("vdmbake.assets")}, path
+
+
+DECIDING_MAY_NOT_REACH = ("moderngl", "vdmrender.gpu", "vdmrender.measuring", "vdmrender.passes", "vdmrender.techniques")
+
+
+def test_deciding_draws_nothing():
+    """vdmrender/deciding/ decides from measured rows without drawing: no module of it reaches GL (moderngl) or a room
+    that draws (gpu, measuring, passes, techniques), directly or through the modules it imports, at module level or
+    inside a function. The timing loop is measuring's (interleaved), the statistic deciding's (pricing)."""
+    root = Path(vdmrender.__file__).parent
+    graph = _graph(vdmrender)
+
+    def source(module: str) -> Path:
+        parts_ = module.split(".")[1:]
+        path = root.joinpath(*parts_).with_suffix(".py") if parts_ else root / "__init__.py"
+        return path if path.is_file() else root.joinpath(*parts_, "__init__.py")
+
+    external = {m: {x for x in imports(source(m)) if not x.startswith("vdmrender")} for m in graph}
+
+    def reached(start: str) -> dict[str, list[str]]:
+        paths, stack = {start: [start]}, [start]
+        while stack:
+            node = stack.pop()
+            for nxt in graph[node] | external.get(node, set()):
+                if nxt not in paths:
+                    paths[nxt] = paths[node] + [nxt]
+                    if nxt in graph:
+                        stack.append(nxt)
+        return paths
+
+    deciding = [m for m in graph if m == "vdmrender.deciding" or m.startswith("vdmrender.deciding.")]
+    assert {"vdmrender.deciding.pricing", "vdmrender.deciding.lod", "vdmrender.deciding.baseline"} <= set(deciding)
+    for start in deciding:
+        wrong = {m: p for m, p in reached(start).items()
+                 if any(m == x or m.startswith(x + ".") for x in DECIDING_MAY_NOT_REACH)}
+        assert not wrong, " ; ".join(" -> ".join(p) for p in wrong.values())
