@@ -27,7 +27,7 @@ from pathlib import Path
 import click
 
 from bench.quadrics import measure_scene
-from vdmrender import progress
+from vdmrender.common import progress
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
           ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]
@@ -61,7 +61,7 @@ def _builders(bundle_path: Path, width: int, height: int):
     """(camera, {label: build}, (bundle, scene, object, entry)) for the bench scene's object, as vdmrender
     builds them, at width x height."""
     from bench.interleave import scene_of
-    from vdmrender.views.camera import cameras_for
+    from vdmrender.common.camera import cameras_for
     from vdmrender.techniques import variants
 
     bundle, scene, obj, entry, _ = scene_of(bundle_path)

@@ -32,11 +32,12 @@ from vdmbake.common import instances
 from vdmbake.scene import Instances, Scatter
 
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.deciding import lod
 from vdmrender.views import lodmix, sweep
 from vdmrender.tracing import refcache
-from vdmrender.views.camera import Camera, cameras_for, clip_planes
+from vdmrender.common.camera import Camera, cameras_for, clip_planes
+from vdmrender.common.markdown import number
 from vdmrender.render import BYTES_PER_FACE, reference_bytes_per_pixel
 from vdmrender.techniques import variants
 
@@ -199,9 +200,8 @@ def table(result) -> str:
              "| asset | copies | variant | median GPU ms | mean ΔLuv | p95 ΔLuv | IoU | GPU MB | primitives |",
              "|---|---:|---|---:|---:|---:|---:|---:|---:|"]
     for r in result["rows"]:
-        err = r.get("mean_dluv")
         lines.append(f"| {r['asset']} | {r['copies']} | {r['label']} | {r['median_ms']:.2f} | "
-                     f"{'-' if err is None else f'{err:.3f}'} | "
+                     f"{number(r.get('mean_dluv'), 3)} | "
                      f"{'-' if r.get('p95_dluv') is None else r['p95_dluv']} | "
                      f"{'-' if r.get('iou') is None else r['iou']} | {r['gpu_bytes'] / 2**20:.1f} | {r['primitives']} |")
     lines += ["", "Crossover (smallest count at which the variant is faster than the full mesh):", ""]

@@ -19,9 +19,9 @@ from vdmbake.bundle.directory import Bundle
 
 from vdmrender.measuring import counters, interleaved
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.measuring.timing import Budget, FrameTimer
-from vdmrender.views.camera import cameras_for
+from vdmrender.common.camera import cameras_for
 from vdmrender.comparing.metrics import compare, pooled
 
 

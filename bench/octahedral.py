@@ -35,14 +35,14 @@ from vdmbake.techniques.octahedral import VARIANT as OCT_VARIANT
 
 from vdmrender.measuring import counters, interleaved
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.tracing import reference
 from vdmrender import techniques
-from vdmrender.views.camera import cameras_for
+from vdmrender.common.camera import cameras_for
 from vdmrender.comparing.metrics import compare, pooled
 from vdmrender.techniques import octahedral
 from vdmrender.measuring.timing import Budget, FrameTimer
-from vdmrender.reporting.markdown import number
+from vdmrender.common.markdown import number
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
           ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]

@@ -34,7 +34,7 @@ from vdmbake.scene import Cameras, Light, Material, Orbit
 
 from vdmrender.measuring import interleaved
 from vdmrender.tracing import quadric_math, reference
-from vdmrender.views.camera import cameras_for
+from vdmrender.common.camera import cameras_for
 
 from .quadrics import MOLECULES, _available
 

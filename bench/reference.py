@@ -42,11 +42,12 @@ import numpy as np
 
 from vdmbake.assets.meshes import load_mesh_file, resolve_path
 from vdmbake.scene import Light, Material
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
 from vdmrender.measuring import interleaved as loop
 from vdmrender.tracing import reference
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
+from vdmrender.common.markdown import number
 from tools.make_docs import markdown
 
 MESH = "pkg:pymeshfix/examples/StanfordBunny.ply"
@@ -242,9 +243,6 @@ def tables(doc: dict) -> dict:
     def t(header, rows):
         return {"header": header, "align": ["---"] + ["---:"] * (len(header) - 1), "rows": rows}
 
-    def s(x):
-        return "-" if x is None else f"{x:.2f}"
-
     tm = doc["timing"]
     rows = []
     for name in ("before", "uniform", "ours-1", "ours", "mitsuba-1", "mitsuba"):
@@ -260,16 +258,16 @@ def tables(doc: dict) -> dict:
     for name in ("before", "uniform", "ours", "mitsuba"):
         for spp in (OURS_SPP if name == "ours" else ERROR_SPP):
             e = [err[str(px)][name][str(spp)] for px in doc["error_px"]]
-            rows.append([f"{name} {spp} spp", *(("-" if x["own"] is None else f"{x['own']:.3f}") + f" · {x['mitsuba']:.3f}"
+            rows.append([f"{name} {spp} spp", *(number(x["own"], 3) + f" · {x['mitsuba']:.3f}"
                                                 + (f" ({x['mean_spp']:.1f})" if name == "ours" else "") for x in e)])
     errors = t(["variant", *(f"{px} px" for px in doc["error_px"])], rows)
     rows, goal = [], []
     for px in doc["error_px"]:
         e = doc["equal_error"][str(px)]
-        rows.append([f"{px} px", f"{e['target']:.3f}", *(s(e[n]) for n in ("before", "uniform", "ours", "mitsuba")),
+        rows.append([f"{px} px", f"{e['target']:.3f}", *(number(e[n], 2) for n in ("before", "uniform", "ours", "mitsuba")),
                      "-" if e["ours"] is None else f"{e['ours'] / e['mitsuba']:.2f}"])
         g = doc["goal"][str(px)]
-        goal.append([f"{px} px", f"{g['uniform_16_s']:.2f}", f"{g['target']:.3f}", s(g["ours_s"]),
+        goal.append([f"{px} px", f"{g['uniform_16_s']:.2f}", f"{g['target']:.3f}", number(g["ours_s"], 2),
                      "-" if g["ours_s"] is None else f"{g['ours_s'] / g['uniform_16_s']:.2f}"])
     equal = t(["size", "Mitsuba's 16-spp error", "before s", "uniform s", "ours s", "mitsuba s", "ours / mitsuba"], rows)
     goal = t(["size", "uniform 16 spp s", "uniform 64-spp error", "ours s to it", "ours / uniform 16"], goal)

@@ -29,10 +29,11 @@ from vdmbake.kernels import vdm, vdm_storage
 from bench import interleave
 from bench.quadrics import measure_scene
 from vdmrender.gpu import gl
-from vdmrender import progress
+from vdmrender.common import progress
 from vdmrender.reporting import report
-from vdmrender.reporting.markdown import number
-from vdmrender.techniques import Source, variants
+from vdmrender.common.markdown import number
+from vdmrender.common.source import Source
+from vdmrender.techniques import variants
 from vdmrender.techniques.vdm import VDMPass
 
 # (name, primitive, params, tiling): tilings keep a tile about as long as it is wide

@@ -142,7 +142,7 @@ def check_manifest(bundle: Path, manifest) -> None:
     line), and every object's cameras and the memory guard work from what was accepted."""
     from vdmbake.bundle.directory import Bundle
     from vdmbake.bundle.parts import KINDS
-    from vdmrender.views.camera import cameras_for
+    from vdmrender.common.camera import cameras_for
     from vdmrender.render import geometry_bytes
 
     (bundle / "manifest.json").write_text(json.dumps(manifest))
@@ -863,8 +863,8 @@ def check_baseline(path: Path, text, new: dict) -> None:
             for thresholds in ((None, None), (0.0, 1.25), (1e-9, 1e-9), (1e300, 1e300)):
                 for across in (False, True):
                     block = baseline.compare(a, b, *thresholds, across)
-                    baseline.table(block)
-                    baseline.to_csv(block)
+                    report.baseline_table(block)
+                    report.baseline_csv(block)
                     json.dumps(report.finite(block), allow_nan=False)
 
 

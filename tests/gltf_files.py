@@ -20,7 +20,7 @@ from PIL import Image
 from vdmbake.common.mesh import TriMesh
 from vdmbake.common import texture
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
 from vdmrender.tracing import reference
 from vdmrender.passes.raster import RasterMesh

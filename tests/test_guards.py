@@ -362,7 +362,7 @@ techniques = {{ {technique} }}
 @pytest.mark.parametrize("tiling", [(1.0, 1.0), (1.0, 120.0), (10000.0, 10000.0)])
 def test_reference_check_is_the_renderers(tiling):
     """The bake's check refuses exactly where the renderer's reference (geometry.displaced at reference_levels,
-    vdmrender/passes/mesostructure.py) does: 2,048 faces, then 33,554,432 and 549,755,813,888 of the 16,000,000."""
+    vdmrender/common/mesostructure.py) does: 2,048 faces, then 33,554,432 and 549,755,813,888 of the 16,000,000."""
     from vdmbake.assets import primitives
     from vdmbake.bundle.parts import mesostructure
     from vdmbake.common import geometry

@@ -183,7 +183,7 @@ def test_bench_quick_smoke(tmp_path, no_warm_up):
 
 def test_each_copy_takes_the_band_its_screen_size_falls_in():
     from vdmrender.views import lodmix
-    from vdmrender.views.camera import Camera
+    from vdmrender.common.camera import Camera
     from vdmrender.views.sweep import distance_for
 
     entries = [{"variant": "mesh", "min_px": 64, "max_px": 256}, {"variant": "coarse@0.1", "min_px": 16, "max_px": 64},
@@ -236,7 +236,7 @@ def test_a_variant_holding_two_bands_draws_the_copies_of_both(ctx):
     every copy whose band names it, not the last band's alone."""
     from vdmbake.scene import Light
     from vdmrender.views import lodmix
-    from vdmrender.views.camera import Camera
+    from vdmrender.common.camera import Camera
 
     class Fake:
         anchor, faces = np.zeros(3), 0

@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import re
 import importlib
+import importlib.util
 from pathlib import Path
 
 import vdmbake
@@ -138,37 +139,24 @@ def test_shared_rooms_never_import_the_file_readers():
             assert not {m for m in found if m.startswith("vdmbake.assets")}, path
 
 
-DECIDING_MAY_NOT_REACH = ("moderngl", "vdmrender.gpu", "vdmrender.measuring", "vdmrender.passes", "vdmrender.techniques")
+GL_ROOMS = ("vdmrender.gpu", "vdmrender.measuring", "vdmrender.passes", "vdmrender.techniques", "vdmrender.views")
 
 
-def test_deciding_draws_nothing():
-    """vdmrender/deciding/ decides from measured rows without drawing: no module of it reaches GL (moderngl) or a room
-    that draws (gpu, measuring, passes, techniques), directly or through the modules it imports, at module level or
-    inside a function. The timing loop is measuring's (interleaved), the statistic deciding's (pricing)."""
+def test_tracing_deciding_and_common_draw_nothing():
+    """The renderer's rooms that trace the reference (tracing/), decide from measured rows (deciding/: the timing
+    statistic is there, the loop that times is measuring's) or are shared by all (common/) reach no GL, directly or
+    through what they import: no module of a drawing room, no moderngl; and nothing but the run imports the run
+    (render, many, cluster, cli)."""
     root = Path(vdmrender.__file__).parent
-    graph = _graph(vdmrender)
-
-    def source(module: str) -> Path:
-        parts_ = module.split(".")[1:]
-        path = root.joinpath(*parts_).with_suffix(".py") if parts_ else root / "__init__.py"
-        return path if path.is_file() else root.joinpath(*parts_, "__init__.py")
-
-    external = {m: {x for x in imports(source(m)) if not x.startswith("vdmrender")} for m in graph}
-
-    def reached(start: str) -> dict[str, list[str]]:
-        paths, stack = {start: [start]}, [start]
-        while stack:
-            node = stack.pop()
-            for nxt in graph[node] | external.get(node, set()):
-                if nxt not in paths:
-                    paths[nxt] = paths[node] + [nxt]
-                    if nxt in graph:
-                        stack.append(nxt)
-        return paths
-
-    deciding = [m for m in graph if m == "vdmrender.deciding" or m.startswith("vdmrender.deciding.")]
-    assert {"vdmrender.deciding.pricing", "vdmrender.deciding.lod", "vdmrender.deciding.baseline"} <= set(deciding)
-    for start in deciding:
-        wrong = {m: p for m, p in reached(start).items()
-                 if any(m == x or m.startswith(x + ".") for x in DECIDING_MAY_NOT_REACH)}
-        assert not wrong, " ; ".join(" -> ".join(p) for p in wrong.values())
+    for room in ("tracing", "deciding", "common"):
+        roots = [f"vdmrender.{room}.{p.stem}" for p in sorted((root / room).glob("*.py")) if p.stem != "__init__"]
+        reached = vdmbake.imported_closure(roots)
+        assert not [m for m in reached if m.startswith(GL_ROOMS)], (room, reached)
+        for name in reached:
+            source = Path(importlib.util.find_spec(name).origin).read_text()
+            assert not re.search(r"^\s*(import|from) moderngl", source, re.M), (room, name)
+    run = {"vdmrender.render", "vdmrender.many", "vdmrender.cluster", "vdmrender.cli"}
+    for path in sorted(root.rglob("*.py")):
+        name = ".".join(("vdmrender", *path.relative_to(root).with_suffix("").parts)).removesuffix(".__init__")
+        if name not in run:
+            assert not set(vdmbake.imported_closure([name])) & run - {name}, name

@@ -15,6 +15,7 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.export.gltf import safe, up_to_y
 from vdmbake.scene import Thresholds
 from vdmrender.deciding import lod, pricing
+from vdmrender.reporting import chains
 from vdmrender.comparing import metrics, scoring
 from vdmrender.views.sweep import distance_for
 
@@ -336,7 +337,7 @@ def test_a_chain_is_priced_on_the_field_it_serves():
     lod.priced_on_field(doc, [*rows[:3], field("lod@dluv2", 500.0, 1.2, "lod", "dluv2")])
     kept = doc["chains"][0]["objects"]["o"]
     assert kept["field"]["chosen"] == "lod@dluv2" and kept["entries"] == chain["entries"]
-    assert "sweep_entries" not in kept and "Priced on the field" in lod.table({**doc, "device": "d", "sizes_px": [64, 16],
+    assert "sweep_entries" not in kept and "Priced on the field" in chains.table({**doc, "device": "d", "sizes_px": [64, 16],
                                                                               "rule": "r"})
     doc["chains"][0]["objects"]["o"] = json.loads(json.dumps(chain))   # none within the limits: the least error
     lod.priced_on_field(doc, [field("mesh", 2400.0, 2.3), field("coarse@0.1", 1585.0, 2.27),

@@ -10,6 +10,7 @@ from click.testing import CliRunner
 
 from scenes import TINY_HEAD, bake_and_render
 from vdmrender.deciding import baseline
+from vdmrender.reporting import report
 from vdmrender.gpu import gl
 from vdmrender.measuring import measure, timing
 from vdmrender.cli import main as render_main
@@ -183,7 +184,7 @@ def test_counters_compared_exactly():
     b = baseline.compare(old, new, None, None)
     assert b["rows"][0]["counters_changed"] == {"fetches": [300, 301]}
     assert any("fetches 300 -> 301" in n for n in b["notes"])
-    assert "fetches=300->301" in baseline.to_csv(b)
+    assert "fetches=300->301" in report.baseline_csv(b)
 
 
 def test_times_across_devices_are_refused_unless_asked():

@@ -20,10 +20,10 @@ from vdmbake.bundle.staging import StagedDir
 from vdmbake.errors import InputError, paragraph
 from vdmbake.cluster import handed_back
 
+from .common.markdown import cell
 from .deciding import baseline
-from .reporting import html, report
-from .reporting.markdown import cell
 from .render import run
+from .reporting import html, report
 
 
 def bundles(args) -> tuple[list[Path], bool]:

@@ -15,18 +15,20 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.common import instances
 from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
-from vdmbake.scene import REGISTRY
+from vdmbake.scene import ANTIALIAS, REGISTRY, Scene
+from vdmbake.schema import overridable
 
+from .common import images
+from .common.camera import cameras_for, framed
 from .comparing import change, scoring
 from .comparing.metrics import summarise
 from .deciding import baseline, lod, pricing
 from .gpu import device as gpu, gl
 from .measuring import interleaved, measure, timing
-from .reporting import html, images, report
+from .reporting import chains, html, report
+from .techniques import variants
 from .tracing import refcache, reference
 from .views import composite, lodmix, sweep
-from .views.camera import cameras_for, framed
-from .techniques import variants
 
 # Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
 # (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
@@ -58,12 +60,17 @@ def geometry_bytes(bundle) -> tuple[int, str]:
     return worst, what
 
 
+# The scene's settings a run overrides, each declared once in vdmbake.scene (`setting(..., flag=...)`): the
+# option `vdmrender --NAME` and the field NAME of Options, None for the scene's value.
+OVERRIDES = overridable(Scene)
+Overrides = dataclasses.make_dataclass(
+    "Overrides", [(f.name, f"{f.type} | None", dataclasses.field(default=None)) for _, f in OVERRIDES],
+    namespace={"__module__": __name__})
+
+
 @dataclass
-class Options:
+class Options(Overrides):
     techniques: tuple[str, ...] | None = None    # render only these (the scene's list otherwise)
-    resolution: tuple[int, int] | None = None    # override the scene's
-    repeats: int | None = None
-    warmup: int | None = None
     warmup_s: float | None = None                # timing.Budget: minimum warm-up time
     sample_s: float | None = None                # timing.Budget: minimum sampling time
     device: str | None = None
@@ -74,9 +81,6 @@ class Options:
     max_slowdown: float | None = None
     compare_devices: bool = False                # compare times with a baseline from another device
     counters: bool = True                        # count each variant's work (vdmrender.measuring.counters)
-    sizes: tuple[int, ...] | None = None         # screen-size sweep (vdmrender.views.sweep), overrides render.sweep.sizes
-    reference_spp: int | None = None             # the reference's samples per pixel, overrides render.reference_spp
-    antialias: str | None = None                 # the variants' anti-aliasing (vdmbake.scene.ANTIALIAS), overrides render.antialias
 
 
 def filtering(opts: Options, scene) -> Options:
@@ -160,7 +164,8 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     if old is not None and opts.max_slowdown is not None:
         baseline.check_spread(old, plan.repeats)       # before any rendering: no spread, no slowdown to judge
     opts = filtering(opts, scene)
-    ssaa = int(opts.antialias[4:]) if opts.antialias.startswith("ssaa") else 1
+    kind, k = ANTIALIAS[opts.antialias]
+    ssaa = k if kind == "ssaa" else 1
     check_memory(width, height, geometry=geometry_bytes(bundle))
     check_memory(ssaa * width, ssaa * height)   # the supersampled target (llvmpipe keeps it in RAM)
     ctx = gl.create_context(opts.device)
@@ -226,7 +231,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         if "sweep" in result:
             sweep.write(out.tmp, result)
         if "lod" in result:
-            lod.write(out.tmp, result["lod"], result["sweep"]["rows"])
+            chains.write(out.tmp, result["lod"], result["sweep"]["rows"])
         html.write(out.tmp, result)   # last: it links the files written above
         out.commit()
     except BaseException:

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..bundle import budget
 from ..common import texture
-from ..errors import InputError, escaped
+from ..errors import InputError, cut, escaped
 from .references import MAX_TEXTURE_SIDE, check_picture, gltf_buffer, gltf_tree
 
 _REPEAT = 10497          # glTF 2.0 §5.26: the sampler's default wrapS/wrapT, as the renderer and the reference wrap
@@ -71,7 +71,7 @@ def opened(files: dict, origin: str) -> Opened:
     try:
         tree = gltf_tree(files)
     except (ValueError, RecursionError) as e:        # JSONDecodeError and UnicodeDecodeError are ValueErrors
-        raise InputError(f"{origin}: not readable glTF JSON ({type(e).__name__}: {escaped(str(e))[:200]}); fix the "
+        raise InputError(f"{origin}: not readable glTF JSON ({type(e).__name__}: {cut(str(e))}); fix the "
                          "file.") from None
     if not isinstance(tree, dict):
         raise InputError(f"{origin}: its JSON is a {type(tree).__name__}, where glTF 2.0 gives an object; fix the "
@@ -97,7 +97,7 @@ def opened(files: dict, origin: str) -> Opened:
             _draco(tree, read, added, origin)
     except (KeyError, IndexError, TypeError, AttributeError, ValueError) as e:
         raise InputError(f"{origin}: cannot read its compressed data ({type(e).__name__}: "
-                         f"{escaped(str(e))[:200]}); fix the file.") from None
+                         f"{cut(str(e))}); fix the file.") from None
     return Opened(tree, read if blobs else buffer, stored + sum(map(len, blobs)))
 
 
@@ -156,7 +156,7 @@ def _meshopt(tree: dict, buffer, added, origin: str) -> None:
             rows = meshopt.decode_gltf_buffer(data[start:start + length], ext["count"], ext["byteStride"],
                                               ext["mode"], ext.get("filter", "NONE"))
         except ValueError as e:   # meshoptimizer's decoders check every read against the data's end
-            raise InputError(f"{shown}: its {length} compressed bytes cannot be decoded ({escaped(str(e))[:200]}); "
+            raise InputError(f"{shown}: its {length} compressed bytes cannot be decoded ({cut(str(e))}); "
                              "fix the file.") from None
         view.update(buffer=added(np.ascontiguousarray(rows).tobytes()), byteOffset=0)
 
@@ -197,7 +197,7 @@ def _draco(tree: dict, buffer, added, origin: str) -> None:
             mesh = DracoPy.decode(data)
         except Exception as e:   # DracoPy raises ValueError, FileTypeException, ... for what it cannot decode
             raise InputError(f"{where}: its {_DRACO} data ({len(data)} bytes) cannot be decoded ({type(e).__name__}: "
-                             f"{escaped(str(e))[:200]}); fix the file.") from None
+                             f"{cut(str(e))}); fix the file.") from None
         if not isinstance(mesh, DracoPy.DracoMesh):
             raise InputError(f"{where}: its {_DRACO} data decodes to points without triangles; fix the file.")
         by_id = {a["unique_id"]: a for a in mesh.attributes}
@@ -260,12 +260,12 @@ def check_extensions(tree: dict, origin: str) -> None:
     extension in extensionsRequired refuses the file)."""
     required = tree.get("extensionsRequired", [])
     if not isinstance(required, list) or not all(isinstance(e, str) for e in required):
-        raise InputError(f"{origin}: extensionsRequired is {escaped(repr(required))[:200]}; glTF 2.0 gives a list of "
+        raise InputError(f"{origin}: extensionsRequired is {cut(repr(required))}; glTF 2.0 gives a list of "
                          "names; fix the file.")
     unread = [e for e in required if e not in REQUIRED_READ]
     if unread:
         raise InputError(f"{origin}: it requires the extension{'s' if len(unread) > 1 else ''} "
-                         f"{escaped(', '.join(unread))[:300]} (extensionsRequired), which this reader does not apply; "
+                         f"{cut(', '.join(unread), 300)} (extensionsRequired), which this reader does not apply; "
                          f"glTF 2.0 §3.12 says to refuse such a file. Read here: {', '.join(REQUIRED_READ)}; export "
                          "the file without it.")
 
@@ -334,7 +334,7 @@ def read_gltf(files: dict, gltf: Opened, textures: bool, origin: str, warn) -> R
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             return _read(tree, files, buffer, textures, origin, warn)
     except (KeyError, IndexError, TypeError, AttributeError, ValueError, OverflowError, RecursionError) as e:
-        raise InputError(f"{origin}: cannot read its meshes ({type(e).__name__}: {escaped(str(e))[:200]}); fix the "
+        raise InputError(f"{origin}: cannot read its meshes ({type(e).__name__}: {cut(str(e))}); fix the "
                          "file.") from None
 
 
@@ -439,7 +439,7 @@ def _gpu_instances(tree: dict, node: dict, buffer, shown: str, room: int) -> np.
     ext = (node.get("extensions") or {}).get("EXT_mesh_gpu_instancing")
     attrs = {} if ext is None else ext["attributes"]
     if ext is not None and (not attrs or set(attrs) - {"TRANSLATION", "ROTATION", "SCALE"}):
-        raise InputError(f"{shown}: EXT_mesh_gpu_instancing attributes {escaped(repr(sorted(attrs)))[:200]}; "
+        raise InputError(f"{shown}: EXT_mesh_gpu_instancing attributes {cut(repr(sorted(attrs)))}; "
                          "applied here: TRANSLATION, ROTATION and SCALE, at least one; fix the file.")
     count = max(_at(tree, "accessors", index, shown).get("count", 0) for index in attrs.values()) if attrs else 1
     if type(count) is not int or count > room:   # checked before a matrix is made
@@ -504,7 +504,7 @@ def _geometry(tree, buffer, prim, weights, where):
     targets = prim.get("targets", [])
     weights = [0.0] * len(targets) if weights is None else weights
     if len(weights) != len(targets) or not all(type(w) in (int, float) and np.isfinite(w) for w in weights):
-        raise InputError(f"{where}: {len(targets)} morph targets and weights {escaped(repr(weights))[:100]}; glTF "
+        raise InputError(f"{where}: {len(targets)} morph targets and weights {cut(repr(weights), 100)}; glTF "
                          "2.0 gives one finite weight per target (§3.7.2.2); fix the file.")
     for t, (target, w) in enumerate(zip(targets, weights)):
         for name, index in target.items():   # morphed = base + sum of weight x target delta (§3.7.2.2)
@@ -642,7 +642,7 @@ def _material(tree, part, buffer, textures, origin) -> dict:
         uv = _transformed(uv, transform, said)
     tex = _at(tree, "textures", info.get("index"), said)
     if "source" not in tex:
-        raise InputError(f"{said} names its picture only through an extension ({escaped(repr(list(tex)))[:80]}), "
+        raise InputError(f"{said} names its picture only through an extension ({cut(repr(list(tex)), 80)}), "
                          "which is not read; export a PNG or JPEG source, or set textures = \"ignore\".")
     sampler = _at(tree, "samplers", tex["sampler"], said) if "sampler" in tex else {}
     wrap = (sampler.get("wrapS", _REPEAT), sampler.get("wrapT", _REPEAT))
@@ -675,12 +675,12 @@ def _transformed(uv: np.ndarray, transform, said: str) -> np.ndarray:
         got = [got] if n == 1 and type(got) in (int, float) else got
         if not (isinstance(got, list) and len(got) == n and all(type(x) in (int, float) and np.isfinite(x)
                                                                for x in got)):
-            raise InputError(f"{said}: KHR_texture_transform {key} is {escaped(repr(transform.get(key)))[:100]}; "
+            raise InputError(f"{said}: KHR_texture_transform {key} is {cut(repr(transform.get(key)), 100)}; "
                              f"the extension gives {'a number' if n == 1 else f'{n} numbers'}; fix the file.")
         return np.asarray(got, np.float64)
 
     if not isinstance(transform, dict):
-        raise InputError(f"{said}: KHR_texture_transform is {escaped(repr(transform))[:100]}, not an object; fix "
+        raise InputError(f"{said}: KHR_texture_transform is {cut(repr(transform), 100)}, not an object; fix "
                          "the file.")
     offset, (rotation,), scale = numbers("offset", [0, 0], 2), numbers("rotation", 0, 1), numbers("scale", [1, 1], 2)
     s, t = uv[:, 0] * scale[0], (1.0 - uv[:, 1]) * scale[1]

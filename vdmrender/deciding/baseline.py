@@ -17,8 +17,6 @@ traceback after the whole render.
 """
 from __future__ import annotations
 
-import csv
-import io
 import json
 from pathlib import Path
 
@@ -27,11 +25,6 @@ from vdmbake.formats.safeio import read_regular
 from vdmbake.schema import REQUIRED, Integer, Invalid, Number, Reader, Text, Type, Vector
 
 from . import pricing
-from ..reporting.markdown import cell, number
-
-COLUMNS = ["object", "label", "status", "old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv",
-           "new_p95_dluv", "d_p95_dluv", "old_flip", "new_flip", "d_flip", "old_ms", "new_ms", "time_ratio",
-           "noise_ms", "counters_changed", "exceeds"]
 
 MAX_BYTES = 64 << 20     # a report of 1000 variants x 100 cameras is about 30 MB
 COUNT = Integer(0, 2**63 - 1)
@@ -189,31 +182,3 @@ def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown
               for c in changes if c["counters_changed"]]
     return {"thresholds": {"max_error_increase": max_error_increase, "max_slowdown": max_slowdown},
             "notes": notes, "rows": changes, "failed": [f"{c['object']}: {c['label']}" for c in changes if c["exceeds"]]}
-
-
-def table(block: dict) -> str:
-    """The block as a markdown table (stderr and OUT/baseline.md); a row over a threshold is marked."""
-    t = block["thresholds"]
-    lines = [f"change against the baseline (max error increase {t['max_error_increase']}, "
-             f"max slowdown {t['max_slowdown']})", *(f"note: {cell(n)}" for n in block["notes"]), "",
-             "| object | variant | mean ΔLuv old → new | Δ mean | p95 old → new | Δ p95 | FLIP Δ | GPU ms old → new "
-             "| time ratio | noise ms | exceeds |", "|---|---|---|---:|---|---:|---:|---|---:|---:|---|"]
-    for c in block["rows"]:
-        lines.append(
-            f"| {cell(c['object'])} | {cell(c['label'])} | "
-            f"{number(c['old_mean_dluv'], 3)} → {number(c['new_mean_dluv'], 3)} | {number(c['d_mean_dluv'], 3, True)} | "
-            f"{number(c['old_p95_dluv'], 2)} → {number(c['new_p95_dluv'], 2)} | {number(c['d_p95_dluv'], 2, True)} | "
-            f"{number(c['d_flip'], 4, True)} | {number(c['old_ms'], 2)} → {number(c['new_ms'], 2)} | "
-            f"{number(c['time_ratio'], 2)} | {number(c['noise_ms'], 2)} | "
-            f"{cell(', '.join(c['exceeds']) or ('' if c['status'] == 'compared' else c['status']))} |")
-    return "\n".join(lines) + "\n"
-
-
-def to_csv(block: dict) -> str:
-    f = io.StringIO()
-    w = csv.DictWriter(f, COLUMNS, extrasaction="ignore")
-    w.writeheader()
-    w.writerows({**c, "exceeds": " ".join(c["exceeds"]),
-                 "counters_changed": ";".join(f"{k}={a}->{b}" for k, (a, b) in c["counters_changed"].items())}
-                for c in block["rows"])
-    return f.getvalue()

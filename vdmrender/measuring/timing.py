@@ -16,7 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import progress
+from vdmbake.scene import Render
+
+from ..common import progress
 
 # moderngl reads a query's result as 32 bits: a pass over 4.29 s (llvmpipe's slowest benches) saturates there.
 SATURATED_NS = 2**32 - 1
@@ -27,11 +29,11 @@ SPREAD_WARNING = 0.10   # a row whose within-camera spread exceeds this share of
 class Budget:
     """How long to warm up and how much to sample. The defaults keep llvmpipe runs short; on a GPU, ask
     for seconds (--warmup-s, --sample-s): its clocks need about one second of sustained work."""
-    warmup: int = 1             # untimed renders per camera, at least
+    warmup: int = Render.warmup     # untimed renders per camera, at least (the scene's default)
     warmup_s: float = 0.1       # warm-up time, at least
     warmup_max_s: float = 2.0   # then stop waiting for agreement (the row says steady: false)
     tolerance: float = 0.05     # successive warm-up windows' median GPU times agree within this ratio
-    repeats: int = 5            # timed renders per camera, at least
+    repeats: int = Render.repeats   # timed renders per camera, at least (the scene's default)
     sample_s: float = 0.0       # sampling time, at least
 
 

@@ -17,20 +17,18 @@ from vdmbake.formats import exr
 from vdmbake.bundle import parts
 
 from . import borders, reference
-from ..reporting import images
-from .. import progress
-from ..techniques import Source
-from ..passes import mesostructure
+from ..common import images, mesostructure, progress
+from ..common.source import Source
 
 
 # What every reference runs: the tracers, the cameras' pixel rays and the placing of an object's copies.
-REFERENCE_ROOTS = ("vdmrender.tracing.reference", "vdmrender.views.camera", "vdmbake.common.instances")
+REFERENCE_ROOTS = ("vdmrender.tracing.reference", "vdmrender.common.camera", "vdmbake.common.instances")
 
 
 def reference_code(mesostructure: bool) -> str:
     """The fingerprint of the code a reference runs: REFERENCE_ROOTS and what they import (for a mesostructure,
     also the displaced mesh it traces), as installed."""
-    roots = list(REFERENCE_ROOTS) + (["vdmrender.passes.mesostructure"] if mesostructure else [])
+    roots = list(REFERENCE_ROOTS) + (["vdmrender.common.mesostructure"] if mesostructure else [])
     return code_fingerprint(imported_closure(roots))
 
 
