@@ -6,9 +6,9 @@ OpenImageIO's idiff (`-fail`, `-failpercent`): an absolute error increase, and a
 fails the run (exit 1) only where the slowdown also exceeds the two runs' combined spread (each row's
 within-camera interquartile range): the timing statistic's rule for rows not timed side by side
 (vdmrender.deciding.pricing.slower, the allowed slowdown in place of its EQUAL), so two runs of the same bundle
-pass under noise. Times are compared
-only between reports of the same device and time source (GPU timer queries) unless asked; counters
-count work, not time, so any change is reported. Pure data in, data out: no GL, no rendering.
+pass under noise. Times are compared only between reports of the same device and time source (GPU timer
+queries) unless asked; counters count work, not time, so any change is reported. Pure data in, data out: no
+GL, no rendering.
 
 The earlier report is input like any other: load() reads it through the regular-file guard and checks
 every key compare() uses against a schema before the run renders anything, so a report that is damaged,

@@ -41,7 +41,8 @@ def median_interval(x: np.ndarray) -> tuple[float, float, float]:
 def paired(times, base) -> tuple[float, float, float]:
     """Frames timed beside `base`'s (aligned: frame i of each under the same load) as a ratio to them: the median
     log-ratio and its ~95% interval (median_interval)."""
-    return median_interval(np.log(np.maximum(np.asarray(times, float), 1e-9) / np.maximum(np.asarray(base, float), 1e-9)))
+    t, b = (np.maximum(np.asarray(x, float), 1e-9) for x in (times, base))
+    return median_interval(np.log(t / b))
 
 
 def ratio(times, base) -> dict:

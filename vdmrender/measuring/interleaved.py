@@ -48,7 +48,8 @@ def frames(timer: timing.FrameTimer, renderers: dict, cams, budget: timing.Budge
     return rounds(renderers, step, count, len(cams), gpu, least), warm
 
 
-def gpu_ms(harness: measure.Harness, builds: dict, cams, count: int, settled: Callable, least: int) -> dict[str, list[float]]:
+def gpu_ms(harness: measure.Harness, builds: dict, cams, count: int, settled: Callable,
+           least: int) -> dict[str, list[float]]:
     """GPU ms per frame of each build ({label: build()}) as the run ships it, timed by `frames` with the run's timer
     and budget until `settled` (from round `least`, at most `count` rounds): {label: [ms of round r, camera c, ...]},
     aligned across labels."""
