@@ -158,7 +158,8 @@ def run(out: Path, quick: bool, log) -> dict:
 def chain(ctx, bundle, obj, entry, sizes, quick: bool, log) -> list[dict]:
     """The LOD chain of one copy: every variant timed interleaved and scored against the copy's reference at each
     screen size (vdmrender.views.sweep's cameras around the bench scene's own views), the cheapest within LIMIT per
-    band (vdmrender.deciding.lod.chain): lod.json's entries."""
+    band (vdmrender.deciding.lod.chain, costs compared on the paired frames as vdmrender's chains): lod.json's
+    entries."""
     one = dataclasses.replace(obj, instances=None)
     scene = bundle.scene
     w, h = scene.render.resolution

@@ -25,7 +25,7 @@ from .comparing import change, scoring
 from .comparing.metrics import summarise
 from .deciding import baseline, lod, pricing
 from .gpu import device as gpu, gl
-from .measuring import measure, timing
+from .measuring import interleaved, measure, timing
 from .reporting import chains, html, report
 from .techniques import variants
 from .tracing import refcache, reference
@@ -348,8 +348,9 @@ def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) -> 
                                        f"sizes/{size}px/", f"{obj.name} @{size}px", frames.setdefault(size, {}))]
         contest = lod.contenders(here, scene.render.sweep.lod if scene.render.sweep else ())
         if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.deciding.pricing)
-            times = pricing.interleaved(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
-                                                  if v.label in contest}, cams)
+            times = interleaved.gpu_ms(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
+                                                 if v.label in contest}, cams, pricing.MAX_ROUNDS, pricing.settled,
+                                       pricing.MIN_ROUNDS)
             for r in here:
                 if r["label"] in times:
                     r["interleaved_ms"] = times[r["label"]]
