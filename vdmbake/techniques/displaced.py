@@ -36,4 +36,5 @@ def reads(entry: dict, level: int, obj) -> dict:
 
 
 TECHNIQUE = Technique("displaced", "conventional displacement mapping: the base mesh subdivided and displaced, "
-                      "rasterised", ("surface",), Options, mesostructure=True, bake=bake, reads=reads)
+                      "rasterised", ("surface",), Options, mesostructure=True, bake=bake, reads=reads,
+                      triangles="made")

@@ -26,13 +26,11 @@ import math
 
 import numpy as np
 
-from vdmbake.scene import LIMIT_ON
+from vdmbake.scene import BY_FACES, LIMIT_ON, TRIANGLE_MESHES
 
 from . import pricing
 from .baseline import POINT
 
-TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
-BY_FACES = ("mesh", "coarse", "displaced", "tessellated")   # levels of detail ranked by their triangles
 CHANGE = LIMIT_ON["change"]["mean_dluv"]   # the mean change against the full asset (vdmrender.comparing.change)
 MEASURED = ("mean_dluv", "p95_dluv", "flip_mean", "iou", "aliased_mean_dluv", *LIMIT_ON["change"].values(),
             "floor_dluv", "reference_noise_dluv", "median_ms", "spread_ms", "empty_frames")
