@@ -53,7 +53,7 @@ def gpu_ms(harness: measure.Harness, builds: dict, cams, count: int, settled: Ca
     """GPU ms per frame of each build ({label: build()}) as the run ships it, timed by `frames` with the run's timer
     and budget until `settled` (from round `least`, at most `count` rounds): {label: [ms of round r, camera c, ...]},
     aligned across labels."""
-    renderers = {k: harness.as_shipped(measure.built(b)) for k, b in builds.items()}
+    renderers = {k: harness.as_shipped(b()) for k, b in builds.items()}
     try:
         samples, _ = frames(harness.timer, renderers, cams, harness.budget, count, settled, least)
     finally:
