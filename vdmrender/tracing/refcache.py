@@ -61,7 +61,7 @@ def reference_geometry(obj, entry, bundle) -> dict:
 
 # Per open bundle, the last object reference built: a sweep's sizes and the filtered and point references of an
 # object trace one, built once (a mesostructure's displaced mesh and its Embree scene take seconds); gone with the
-# bundle.
+# bundle, and dropped before another is built (the memory rule counts one object's at a time: bundle.budget).
 _LAST = weakref.WeakKeyDictionary()
 
 
@@ -72,9 +72,12 @@ def object_reference(obj, entry, bundle, scene):
     key = json.dumps([obj.name, reference_geometry(obj, entry, bundle), asdict(scene.light), asdict(obj.material),
                       list(scene.camera.up)], sort_keys=True)
     last = _LAST.get(bundle)
-    if last is None or last[0] != key:
-        last = _LAST[bundle] = (key, _object_reference(obj, entry, bundle, scene))
-    return last[1]
+    if last is not None and last[0] == key:
+        return last[1]
+    del last
+    _LAST.pop(bundle, None)   # the previous object's gone before this one's is built
+    _LAST[bundle] = (key, _object_reference(obj, entry, bundle, scene))
+    return _LAST[bundle][1]
 
 
 def _object_reference(obj, entry, bundle, scene):
@@ -84,11 +87,11 @@ def _object_reference(obj, entry, bundle, scene):
                 mesostructure.skirt_scene(src))
     if obj.kind == "surface":
         mesh = bundle.surface(entry)
-        if obj.instances:   # every copy, merged (the memory guard counts them: render.geometry_bytes)
+        if obj.instances:   # every copy, merged (the memory guard counts them: render.held_geometry)
             mesh = instances.placed(mesh, instances.matrices(obj.instances, scene.camera.up, entry["centre"]))
         return reference.MeshReference(mesh, scene.light, obj.material), None
     q = bundle.read(entry["quadrics"], parts.QUADRICS)
-    if obj.instances:   # every copy, merged (the memory guard counts them: render.geometry_bytes)
+    if obj.instances:   # every copy, merged (the memory guard counts them: render.held_geometry)
         q = instances.placed_quadrics(q, instances.matrices(obj.instances, scene.camera.up, entry["centre"]))
     return reference.QuadricReference(q, scene.light, obj.material), None
 
