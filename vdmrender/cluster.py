@@ -26,6 +26,7 @@ from contextlib import contextmanager
 from functools import partial
 from pathlib import Path
 
+from vdmbake.bundle import budget as memory
 from vdmbake.bundle.directory import Bundle
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.errors import InputError, paragraph
@@ -146,7 +147,8 @@ def _trace(task: Trace) -> dict:
     try:
         bundle = Bundle(Path(task.bundle))
         scene = bundle.scene
-        render.check_memory(*(task.opts.resolution or scene.render.resolution), geometry=render.geometry_bytes(bundle))
+        opts = render.filtering(task.opts, scene)
+        memory.check_render(render.memory_need(bundle, *(opts.resolution or scene.render.resolution), opts))
         key, trace = task.view.source(bundle, scene, task.spp)
         info = refcache.share(task.opts.reference_cache, key, task.view.cams, trace, task.view.named(task.spp))
     except Exception as e:
