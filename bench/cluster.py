@@ -83,11 +83,12 @@ def blind(folder: Path) -> list[str]:
             "sh"]
 
 
-def beside_a_blind_worker(cmd: list[str], hidden: Path, work: Path, submitted: str,
+def beside_a_blind_worker(cmd: list[str], hidden: Path, work: Path, handed: int,
                           timeout: float) -> tuple[subprocess.Popen, str, str, float]:
     """`cmd --scheduler ADDRESS` on a scheduler (started in `work`) whose one worker cannot see `hidden` (blind),
-    until its stderr says `submitted` (every task went to that worker alone); then a worker that can see it joins.
-    The finished process, its stdout and stderr, and its seconds from start to end."""
+    until its stderr says `handed` tasks were handed back (every task sent went to that worker alone, and none is
+    left for the next to take from its queue); then a worker that can see it joins. The finished process, its
+    stdout and stderr, and its seconds from start to end."""
     with scheduler(work) as (address, _):
         workers = [worker(address, *blind(hidden))]
         try:
@@ -95,7 +96,7 @@ def beside_a_blind_worker(cmd: list[str], hidden: Path, work: Path, submitted: s
             p = subprocess.Popen([*cmd, "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                  text=True, env=ENV)
             said = ""
-            while submitted not in said:
+            while said.count(": handed back by ") < handed:
                 said += p.stderr.readline()
                 assert p.poll() is None, (said, p.communicate())
             workers.append(worker(address))
@@ -232,8 +233,7 @@ def faults(work: Path, bundles: Path, res: list[str]) -> list[list[str]]:
                  f"{sum(r['status'] == 'rendered' for r in runs)} of {len(runs)} bundles rendered, "
                  f"{len(list(out.rglob('.*')))} hidden files left"])
 
-    p, stdout, stderr, s = beside_a_blind_worker(render + ["-o", str(work / "f5")], bundles, work,
-                                                 "rendering 3 bundles", 1200)
+    p, stdout, stderr, s = beside_a_blind_worker(render + ["-o", str(work / "f5")], bundles, work, len(CONFIGS), 1200)
     rows.append(["a worker that cannot see the bundles (its own mount namespace), a second one joining",
                  "`--scheduler ADDRESS`", str(p.returncode), f"{s:.1f} s", _said(stdout + stderr, "| rendered", "| failed")])
     return rows

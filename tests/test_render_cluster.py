@@ -160,7 +160,7 @@ def test_a_worker_that_cannot_see_the_bundles_hands_them_back(library, tmp_path)
         pytest.skip("needs unshare -m (root) to hide a folder from one worker")
     out = tmp_path / "out"
     p, stdout, stderr, _ = beside_a_blind_worker([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip"],
-                                                 library, tmp_path, "rendering 3 bundles", 600)
+                                                 library, tmp_path, 3, 600)
     assert p.returncode == 0, stderr[-3000:]
     runs = json.loads((out / "report.json").read_text())["runs"]
     assert {r["status"] for r in runs} == {"rendered"}, runs
