@@ -57,7 +57,7 @@ def render_modes(name: str, root: Path, modes, sizes, resolution: str | None) ->
 def reference_cost(root: Path, spps, size: int) -> list[dict]:
     """Trace seconds and rays of the scanned bunny's reference at each samples-per-pixel count."""
     from vdmrender.tracing import reference
-    from vdmrender.views.camera import cameras_for
+    from vdmrender.common.camera import cameras_for
 
     bundle = Bundle(root / "lod-bunny.bundle")
     scene, entry = bundle.scene, bundle.manifest["objects"]["scan"]

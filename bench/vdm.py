@@ -29,9 +29,11 @@ from vdmbake.kernels import vdm, vdm_storage
 from bench import interleave
 from bench.quadrics import measure_scene
 from vdmrender.gpu import gl
-from vdmrender import progress
+from vdmrender.common import progress
 from vdmrender.reporting import report
-from vdmrender.techniques import Source, variants
+from vdmrender.common.markdown import number
+from vdmrender.common.source import Source
+from vdmrender.techniques import variants
 from vdmrender.techniques.vdm import VDMPass
 
 # (name, primitive, params, tiling): tilings keep a tile about as long as it is wide
@@ -162,7 +164,7 @@ def _markdown(paper: dict, rows: list[dict], device: str, inter: dict) -> str:
         base = m["rows"]["pom@16"]["median_cpu_ms"]
         for k, r in m["rows"].items():
             lines.append(f"| {k} | {r['median_ms']:.1f} | {r['median_cpu_ms']:.1f} | {r['median_cpu_ms'] / base:.2f} | "
-                         f"{r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
+                         f"{number(r['mean_dluv'], 3)} | {number(r['p95_dluv'], 2)} | {number(r['iou'], 4)} |")
         lines += ["", "The frame pass's costs per covered pixel (instrumented builds, vdmrender/measuring/counters.py; fragments: "
                   "every one the stage ran, discarded ones too), and its fetches per fragment:", "",
                   "| variant | fragments | texture fetches | search steps | searches | fetches / fragment |",

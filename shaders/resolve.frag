@@ -2,7 +2,7 @@
 // Supersampling's resolve (vdmrender/measuring/antialias.py): each pixel the box-filtered mean of its K x K texels of
 // the frame rendered K times larger, in linear colour (a mean of sRGB-encoded values would darken edges).
 // Colour is premultiplied by coverage (cleared to 0, covered texels have alpha 1), so the mean is what a
-// viewer sees over the background: rgb + (1 - alpha) background (vdmrender.reporting.images.encode).
+// viewer sees over the background: rgb + (1 - alpha) background (vdmrender.common.images.encode).
 #include "cost_count.glsl"
 uniform sampler2D u_frame;   // the supersampled frame, RGBA32F, nearest
 uniform int u_k;             // K

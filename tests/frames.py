@@ -11,10 +11,10 @@ from vdmbake.kernels import billboard_maps, coarse
 from vdmbake.kernels import billboards as bb
 from vdmbake.scene import Light, Material
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
 from vdmrender.tracing import reference
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
 from vdmrender.techniques.billboards import Billboards
 
 BG = (0.05, 0.05, 0.06)

@@ -17,7 +17,7 @@ from vdmbake.kernels import billboard_maps, billboards, coarse, octahedral
 from vdmbake.bundle import parts
 from vdmbake.assets.meshes import load_mesh_file, resolve_path
 from vdmbake.common.mesh import TriMesh
-from vdmrender.views.camera import orbit
+from vdmrender.common.camera import orbit
 from vdmrender.techniques.billboards import Billboards
 from vdmrender.techniques.billboards_hier import HierBillboards
 from vdmrender.techniques.octahedral import Octahedral

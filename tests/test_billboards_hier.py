@@ -15,9 +15,9 @@ from vdmbake.assets import primitives
 from vdmbake.kernels import billboards as bb
 from vdmbake.common import pyramid as P
 from vdmbake.common.mesh import TriMesh, vertex_normals
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
 from vdmrender.techniques.billboards_hier import HierBillboards
 
 from frames import BG, LIGHT, MATERIAL, SHADOW, draw, model, orbit_camera, render, score

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from vdmbake.errors import InputError
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
 from vdmbake.bundle import parts
 from vdmbake.bundle.parts import Billboard
 from vdmrender.techniques.billboards import Billboards

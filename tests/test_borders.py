@@ -13,7 +13,7 @@ from vdmbake.assets import primitives
 from vdmbake.common.embree import RayScene
 from vdmbake.assets.meshes import load_mesh_file
 from vdmrender.tracing import borders as pixel_classes
-from vdmrender.views.camera import Camera
+from vdmrender.common.camera import Camera
 from vdmrender.comparing.metrics import compare
 
 from scenes import bake_and_render, rows_by_label

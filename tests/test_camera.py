@@ -1,4 +1,4 @@
-"""vdmrender.views.camera: bases, view/projection matrices, pixel rays (the contract shared by the GL
+"""vdmrender.common.camera: bases, view/projection matrices, pixel rays (the contract shared by the GL
 path and the CPU reference), clip planes, orbit placement and degenerate poses."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from vdmbake.scene import Cameras as SceneCamera, Orbit, Pose
-from vdmrender.views.camera import Camera, cameras_for, clip_planes, orbit
+from vdmrender.common.camera import Camera, cameras_for, clip_planes, orbit
 
 CENTRE = np.array([0.3, -1.2, 0.8])
 RADIUS = 1.7

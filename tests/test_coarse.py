@@ -14,7 +14,7 @@ from vdmbake.assets import primitives
 from vdmbake.common.embree import RayScene
 from vdmbake.assets.meshes import load_mesh_file, resolve_path
 from vdmbake.common.mesh import TriMesh, weld
-from vdmrender.views.camera import orbit
+from vdmrender.common.camera import orbit
 
 SAMPLES = "pkg:pymeshlab/tests/sample_meshes/"
 

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 from PIL import Image
 
 from vdmbake.cli import main as vdmbake_main
-from vdmrender.views.camera import enclosing_sphere
+from vdmrender.common.camera import enclosing_sphere
 from vdmrender.comparing.metrics import delta_luv
 
 from scenes import bake_and_render
@@ -81,10 +81,10 @@ def test_depth_order_between_techniques(tmp_path):
     # changes between the two frames (the reference's own per-object depths say so).
     from vdmbake.bundle.directory import Bundle
     from vdmrender.views.composite import scene_sphere
-    from vdmrender.reporting import images
+    from vdmrender.common import images
     from vdmrender.comparing import metrics
     from vdmrender.tracing import reference
-    from vdmrender.views.camera import cameras_for
+    from vdmrender.common.camera import cameras_for
     from vdmrender.tracing.refcache import object_reference
 
     bundle = Bundle(tmp_path / "b.bundle")

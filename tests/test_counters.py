@@ -19,7 +19,7 @@ from vdmbake.scene import Light, Material
 from vdmrender.measuring import counters
 from vdmrender.gpu import gl
 from vdmrender.tracing import quadric_math as qm
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
 from vdmrender.techniques import variants
 from vdmrender.techniques.billboards import Billboards
 from vdmrender.techniques.billboards_hier import HierBillboards

@@ -127,3 +127,12 @@ def test_every_measured_table_is_generated():
     for name in names:
         doc = json.loads((docs.RESULTS / f"{name}.json").read_text())
         assert "tables" not in doc or {"measured_by", "when", "device"} <= set(doc), name
+
+
+def test_rooms_table_is_read_from_the_source():
+    """docs/results/rooms.json (architecture.md's rooms table) is what tools/rooms.py reads from vdmrender/ now."""
+    spec = importlib.util.spec_from_file_location("rooms", ROOT / "tools" / "rooms.py")
+    rooms = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rooms)
+    assert json.loads((ROOT / "docs" / "results" / "rooms.json").read_text()) == rooms.survey(ROOT / "vdmrender"), \
+        "run python tools/rooms.py && make docs"

@@ -34,6 +34,19 @@ def test_one_escaping_function():
     assert errors.escaped(EVIL) == SHOWN and errors.escaped("plain/it's \\ fine") == "plain/it's \\ fine"
 
 
+def test_one_shortening_function():
+    """A value quoted in a message is escaped and shortened by errors.cut alone (schema.show too): no module cuts
+    one by hand (a hash's 12-digit short form is not a quoted value)."""
+    from pathlib import Path
+
+    root = Path(errors.__file__).parents[1]
+    for path in [*root.glob("vdmbake/**/*.py"), *root.glob("vdmrender/**/*.py")]:
+        cuts = re.findall(r"\b(?:escaped|str|repr)\(.*?\)\[:(\d+)\]", path.read_text())
+        assert all(int(n) < 40 for n in cuts), (path, cuts)
+    assert errors.cut(EVIL) == SHOWN and errors.cut("x" * 201) == "x" * 200 + "..." and errors.cut("x" * 200) == "x" * 200
+    assert errors.cut(EVIL, 4) == SHOWN[:4] + "..." and schema.show("x" * 300) == repr("x" * 300)[:200] + "..."
+
+
 def test_one_scene_log_lines_are_escaped(tmp_path):
     """Failed before the fix: the log line `OUT: baking (...)` and `baked OUT` printed the name raw."""
     (tmp_path / f"{EVIL}.toml").write_text(SCENE)

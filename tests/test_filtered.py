@@ -16,9 +16,9 @@ from vdmbake.kernels.quadrics import QuadricSet
 from vdmbake.scene import Light, Material
 from vdmrender.measuring import antialias
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.tracing import reference
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
 from vdmrender.passes.raster import RasterMesh
 
 SIZE, FOV, DISTANCE, RADIUS = 40, 40.0, 4.0, 1.0

@@ -1,5 +1,5 @@
 """The GLSL ideas shared by several shaders (shaders/include/frame.glsl, camera.glsl) against their
-numpy twins (vdmbake.common.geometry.onb, vdmrender.views.camera.pixel_ray and window_depth), evaluated per pixel
+numpy twins (vdmbake.common.geometry.onb, vdmrender.common.camera.pixel_ray and window_depth), evaluated per pixel
 on the GL device (llvmpipe here): the two must agree to float32 precision."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 
 from vdmbake.common.geometry import onb
 from vdmrender.gpu import gl
-from vdmrender.views.camera import Camera, pixel_ray, window_depth
+from vdmrender.common.camera import Camera, pixel_ray, window_depth
 
 VERTEX = gl.source("fullscreen.vert")
 RNG = np.random.default_rng(7)

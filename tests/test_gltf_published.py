@@ -258,9 +258,9 @@ def test_render_of_wrap_modes_in_an_atlas_matches_the_reference(tmp_path, ctx):
 
     from vdmbake.bundle import parts
     from vdmbake.scene import Light, Material
-    from vdmrender.reporting import images
+    from vdmrender.common import images
     from vdmrender.tracing import reference
-    from vdmrender.views.camera import orbit
+    from vdmrender.common.camera import orbit
 
     m = _quad(tmp_path / "w.gltf", sampler={"wrapS": MIRROR, "wrapT": CLAMP}, pictures=2, uv=UV * 2 - 0.5)
     light, material = Light(), Material()

@@ -17,9 +17,9 @@ from vdmbake.common import texture
 from vdmbake.common.colour import srgb8_to_linear
 from vdmbake.errors import InputError
 from vdmbake.scene import Light, Material
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.tracing import reference
-from vdmrender.views.camera import orbit
+from vdmrender.common.camera import orbit
 
 from gltf_files import BG, QUAD, UV, Gltf, drawn_and_traced
 

@@ -64,9 +64,9 @@ def test_render_of_several_textures_shows_the_file_colours(tmp_path, ctx):
     """Uniform pictures and a factor-only quad: the `mesh` technique's frame against the reference of the same quads
     coloured per vertex with the colours the file gives (no texture), and our reference likewise."""
     from vdmbake.scene import Light, Material
-    from vdmrender.reporting import images
+    from vdmrender.common import images
     from vdmrender.tracing import reference
-    from vdmrender.views.camera import orbit
+    from vdmrender.common.camera import orbit
 
     colours = np.array([[200, 30, 30], [30, 200, 60], [40, 60, 220]], np.uint8)
     m = load_mesh_file(G.texture_coordinate_test(tmp_path / "u.gltf", [np.tile(c, (2, 2, 1)) for c in colours]))

@@ -38,8 +38,8 @@ from vdmbake.bake import bake
 from vdmbake.bundle.directory import Bundle
 from vdmbake.scene import Scene, parse_scene_dict
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
-from vdmrender.views.camera import cameras_for
+from vdmrender.common import images
+from vdmrender.common.camera import cameras_for
 from vdmrender.comparing.metrics import compare
 from vdmrender.techniques import variants
 

@@ -150,16 +150,16 @@ def test_overlapping_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_p
 def test_memory_guard_counts_every_copy(tmp_path):
     from vdmbake.cli import main as bake_main
     from vdmbake.bundle.directory import Bundle
-    from vdmrender.render import BYTES_PER_FACE, geometry_bytes
+    from vdmbake.bundle.budget import Geometry
+    from vdmrender.render import held_geometry
 
     p = tmp_path / "s.toml"
     p.write_text(RENDER + '[[objects]]\nname = "b"\nprimitive = "sphere"\ntechniques = { mesh = {} }\n'
                  "[objects.instances]\nscatter = { count = 1000, area = [100, 100] }\n")
     assert CliRunner().invoke(bake_main, [str(p), "-o", str(tmp_path / "b")]).exit_code == 0
     bundle = Bundle(tmp_path / "b")
-    need, what = geometry_bytes(bundle)
     faces = bundle.manifest["parts"]["objects/b/mesh.ply"]["faces"]
-    assert need == 1000 * faces * BYTES_PER_FACE and "1000 copies" in what
+    assert held_geometry(bundle) == (Geometry("b", 1000 * faces),)
 
 
 @pytest.mark.gl
@@ -184,7 +184,7 @@ def test_bench_quick_smoke(tmp_path, no_warm_up):
 
 def test_each_copy_takes_the_band_its_screen_size_falls_in():
     from vdmrender.views import lodmix
-    from vdmrender.views.camera import Camera
+    from vdmrender.common.camera import Camera
     from vdmrender.views.sweep import distance_for
 
     entries = [{"variant": "mesh", "min_px": 64, "max_px": 256}, {"variant": "coarse@0.1", "min_px": 16, "max_px": 64},
@@ -237,7 +237,7 @@ def test_a_variant_holding_two_bands_draws_the_copies_of_both(ctx):
     every copy whose band names it, not the last band's alone."""
     from vdmbake.scene import Light
     from vdmrender.views import lodmix
-    from vdmrender.views.camera import Camera
+    from vdmrender.common.camera import Camera
 
     class Fake:
         anchor, faces = np.zeros(3), 0

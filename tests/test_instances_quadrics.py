@@ -78,7 +78,7 @@ def test_one_copy_in_place_gives_the_same_floats(ctx):
     """The renderers' float frames, not only their 8-bit encodings: a copy at the identity is drawn through the
     storage buffers (INSTANCED) exactly as the object through its per-instance attributes."""
     from vdmbake.kernels import quadrics
-    from vdmrender.views.camera import Camera
+    from vdmrender.common.camera import Camera
     from vdmrender.techniques.impostor import Impostors
     from vdmrender.techniques.tessellated import Tessellated
     from frames import LIGHT as L, MATERIAL, draw
@@ -208,7 +208,7 @@ def test_place_draws_the_copies_it_is_given(ctx):
     from vdmbake.kernels import quadrics
     from vdmrender.measuring import counters
     from vdmrender.gpu import gl
-    from vdmrender.views.camera import Camera
+    from vdmrender.common.camera import Camera
     from vdmrender.techniques.impostor import Impostors
     from vdmrender.techniques.tessellated import Tessellated
     from frames import LIGHT as L, MATERIAL

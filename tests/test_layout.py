@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import re
 import importlib
+import importlib.util
 from pathlib import Path
 
 import vdmbake
@@ -136,3 +137,26 @@ def test_shared_rooms_never_import_the_file_readers():
                 elif isinstance(node, ast.Import):
                     found |= {a.name for a in node.names}
             assert not {m for m in found if m.startswith("vdmbake.assets")}, path
+
+
+GL_ROOMS = ("vdmrender.gpu", "vdmrender.measuring", "vdmrender.passes", "vdmrender.techniques", "vdmrender.views")
+
+
+def test_tracing_deciding_and_common_draw_nothing():
+    """The renderer's rooms that trace the reference (tracing/), decide from measured rows (deciding/: the timing
+    statistic is there, the loop that times is measuring's) or are shared by all (common/) reach no GL, directly or
+    through what they import: no module of a drawing room, no moderngl; and nothing but the run imports the run
+    (render, many, cluster, cli)."""
+    root = Path(vdmrender.__file__).parent
+    for room in ("tracing", "deciding", "common"):
+        roots = [f"vdmrender.{room}.{p.stem}" for p in sorted((root / room).glob("*.py")) if p.stem != "__init__"]
+        reached = vdmbake.imported_closure(roots)
+        assert not [m for m in reached if m.startswith(GL_ROOMS)], (room, reached)
+        for name in reached:
+            source = Path(importlib.util.find_spec(name).origin).read_text()
+            assert not re.search(r"^\s*(import|from) moderngl", source, re.M), (room, name)
+    run = {"vdmrender.render", "vdmrender.many", "vdmrender.cluster", "vdmrender.cli"}
+    for path in sorted(root.rglob("*.py")):
+        name = ".".join(("vdmrender", *path.relative_to(root).with_suffix("").parts)).removesuffix(".__init__")
+        if name not in run:
+            assert not set(vdmbake.imported_closure([name])) & run - {name}, name

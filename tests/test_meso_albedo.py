@@ -22,12 +22,13 @@ from vdmbake.common.colour import srgb8_to_linear
 from vdmbake.errors import InputError
 from vdmbake.scene import load_scene
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
 from vdmrender.tracing import reference
-from vdmrender.views.camera import cameras_for
-from vdmrender.techniques import Source, variants
-from vdmrender.passes import mesostructure
+from vdmrender.common.camera import cameras_for
+from vdmrender.common.source import Source
+from vdmrender.techniques import variants
+from vdmrender.common import mesostructure
 
 ALL = ('vdm = { k = [8], refine = [0, 4] }, pom = { steps = [16] }, relief = { iterations = [32] }, bump = {}, '
        'displaced = { levels = [2] }, mesh = {}')

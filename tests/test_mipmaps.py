@@ -17,7 +17,7 @@ from vdmbake.common import texture
 from vdmbake.scene import Light, Material
 from vdmrender.measuring import counters
 from vdmrender.gpu import gl
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
 from vdmrender.passes.raster import RasterMesh
 from vdmrender.techniques import variants
 

@@ -11,7 +11,7 @@ from vdmbake.kernels import octahedral as oc
 from vdmbake.assets import primitives
 from vdmbake.errors import InputError
 from vdmbake.common.mesh import TriMesh
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
 from vdmrender.techniques.octahedral import Octahedral, atlas_texels, shadow_size
 
 from frames import LIGHT, MATERIAL, draw, score

@@ -12,7 +12,8 @@ import pytest
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from vdmrender.deciding import lod
+from vdmrender.common import plots
+from vdmrender.reporting import chains
 from vdmrender.reporting import report
 from vdmrender.views import sweep
 
@@ -97,7 +98,7 @@ def test_error_against_size_labels():
     """The error plot's axis said in words, and what its lines compare (the reference's samples, the frames'
     anti-aliasing) in the title, within the figure."""
     r = {**sweep_report(1.0, 2.0), "filtering": {"reference_spp": 16, "antialias": "msaa4"}}
-    fig = sweep.figure(r, "mean_dluv", report.ERROR_LABEL, False)
+    fig = sweep.figure(r, "mean_dluv", plots.ERROR_LABEL, False)
     assert "reference 16 spp, frames AA msaa4" in fig.get_suptitle()
     check(fig, [])
 
@@ -116,7 +117,7 @@ def test_the_lod_legend_names_the_hatch():
             for s, d in zip((64, 32, 16), ds)]
     lodj = {"chains": [chain, {**chain, "name": "dluv3"}], "sizes_px": [64, 32, 16], "device": "llvmpipe",
             "error": {"reference_spp": 4, "antialias": "msaa4"}}
-    fig = lod.figure(lodj, rows)
+    fig = chains.figure(lodj, rows)
     legends = [t.get_text() for ax in fig.axes for t in ax.get_legend().get_texts()]
     assert sum("hatched: over the limits" in t for t in legends) == 2, legends
     check(fig, [])

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from vdmbake.cli import main as bake_main
 from vdmbake.common.geometry import onb
 from vdmrender.tracing import quadric_math as qm
-from vdmrender.views.camera import Camera
+from vdmrender.common.camera import Camera
 
 from scenes import bake_and_render, rows_by_label
 

@@ -12,7 +12,7 @@ from vdmbake.assets import primitives
 from vdmbake.formats import exr
 from vdmbake.scene import Light, Material
 from vdmrender.tracing import reference
-from vdmrender.views.camera import Camera, clip_planes
+from vdmrender.common.camera import Camera, clip_planes
 
 LIGHT = Light(direction=(0.36, 0.48, 0.8), color=(1.0, 1.0, 1.0), ambient=(0.1, 0.1, 0.1))
 MATERIAL = Material(albedo=(0.8, 0.6, 0.4), diffuse=0.8, specular=0.3)
@@ -140,7 +140,7 @@ def test_adaptive_samples_reach_the_uniform_error_with_fewer_samples(spp):
     """The torus lit from the side (silhouettes, a shadow edge, a highlight) against its 256-spp frame: at the same
     budget the adaptive frame is as close as the uniform one (within 2%, over every pixel and over the pixels the
     silhouette crosses), for at most two thirds of the samples (a third of the frame is background)."""
-    from vdmrender.reporting import images
+    from vdmrender.common import images
     from vdmrender.comparing import metrics
 
     ref, cam, bg = torus_reference(), camera(64), np.array([0.1, 0.2, 0.3])

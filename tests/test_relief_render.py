@@ -32,10 +32,10 @@ def stage_errors(tmp_path, out, *defines_list, iterations=32):
     from vdmbake.formats import exr
     from vdmbake.scene import parse_scene_dict
     from vdmrender.gpu import gl
-    from vdmrender.reporting import images
-    from vdmrender.views.camera import cameras_for
+    from vdmrender.common import images
+    from vdmrender.common.camera import cameras_for
     from vdmrender.comparing.metrics import compare
-    from vdmrender.techniques import Source
+    from vdmrender.common.source import Source
     from vdmrender.techniques.relief import ReliefPass
     b = Bundle(tmp_path / "b.bundle")
     sc = parse_scene_dict(b.manifest["scene"], "manifest")

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image, ImageDraw
 
-from vdmrender.reporting import images, report
+from vdmrender.common import images
+from vdmrender.reporting import report
 
 LABELS = ["mesh", "coarse@0.1", "billboards@greedy-hier+coarse", "billboards@greedy-improved+coarse"]
 

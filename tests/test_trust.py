@@ -14,8 +14,9 @@ import vdmbake
 import vdmbake.bake as bake_mod
 from vdmbake.cli import main as bake_main
 from vdmrender.deciding import baseline
+from vdmrender.reporting import report
 from vdmrender.gpu import gl
-from vdmrender import progress
+from vdmrender.common import progress
 from vdmrender.tracing import refcache
 from vdmrender.cli import main as render_main
 
@@ -59,11 +60,11 @@ def test_code_fingerprint_follows_imports_and_edits(tmp_path, monkeypatch):
 
 def test_reference_code_covers_what_the_reference_runs():
     mods = vdmbake.imported_closure(refcache.REFERENCE_ROOTS)
-    assert {"vdmrender.tracing.reference", "vdmrender.tracing.quadric_math", "vdmrender.tracing.shading", "vdmrender.views.camera",
+    assert {"vdmrender.tracing.reference", "vdmrender.tracing.quadric_math", "vdmrender.tracing.shading", "vdmrender.common.camera",
             "vdmbake.common.embree", "vdmbake.common.geometry", "vdmbake.common.instances"} <= set(mods)
     assert "vdmrender.gpu.gl" not in mods                 # GL code does not invalidate the cached reference
-    meso = vdmbake.imported_closure(["vdmrender.passes.mesostructure"])
-    assert "vdmrender.passes.mesostructure" in meso
+    meso = vdmbake.imported_closure(["vdmrender.common.mesostructure"])
+    assert "vdmbake.common.geometry" in meso and "vdmrender.gpu.gl" not in meso   # the displaced mesh, no GL
     assert refcache.reference_code(True) != refcache.reference_code(False)
 
 
@@ -217,9 +218,9 @@ def test_baseline_changes_and_thresholds():
     assert b["failed"] == ["o: coarse@0.1"]
     assert baseline.compare(old, new, 0.2, 1.5)["failed"] == []         # within both thresholds
     assert baseline.compare(old, new, None, None)["failed"] == []       # no threshold, no failure
-    table = baseline.table(b)
+    table = report.baseline_table(b)
     assert "| o | coarse@0.1 | 0.800 → 0.950 | +0.150 |" in table and "error, time" in table
-    assert baseline.to_csv(b).splitlines()[0].startswith("object,label,status,old_mean_dluv")
+    assert report.baseline_csv(b).splitlines()[0].startswith("object,label,status,old_mean_dluv")
 
 
 def test_baseline_refuses_what_is_not_a_report(tmp_path):

@@ -27,7 +27,7 @@ import curved_ray as cr
 from vdmrender.gpu import gl
 from vdmrender.tracing import quadric_math, shading
 from vdmrender.passes import hftrace
-from vdmrender.views.camera import Camera, pixel_ray, window_depth
+from vdmrender.common.camera import Camera, pixel_ray, window_depth
 from glsl_eval import evaluate
 
 

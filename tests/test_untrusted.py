@@ -378,13 +378,13 @@ def test_runs_md_escapes_what_it_prints():
 
 
 def test_baseline_md_escapes_what_it_prints():
-    from vdmrender.deciding import baseline
+    from vdmrender.reporting.report import baseline_table
 
     row = {k: None for k in ("old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv", "new_p95_dluv",
                              "d_p95_dluv", "d_flip", "old_ms", "new_ms", "time_ratio", "noise_ms")}
     block = {"thresholds": {"max_error_increase": None, "max_slowdown": None}, "notes": [f"note {NAME}"],
              "rows": [{**row, "object": NAME, "label": "<i>mesh</i>", "exceeds": [], "status": "new"}]}
-    table = baseline.table(block)
+    table = baseline_table(block)
     assert "<img" not in table and "<i>" not in table, table
     assert "note: note &lt;img src=x onerror=alert(1)&gt;\\|x" in table
     assert "| &lt;img src=x onerror=alert(1)&gt;\\|x | &lt;i&gt;mesh&lt;/i&gt; |" in table

@@ -233,7 +233,7 @@ def test_object_without_vdm_gets_no_tables(tmp_path):
 def dark_fractions(tmp_path, out, label):
     """Over the pixels both cover, the fraction shaded with the ambient only (shadowed, or facing away
     from the light) in the frame but not in the reference (false dark), and the reverse (missed dark)."""
-    from vdmrender.reporting.images import encode
+    from vdmrender.common.images import encode
 
     sc = json.loads((tmp_path / "b.bundle/manifest.json").read_text())["scene"]
     amb = np.array(sc["light"]["ambient"]) * np.array(sc["objects"][0]["material"]["albedo"])
@@ -297,7 +297,7 @@ def test_costs_per_fragment(tmp_path):
     from bench.interleave import scene_of
     from vdmrender.measuring import counters
     from vdmrender.gpu import gl
-    from vdmrender.techniques import Source
+    from vdmrender.common.source import Source
     from vdmrender.techniques.vdm import VDMPass
 
     text = scene(ORBIT.format(count=1), TORUS, 'vdm = { k = [8] }', size=16, tiling=(8, 2), res=32)

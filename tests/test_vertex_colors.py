@@ -17,10 +17,10 @@ from vdmbake.assets.meshes import load_mesh_file, resolve_path
 from vdmbake.common.mesh import TriMesh
 from vdmbake.scene import Light, Material
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
 from vdmrender.tracing import reference
-from vdmrender.views.camera import orbit
+from vdmrender.common.camera import orbit
 from vdmrender.passes.raster import RasterMesh
 
 AIRPLANE = "pkg:pymeshlab/tests/sample_meshes/colored_airplane.ply"

@@ -70,7 +70,15 @@ def _demo(doc: dict, key: str) -> str:
                     ["---", "---", "---", "---", "---", "---:", "---:", "---:", "---:"], rows)
 
 
-VIEWS = {"filtered": _filtered, "demo": _demo}
+def _rooms(doc: dict, key: str) -> str:
+    """tools/rooms.py's rooms.json: each room, its modules and the rooms it imports."""
+    rows = [[f"`{name}`" if name != "(top)" else "the run (top level)", ", ".join(r["modules"]),
+             ", ".join(r["imports"]) or "-"] for name, r in doc["rooms"].items()]
+    rows.append(["all", f"{doc['modules']} modules", f"{doc['floors']} floors (highest: {', '.join(doc['highest'])})"])
+    return markdown(["room", "modules", "imports rooms"], ["---", "---", "---"], rows)
+
+
+VIEWS = {"filtered": _filtered, "demo": _demo, "rooms": _rooms}
 
 
 def table(name: str, key: str) -> str:

@@ -18,7 +18,7 @@ import click
 
 from vdmbake.bundle.directory import Bundle
 from vdmrender.gpu import gl
-from vdmrender.views.camera import cameras_for
+from vdmrender.common.camera import cameras_for
 from vdmrender.techniques import variants
 
 

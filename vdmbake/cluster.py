@@ -36,7 +36,7 @@ from concurrent.futures import CancelledError
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import InputError, escaped
+from .errors import InputError, cut, escaped
 
 LOCAL = re.compile(r"local:(\d+)")
 TCP = re.compile(r"(?:tcp|tls)://\[?([^\]/]+?)\]?:(\d+)/?")
@@ -114,7 +114,7 @@ def connected(address: str, wait_s: float = WAIT_S):
                 client = Client(address, timeout="30s")
             except Exception as e:              # another service there: Dask reads its answer as frames
                 raise InputError(f"--scheduler {escaped(address)}: no Dask scheduler answers there "
-                                 f"({type(e).__name__}: {escaped(str(e)[:200])}); start one with `dask scheduler` and "
+                                 f"({type(e).__name__}: {cut(str(e))}); start one with `dask scheduler` and "
                                  "its workers with `dask worker ADDRESS` (docs/cluster.md).") from None
     except BaseException:
         if cluster is not None:

@@ -13,6 +13,13 @@ def escaped(text: str) -> str:
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
+def cut(text: str, limit: int = 200) -> str:
+    """`text` as an error message quotes it (a library's reason, a value read from a file): escaped, at most
+    `limit` characters, '...' where it was cut."""
+    text = escaped(text)
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def paragraph(text: str) -> str:
     """`text` on one line: its lines joined by spaces, every other unprintable character escaped."""
     return escaped(" ".join(line.strip() for line in text.splitlines() if line.strip()))

@@ -24,9 +24,13 @@ from .schema import (REQUIRED, Boolean, Choice, Custom, Direction, unit, Integer
 from .techniques import REGISTRY
 
 MAX_SCENE_BYTES = 64 << 20
+TRIANGLE_MESHES = tuple(n for n, t in REGISTRY.items() if t.triangles == "mesh")   # what a glTF carries as it is
+BY_FACES = tuple(n for n, t in REGISTRY.items() if t.triangles)                    # levels ranked by their faces
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
 MAX_SPP = 256    # the reference's samples per pixel, at most (16 x 16)
-ANTIALIAS = ("none", "msaa2", "msaa4", "msaa8", "ssaa2", "ssaa3", "ssaa4")
+# The anti-aliasing modes (render.antialias) by name: (kind, n), msaaN N samples per pixel, ssaaK K x K pixels per pixel.
+ANTIALIAS = {"none": ("none", 1), **{f"msaa{n}": ("msaa", n) for n in (2, 4, 8)},
+             **{f"ssaa{k}": ("ssaa", k) for k in (2, 3, 4)}}
 
 
 class VariantSets(Type):
@@ -84,8 +88,10 @@ class Sweep:
     """Error and cost against screen size (vdmrender.views.sweep): every view again with the camera moved along its
     line of sight until the object's bounding sphere spans each size on screen; the frame size stays."""
     sizes: tuple[int, ...] = setting(REQUIRED, ListOf(Integer(2, 4 * MAX_SIDE)),
-                                     "the bounding sphere's projected diameter in pixels, e.g. [512, 256, 128, 64, 32, "
-                                     "16] (larger than the frame: the object overflows it)")
+                                     "every view again with the object this many pixels across on screen (its bounding "
+                                     "sphere's projected diameter; the camera moves, the frame stays; larger than the "
+                                     "frame: the object overflows it): error and cost against screen size (sweep.csv, "
+                                     "error_vs_size.png, cost_vs_size.png)", flag="PX,PX,...")
     lod: tuple[Thresholds, ...] = setting((), Tables(Thresholds),
                                           "[[render.sweep.lod]]: LOD chains to pick from the sweep (lod.json), one "
                                           "per set of limits: per size band the cheapest variant within them")
@@ -93,13 +99,14 @@ class Sweep:
 
 @dataclass(frozen=True)
 class Render:
-    resolution: tuple[int, int] = setting((512, 512), Vector(2, 1, MAX_SIDE, integer=True), "[width, height] in pixels")
+    resolution: tuple[int, int] = setting((512, 512), Vector(2, 1, MAX_SIDE, integer=True, sep="x"),
+                                          "[width, height] in pixels", flag="WIDTHxHEIGHT")
     background: tuple[float, float, float] = setting((0.02, 0.022, 0.03), Vector(3, 0.0, 1.0),
                                                      "linear RGB behind the objects")
     repeats: int = setting(5, Integer(1, 1000), "timed renders of each frame, at least (`--sample-s` asks for time "
-                           "too); the report gives their median GPU time")
+                           "too); the report gives their median GPU time", flag="N")
     warmup: int = setting(1, Integer(0, 100), "untimed renders of each frame before timing, at least, then on until "
-                          "the GPU times are steady (`--warmup-s`); 0: no warm-up")
+                          "the GPU times are steady (`--warmup-s`); 0: no warm-up", flag="N")
     shadow_map: int = setting(2048, Integer(256, 16384), "shadow-map side in texels")
     composite: tuple = setting((), VariantSets(),
                                "composite frames: besides each object alone, every object of the scene in one frame "
@@ -108,16 +115,17 @@ class Render:
                                '`[{ bunny = "mesh", torus = "vdm@8" }, { bunny = "coarse@0.1", torus = "pom@32" }]`; '
                                "the reference traces every object together")
     sweep: Sweep | None = setting(None, Table(Sweep), "[render.sweep]: error and cost against screen size, and LOD "
-                                  "chains from them (`vdmrender --sizes` too)")
+                                  "chains from them")
     reference_spp: int = setting(1, Square(MAX_SPP), "samples per pixel of the reference at most (the budget "
                                  "of the hardest pixels): N of the N x N stratified samples everywhere, the rest where "
-                                 "they disagree (an edge, a shadow, texture), box-filtered in linear colour (what a viewer sees of the pixel; 1: the pixel centre "
-                                 "only); every row also keeps the error against the pixel-centre reference "
-                                 "(`aliased_*`); `vdmrender --reference-spp`")
+                                 "they disagree (an edge, a shadow, texture), box-filtered in linear colour (what a "
+                                 "viewer sees of the pixel; 1: the pixel centre only); the error that decides (sweeps, "
+                                 "LOD chains) is against it, and every row also keeps the error against the "
+                                 "pixel-centre reference (`aliased_*`)", flag="N")
     antialias: str = setting("none", Choice(*ANTIALIAS), "how each variant's frames are anti-aliased, as shipped: "
                              "`msaaN` N samples per pixel (GL multisampling: edges of triangles, not of what a "
                              "fragment stage discards), `ssaaK` rendered K x K larger and box-filtered down on the "
-                             "GPU (timed as the pass `resolve`); `vdmrender --antialias`")
+                             "GPU (timed and counted as the pass `resolve`)", flag="MODE")
     mipmaps: bool = setting(False, Boolean(), "mipmap the textures the techniques read (albedo maps, billboard "
                             "maps, octahedral atlases) and read VDM's tables at the level of the pixel's footprint "
                             "(Wang 2003 sec. 4); false: level 0 only")

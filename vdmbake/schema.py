@@ -4,7 +4,10 @@ markdown reference generated from the same declarations (docs/scenes.md and --he
 
 A dataclass is its own schema: each field is declared with `setting(default, TYPE, "doc")` and
 `read(cls, table)` builds an instance, naming the file, the key, the bad value and what is
-allowed in every error. `dump` writes an instance back as plain data that `read` accepts.
+allowed in every error. `dump` writes an instance back as plain data that `read` accepts. A
+setting declared with `flag=` is also a command-line option that overrides it (`overridable`):
+its value is read from the option's text by the same type (`Type.from_text`), so a file and a
+flag accept and refuse the same values.
 """
 from __future__ import annotations
 
@@ -13,16 +16,15 @@ import math
 import re
 from typing import Any, Callable
 
-from .errors import InputError, escaped
+from .errors import InputError, cut, escaped
 
 
 REQUIRED = dataclasses.MISSING
 
 
 def show(value) -> str:
-    """A value as an error message shows it: one line, at most about 200 characters."""
-    text = repr(value)
-    return text if len(text) <= 200 else text[:200] + "..."
+    """A value as an error message shows it: its repr, one line, at most about 200 characters."""
+    return cut(repr(value))
 
 
 class Invalid(Exception):
@@ -42,11 +44,15 @@ def _finite(x) -> bool:
 
 class Type:
     """A value type: parse(raw) -> value or raise Invalid; dump(value) -> plain data; text says what
-    is allowed (error messages and docs)."""
+    is allowed (error messages and docs); from_text(text) -> raw: a command-line option's text as the
+    plain data `parse` reads (a string, unless the type reads something else)."""
     text = "any value"
 
     def parse(self, raw):
         return raw
+
+    def from_text(self, text: str):
+        return text
 
     def dump(self, value):
         return value
@@ -68,6 +74,9 @@ class Integer(Type):
         if isinstance(raw, bool) or not isinstance(raw, int) or not self.lo <= raw <= self.hi:
             raise Invalid
         return int(raw)
+
+    def from_text(self, text: str):
+        return _integer_text(text)
 
 
 class Square(Integer):
@@ -96,6 +105,9 @@ class Number(Type):
         if not (self.lo < v if self.open_lo else self.lo <= v) or not v <= self.hi:
             raise Invalid
         return v
+
+    def from_text(self, text: str):
+        return _number_text(text)
 
 
 class Boolean(Type):
@@ -132,11 +144,12 @@ class Text(Type):
 
 class Vector(Type):
     """n finite numbers in [lo, hi] (integers if `integer`), as a tuple; `scalar` also accepts one
-    number for all n."""
+    number for all n. On a command line the numbers are separated by `sep` (512x512)."""
 
     def __init__(self, n: int, lo: float = -math.inf, hi: float = math.inf, integer: bool = False,
-                 nonzero: bool = False, scalar: bool = False):
+                 nonzero: bool = False, scalar: bool = False, sep: str = ","):
         self.n, self.lo, self.hi, self.integer, self.nonzero, self.scalar = n, lo, hi, integer, nonzero, scalar
+        self.sep = sep
         kind = "integers" if integer else "finite numbers"
         bounds = f" in [{lo:g}, {hi:g}]" if math.isfinite(lo) or math.isfinite(hi) else ""
         self.text = (f"a list of {n} {kind}{bounds}" + (", not all zero" if nonzero else "")
@@ -154,6 +167,9 @@ class Vector(Type):
         if self.nonzero and not any(raw):
             raise Invalid
         return tuple(int(x) if self.integer else float(x) for x in raw)
+
+    def from_text(self, text: str):
+        return [(_integer_text if self.integer else _number_text)(x) for x in text.split(self.sep)]
 
     def dump(self, value):
         return list(value)
@@ -226,8 +242,25 @@ class ListOf(Type):
             raise Invalid
         return values
 
+    def from_text(self, text: str):
+        """Values separated by commas (512,128,32)."""
+        return [self.item.from_text(x) for x in text.split(",")]
+
     def dump(self, value):
         return [self.item.dump(v) for v in value]
+
+
+def _integer_text(text: str) -> int:
+    if not re.fullmatch(r"\s*[+-]?\d+\s*", text):
+        raise Invalid
+    return int(text)
+
+
+def _number_text(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise Invalid from None
 
 
 def _key(v):
@@ -254,15 +287,34 @@ class Tables(Type):
         return [dump(v) for v in value]
 
 
-def setting(default, type_: Type, doc: str, *, knob: str | None = None):
+def setting(default, type_: Type, doc: str, *, knob: str | None = None, flag: str | None = None):
     """A dataclass field that is a scene setting. knob: on a technique's options, marks the list
-    swept into an error-against-time curve, and names one value of it in reports ("ratio")."""
+    swept into an error-against-time curve, and names one value of it in reports ("ratio"). flag:
+    the renderer's option `--NAME` (NAME the field's, with hyphens) overrides the setting; `flag` is
+    how its value is written there (its metavar: WIDTHxHEIGHT)."""
     kwargs = {"default": default} if default is not REQUIRED else {}
-    return dataclasses.field(**kwargs, metadata={"type": type_, "doc": doc, "knob": knob})
+    return dataclasses.field(**kwargs, metadata={"type": type_, "doc": doc, "knob": knob, "flag": flag})
 
 
 def settings(cls) -> list[dataclasses.Field]:
     return [f for f in dataclasses.fields(cls) if "type" in f.metadata]
+
+
+def flag_name(f: dataclasses.Field) -> str:
+    """The command-line option overriding the setting `f` (declared with `flag=`)."""
+    return "--" + f.name.replace("_", "-")
+
+
+def overridable(cls, prefix: str = "") -> list[tuple[str, dataclasses.Field]]:
+    """(key, field) of every setting declared with `flag=` in `cls` and its nested tables, the key spelled
+    as in docs/scenes.md (render.sweep.sizes)."""
+    out = []
+    for f in settings(cls):
+        if f.metadata["flag"]:
+            out.append((prefix + f.name, f))
+        if isinstance(f.metadata["type"], Table):
+            out += overridable(f.metadata["type"].cls, f"{prefix}{f.name}.")
+    return out
 
 
 class Reader:
@@ -354,20 +406,25 @@ def knob(cls) -> dataclasses.Field | None:
     return next((f for f in settings(cls) if f.metadata["knob"]), None)
 
 
+def default_text(f: dataclasses.Field) -> str:
+    """A setting's default as docs/scenes.md and --help give it: `5`, `"none"`, none, required, its defaults."""
+    t = f.metadata["type"]
+    if f.default is dataclasses.MISSING:
+        return "required"
+    if f.default is None or f.default == ():
+        return "none"
+    if isinstance(t, (Table, Tables, Custom)):
+        return "its defaults"
+    return f"`{_toml(t.dump(f.default))}`"
+
+
 def markdown(cls, prefix: str = "") -> list[str]:
-    """Markdown table rows `| key | allowed | default | meaning |` for the settings of `cls`."""
+    """Markdown table rows `| key | allowed | default | meaning |` for the settings of `cls`; a setting with a
+    command-line option names it."""
     rows = []
     for f in settings(cls):
-        t = f.metadata["type"]
-        if f.default is dataclasses.MISSING:
-            default = "required"
-        elif f.default is None or f.default == ():
-            default = "none"
-        elif isinstance(t, (Table, Tables, Custom)):
-            default = "its defaults"
-        else:
-            default = f"`{_toml(t.dump(f.default))}`"
-        rows.append(f"| `{prefix}{f.name}` | {t.text} | {default} | {f.metadata['doc']} |")
+        also = f"; `vdmrender {flag_name(f)}`" if f.metadata["flag"] else ""
+        rows.append(f"| `{prefix}{f.name}` | {f.metadata['type'].text} | {default_text(f)} | {f.metadata['doc']}{also} |")
     return rows
 
 
@@ -407,6 +464,9 @@ class Technique:
     reads: Callable | None = None     # (its manifest entry, a variant's value, the object) -> {part path: part
                                       # kind} the variant's renderer reads; with `bake`. The bundle checks these
                                       # before rendering (vdmbake.bundle.manifest); any lookup error is a bad entry
+    triangles: str | None = None      # draws the object as triangles: "mesh" (its mesh or a simplification, which a
+                                      # glTF carries as it is), "made" (made at load: displaced, tessellated); a
+                                      # level of detail ranked by its faces (vdmrender.deciding.lod)
 
     @property
     def knob(self) -> dataclasses.Field | None:

@@ -1,8 +1,8 @@
 """vdmrender: render a bundle with each technique and the reference; report error against time."""
 from __future__ import annotations
 
+import dataclasses
 import json
-import re
 import sys
 from pathlib import Path
 
@@ -11,31 +11,40 @@ import click
 from vdmbake import __version__
 from vdmbake.errors import InputError, escaped, fail, guarded
 from vdmbake.cluster import check_address
-from vdmbake.scene import ANTIALIAS, MAX_SIDE, MAX_SPP, REGISTRY
+from vdmbake.scene import REGISTRY
+from vdmbake.schema import Invalid, default_text, flag_name
 
-from .gpu import gl
 from . import many as many_bundles
-from .deciding.baseline import table as baseline_table
-from .render import Options, run
+from .gpu import gl
+from .measuring.timing import Budget
+from .render import OVERRIDES, Options, run
+from .reporting.report import baseline_table
 
 
-def _resolution(ctx, param, value):
-    if value is None:
-        return None
-    m = re.fullmatch(r"(\d+)x(\d+)", value)
-    if not m or not all(1 <= int(g) <= MAX_SIDE for g in m.groups()):
-        raise click.BadParameter(f"{value!r}: expected WIDTHxHEIGHT with each side in [1, {MAX_SIDE}], e.g. 512x512")
-    return int(m.group(1)), int(m.group(2))
+class Setting(click.ParamType):
+    """A scene setting's value on the command line, read by the setting's own type (vdmbake.schema): the option
+    refuses what the scene file refuses, with the same words."""
+
+    def __init__(self, field):
+        self.type, self.name = field.metadata["type"], field.metadata["flag"]
+
+    def convert(self, value, param, ctx):
+        try:
+            return self.type.parse(self.type.from_text(value))
+        except Invalid:
+            self.fail(f"{value!r}: expected {self.name}; allowed: {self.type.text}", param, ctx)
 
 
-def _sizes(ctx, param, value):
-    if value is None:
-        return None
-    parts = value.split(",")
-    if not all(p.strip().isdigit() and 2 <= int(p) <= 4 * MAX_SIDE for p in parts) or len(set(map(int, parts))) < len(parts):
-        raise click.BadParameter(f"{value!r}: expected distinct sizes in pixels, each in [2, {4 * MAX_SIDE}], "
-                                 "separated by commas, e.g. 512,128,32")
-    return tuple(int(p) for p in parts)
+def overrides(command):
+    """One option per scene setting a run overrides (render.OVERRIDES), its help the setting's own description,
+    allowed values and default, as docs/scenes.md gives them."""
+    for key, f in reversed(OVERRIDES):
+        doc, t = f.metadata["doc"], f.metadata["type"]
+        default = "" if f.default is dataclasses.MISSING else f"; default {default_text(f)}"
+        command = click.option(flag_name(f), f.name, type=Setting(f), metavar=f.metadata["flag"],
+                               help=f"{doc[0].upper()}{doc[1:]}. Overrides the scene's {key}. Allowed: {t.text}"
+                                    f"{default}.")(command)
+    return command
 
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
@@ -46,14 +55,13 @@ def _sizes(ctx, param, value):
 @click.option("-t", "--technique", "techniques", multiple=True,
               help=f"Render only this technique (repeatable; {', '.join(REGISTRY)}); default: every technique "
                    "the scene names.")
-@click.option("--resolution", callback=_resolution, help="WIDTHxHEIGHT, overrides the scene's render.resolution.")
-@click.option("--repeats", type=click.IntRange(1, 1000), help="Timed renders per frame, at least (scene default otherwise).")
-@click.option("--warmup", type=click.IntRange(0, 100), help="Untimed renders per frame before timing, at least.")
+@overrides
 @click.option("--warmup-s", type=click.FloatRange(0, 600), metavar="SECONDS",
-              help="Warm up at least this long, then until successive windows of GPU times agree within 5% "
-                   "(default 0.1; on a GPU give 2: its clocks need about a second of sustained work).")
+              help=f"Warm up at least this long, then until successive windows of GPU times agree within "
+                   f"{Budget.tolerance:.0%} (default {Budget.warmup_s:g}; on a GPU give 2: its clocks need about a "
+                   "second of sustained work).")
 @click.option("--sample-s", type=click.FloatRange(0, 600), metavar="SECONDS",
-              help="Time at least this long (and at least --repeats renders per frame; default 0).")
+              help=f"Time at least this long (and at least --repeats renders per frame; default {Budget.sample_s:g}).")
 @click.option("--device", help="The GPU: an EGL device index N, or cuda:N for the GPU CUDA numbers N (NVIDIA, "
                                "EGL_NV_device_cuda); or set VDM_GL_DEVICE.")
 @click.option("--max-error", type=click.FloatRange(min=0), help="Exit 1 if any technique's mean ΔLuv exceeds this.")
@@ -69,29 +77,15 @@ def _sizes(ctx, param, value):
 @click.option("--compare-devices", is_flag=True,
               help="With --baseline: compare times even when the baseline ran on another GL device (refused "
                    "otherwise: --max-slowdown exits 2, and the table leaves times out).")
-@click.option("--counters/--no-counters", default=True, show_default=True,
+@click.option("--counters/--no-counters", default=Options.counters, show_default=True,
               help="Count each variant's work per frame, device-independent (fragments shaded, texture fetches, "
                    "search steps, primitives, draws, instances, GPU bytes held: report.json's counters, "
                    "per_pixel, counters_per_pass) from one more frame per camera of an instrumented build.")
-@click.option("--flip/--no-flip", default=True, show_default=True,
+@click.option("--flip/--no-flip", default=Options.flip, show_default=True,
               help="Also score every frame with NVIDIA FLIP (flip_mean in the report; about 2 s per 512x512 "
                    "frame on 2 CPU cores).")
-@click.option("--heat-max", type=click.FloatRange(min=1e-3), default=10.0, show_default=True,
+@click.option("--heat-max", type=click.FloatRange(min=1e-3), default=Options.heat_max, show_default=True,
               help="ΔLuv at the top of the heat maps' colour scale.")
-@click.option("--sizes", callback=_sizes, metavar="PX,PX,...",
-              help="Also render every view with the object this many pixels across on screen (its bounding sphere's "
-                   "projected diameter; the camera moves, the frame stays), e.g. 512,128,32: error and cost against "
-                   "screen size (sweep.csv, error_vs_size.png, cost_vs_size.png); overrides render.sweep.sizes.")
-@click.option("--reference-spp", type=click.Choice([str(n * n) for n in range(1, 17) if n * n <= MAX_SPP]),
-              metavar="N", help="Samples per pixel of the reference (a square: 1, 4, 9, 16, ... 256): at most N x N stratified (N "
-                                "everywhere, the rest where they disagree: edges, shadows, texture), box-filtered in "
-                                "linear colour, what a viewer sees of each pixel; the error that decides "
-                                "(sweeps, LOD chains) is against it, and every row keeps the error against the pixel "
-                                "centres beside it (aliased_*). Overrides render.reference_spp (default 1).")
-@click.option("--antialias", type=click.Choice(ANTIALIAS),
-              help="Render every variant as it would be shipped: msaaN (GL multisampling) or ssaaK (K x K larger, "
-                   "box-filtered down on the GPU); its time and counters include the resolve pass. Overrides "
-                   "render.antialias (default none).")
 @click.option("--scheduler", metavar="ADDRESS",
               help="Render on a Dask cluster: tcp://HOST:8786 (a running `dask scheduler`, its workers each with their "
                    "own GL device), or local:N for N worker processes here; one task per bundle, every file but the "
@@ -102,9 +96,8 @@ def _sizes(ctx, param, value):
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
-def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample_s, device, max_error, baseline, max_error_increase,
-         max_slowdown, compare_devices, counters, flip, heat_max, sizes, reference_spp, antialias, scheduler, workers_wait,
-         as_json, debug):
+def main(bundles, out, techniques, warmup_s, sample_s, device, max_error, baseline, max_error_increase, max_slowdown,
+         compare_devices, counters, flip, heat_max, scheduler, workers_wait, as_json, debug, **overridden):
     """Render each BUNDLE (made by vdmbake) into OUTPUT and report error against run time.
 
     For every object, each technique variant (a technique at one value of its quality
@@ -170,12 +163,9 @@ def main(bundles, out, techniques, resolution, repeats, warmup, warmup_s, sample
         fail(InputError("--max-error-increase and --max-slowdown compare with an earlier run; give its "
                         "report.json with --baseline OLD/report.json."), debug)
     log = (lambda m: None) if as_json else (lambda m: click.echo(escaped(m), err=True))   # paths are raw input
-    opts = Options(techniques=techniques or None, resolution=resolution, repeats=repeats, warmup=warmup,
-                   warmup_s=warmup_s, sample_s=sample_s,
-                   device=device, heat_max=heat_max, flip=flip, baseline=baseline,
-                   max_error_increase=max_error_increase, max_slowdown=max_slowdown, compare_devices=compare_devices,
-                   counters=counters, sizes=sizes, reference_spp=reference_spp and int(reference_spp),
-                   antialias=antialias)
+    opts = Options(techniques=techniques or None, warmup_s=warmup_s, sample_s=sample_s, device=device,
+                   heat_max=heat_max, flip=flip, baseline=baseline, max_error_increase=max_error_increase,
+                   max_slowdown=max_slowdown, compare_devices=compare_devices, counters=counters, **overridden)
     if debug:
         gl.STRICT = True
     found, many = guarded(lambda: many_bundles.bundles(bundles), debug)

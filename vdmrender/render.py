@@ -11,59 +11,66 @@ from pathlib import Path
 
 from vdmbake import __version__
 from vdmbake.bundle import budget as memory
+from vdmbake.bundle import parts
 from vdmbake.bundle.directory import Bundle
-from vdmbake.common import instances
+from vdmbake.common import geometry, instances
 from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
-from vdmbake.scene import REGISTRY
+from vdmbake.scene import ANTIALIAS, REGISTRY, Scene
+from vdmbake.schema import overridable
 
+from .common import images
+from .common.camera import cameras_for, framed
 from .comparing import change, scoring
 from .comparing.metrics import summarise
 from .deciding import baseline, lod, pricing
 from .gpu import device as gpu, gl
-from .measuring import measure, timing
-from .reporting import html, images, report
+from .measuring import interleaved, measure, timing
+from .reporting import chains, html, report
+from .techniques import variants
 from .tracing import refcache, reference
 from .views import composite, lodmix, sweep
-from .views.camera import cameras_for, framed
-from .techniques import variants
-
-# Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
-# (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
-BYTES_PER_PIXEL = 800
-# tracemalloc: 180 more bytes per pixel per further reference thread (docs/reference.md), with 2x headroom
-BYTES_PER_THREAD_PIXEL = 400
-# Peak memory of an object's geometry (the reference's Embree scene and the uploaded buffers; llvmpipe
-# keeps them in RAM), with about 4x headroom: peak RSS over 80k -> 200k inline spheres (impostor, 48^2)
-# grew 2.15 kB per sphere, over 200k -> 800k mesh faces (mesh, 48^2) 150 bytes per face.
-BYTES_PER_QUADRIC = 8192
-BYTES_PER_FACE = 600
 
 
-def geometry_bytes(bundle) -> tuple[int, str]:
-    """The largest object's geometry memory (every mesh part of the object counted, the quadrics; each times the
-    object's copies) and a description of it, from the manifest alone."""
-    worst, what = 0, ""
-    copies = {o.name: instances.count(o.instances) if o.instances else 1 for o in bundle.scene.objects}
-    for name, entry in bundle.manifest["objects"].items():
-        prefix = f"objects/{name}/"
-        meshes = [m for rel, m in bundle.manifest["parts"].items() if rel.startswith(prefix) and m["kind"] == "mesh"]
-        faces = sum(m["faces"] for m in meshes) * copies[name]   # the reference merges every copy
+def held_geometry(bundle) -> tuple[memory.Geometry, ...]:
+    """What each object gives the render to hold (vdmbake.bundle.budget.Geometry), from the manifest and, for a
+    mesostructure, its base mesh: every mesh part of the object and its quadrics, times its copies (the reference
+    merges them), and the faces of the displaced reference (the base mesh subdivided to reference_levels)."""
+    out = []
+    for obj in bundle.scene.objects:
+        entry, copies = bundle.manifest["objects"][obj.name], instances.count(obj.instances) if obj.instances else 1
+        prefix = f"objects/{obj.name}/"
+        faces = sum(m["faces"] for rel, m in bundle.manifest["parts"].items()
+                    if rel.startswith(prefix) and m["kind"] == "mesh")
         q = bundle.manifest["parts"][entry["quadrics"]] if entry.get("quadrics") else {"spheres": 0, "cylinders": 0}
-        quadrics = (q["spheres"] + q["cylinders"]) * copies[name]   # the quadric reference merges them too
-        need = faces * BYTES_PER_FACE + quadrics * BYTES_PER_QUADRIC
-        if need > worst:
-            worst, what = need, (f"object {name!r}: {faces} mesh faces and {quadrics} spheres and cylinders"
-                                 + (f" ({copies[name]} copies)" if copies[name] > 1 else ""))
-    return worst, what
+        displaced = 0
+        if obj.mesostructure:
+            m, base = obj.mesostructure, bundle.read(entry["mesh"], parts.MESH)
+            displaced = len(base.faces) * 4 ** geometry.reference_levels(base, m.size, m.tiling)
+        out.append(memory.Geometry(obj.name, faces * copies, (q["spheres"] + q["cylinders"]) * copies, displaced))
+    return tuple(out)
+
+
+def memory_need(bundle, width: int, height: int, opts: "Options") -> memory.Render:
+    """What the run holds at its peak, as vdmbake.bundle.budget estimates it (`opts` resolved by filtering): the
+    reference at this size on reference.workers() threads, every object's geometry, the targets."""
+    scene = bundle.scene
+    return memory.Render(width, height, len(cameras_for(scene.camera, (0.0, 0.0, 0.0), 1.0, width, height)),
+                         opts.reference_spp, reference.workers(), ANTIALIAS[opts.antialias], held_geometry(bundle),
+                         together=bool(scene.render.composite))
+
+
+# The scene's settings a run overrides, each declared once in vdmbake.scene (`setting(..., flag=...)`): the
+# option `vdmrender --NAME` and the field NAME of Options, None for the scene's value.
+OVERRIDES = overridable(Scene)
+Overrides = dataclasses.make_dataclass(
+    "Overrides", [(f.name, f"{f.type} | None", dataclasses.field(default=None)) for _, f in OVERRIDES],
+    namespace={"__module__": __name__})
 
 
 @dataclass
-class Options:
+class Options(Overrides):
     techniques: tuple[str, ...] | None = None    # render only these (the scene's list otherwise)
-    resolution: tuple[int, int] | None = None    # override the scene's
-    repeats: int | None = None
-    warmup: int | None = None
     warmup_s: float | None = None                # timing.Budget: minimum warm-up time
     sample_s: float | None = None                # timing.Budget: minimum sampling time
     device: str | None = None
@@ -74,9 +81,6 @@ class Options:
     max_slowdown: float | None = None
     compare_devices: bool = False                # compare times with a baseline from another device
     counters: bool = True                        # count each variant's work (vdmrender.measuring.counters)
-    sizes: tuple[int, ...] | None = None         # screen-size sweep (vdmrender.views.sweep), overrides render.sweep.sizes
-    reference_spp: int | None = None             # the reference's samples per pixel, overrides render.reference_spp
-    antialias: str | None = None                 # the variants' anti-aliasing (vdmbake.scene.ANTIALIAS), overrides render.antialias
 
 
 def filtering(opts: Options, scene) -> Options:
@@ -84,20 +88,6 @@ def filtering(opts: Options, scene) -> Options:
     the options leave them)."""
     return dataclasses.replace(opts, reference_spp=opts.reference_spp or scene.render.reference_spp,
                                antialias=opts.antialias or scene.render.antialias)
-
-
-def reference_bytes_per_pixel() -> int:
-    """Peak working memory of the reference per pixel, on the threads it traces on (reference.workers)."""
-    return BYTES_PER_PIXEL + BYTES_PER_THREAD_PIXEL * (reference.workers() - 1)
-
-
-def check_memory(width: int, height: int, free: int | None = None, geometry: tuple[int, str] = (0, "")) -> None:
-    """Refuse resolutions and geometry (bytes, what) whose reference and buffers would not fit the memory budget
-    (vdmbake.bundle.budget: one rule for every job), before any work starts."""
-    need = width * height * reference_bytes_per_pixel()
-    memory.check(need + geometry[0], f"resolution {width}x{height} ({need / 2**30:.1f} GiB for the reference)"
-                 + (f" and the geometry of {geometry[1]} (about {geometry[0] / 2**30:.1f} GiB)" if geometry[0] else ""),
-                 "lower render.resolution or --resolution, or bake fewer or simpler objects", free)
 
 
 def _technique_filter(opts: Options, scene) -> set | None:
@@ -160,9 +150,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     if old is not None and opts.max_slowdown is not None:
         baseline.check_spread(old, plan.repeats)       # before any rendering: no spread, no slowdown to judge
     opts = filtering(opts, scene)
-    ssaa = int(opts.antialias[4:]) if opts.antialias.startswith("ssaa") else 1
-    check_memory(width, height, geometry=geometry_bytes(bundle))
-    check_memory(ssaa * width, ssaa * height)   # the supersampled target (llvmpipe keeps it in RAM)
+    memory.check_render(memory_need(bundle, width, height, opts))   # the one memory guard, before any work
     ctx = gl.create_context(opts.device)
     device = gl.renderer_name(ctx)
     why_not = old and baseline.times_comparable(old, {"time": "gpu", "device": device}, opts.compare_devices)
@@ -226,7 +214,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         if "sweep" in result:
             sweep.write(out.tmp, result)
         if "lod" in result:
-            lod.write(out.tmp, result["lod"], result["sweep"]["rows"])
+            chains.write(out.tmp, result["lod"], result["sweep"]["rows"])
         html.write(out.tmp, result)   # last: it links the files written above
         out.commit()
     except BaseException:
@@ -360,8 +348,9 @@ def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) -> 
                                        f"sizes/{size}px/", f"{obj.name} @{size}px", frames.setdefault(size, {}))]
         contest = lod.contenders(here, scene.render.sweep.lod if scene.render.sweep else ())
         if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.deciding.pricing)
-            times = pricing.interleaved(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
-                                                  if v.label in contest}, cams)
+            times = interleaved.gpu_ms(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
+                                                 if v.label in contest}, cams, pricing.MAX_ROUNDS, pricing.settled,
+                                       pricing.MIN_ROUNDS)
             for r in here:
                 if r["label"] in times:
                     r["interleaved_ms"] = times[r["label"]]

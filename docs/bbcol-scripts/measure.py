@@ -64,7 +64,7 @@ def interleaved(bundle_path: Path, render_dir: Path) -> dict:
     from vdmbake.bundle.directory import Bundle
     from vdmbake.assets.meshes import TriMesh
     from vdmrender.gpu import gl
-    from vdmrender.views.camera import cameras_for
+    from vdmrender.common.camera import cameras_for
     from vdmrender.techniques import Source
     from vdmrender.techniques.billboards_hier import HierBillboards
     from vdmrender.techniques.octahedral import Octahedral, shadow_size

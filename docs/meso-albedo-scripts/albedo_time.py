@@ -20,9 +20,9 @@ from vdmbake.bundle import parts
 from vdmbake.bundle.directory import Bundle
 from vdmbake.common.colour import srgb8_to_linear
 from vdmrender.gpu import gl
-from vdmrender.reporting import images
+from vdmrender.common import images
 from vdmrender.comparing import metrics
-from vdmrender.views.camera import cameras_for
+from vdmrender.common.camera import cameras_for
 from vdmrender.techniques import variants
 
 

@@ -1,6 +1,6 @@
 // The pixel's ray, and the window depth of a point: shared by the shaders that cast rays per pixel
 // (quadric impostors, billboards) and by those that write the depth of what they find
-// (gl_FragDepth: impostors, billboards, mesostructure). Numpy twins: vdmrender/views/camera.py.
+// (gl_FragDepth: impostors, billboards, mesostructure). Numpy twins: vdmrender/common/camera.py.
 
 // The ray through normalised device position ndc (ndc_ray) or window position frag_xy in pixels (pixel_ray)
 // between the near and the far plane: p = near_point + s * segment, s in [0, 1] (the interpolation factor mu of

@@ -21,7 +21,7 @@ from pathlib import Path
 from urllib.parse import unquote
 
 from ..common import texture
-from ..errors import InputError, escaped
+from ..errors import InputError, cut, escaped
 from ..formats.safeio import read_regular
 
 MAX_FILE_BYTES = 2 << 30   # the largest mesh file or file it names (an OBJ of 16 M faces is about 1 GB)
@@ -76,7 +76,7 @@ def glb_chunks(data: bytes, origin: str) -> tuple[bytes, bytes | None]:
         at = end
     kinds = [k for k, _ in chunks]
     if kinds not in ([b"JSON"], [b"JSON", b"BIN\0"]):
-        raise InputError(f"{origin}: GLB chunks {escaped(repr(kinds))[:200]}; glTF 2.0 §4.4 gives a JSON chunk "
+        raise InputError(f"{origin}: GLB chunks {cut(repr(kinds))}; glTF 2.0 §4.4 gives a JSON chunk "
                          "first, then at most one BIN chunk; fix the file.")
     return chunks[0][1], chunks[1][1] if len(chunks) > 1 else None
 

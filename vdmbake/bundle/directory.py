@@ -17,7 +17,7 @@ import os
 from pathlib import Path, PurePosixPath
 
 from .. import __version__
-from ..errors import InputError
+from ..errors import InputError, cut
 from .parts import PartKind
 from ..formats.safeio import read_regular
 from .staging import StagedDir
@@ -131,7 +131,7 @@ class Bundle:
             self.identity = _sha256(data)   # what ties a file made from the bundle (lod.json) to it
             self.manifest = json.loads(data)
         except (OSError, ValueError, RecursionError) as e:
-            raise InputError(f"{mf}: unreadable manifest ({type(e).__name__}: {str(e)[:200]}); re-bake with "
+            raise InputError(f"{mf}: unreadable manifest ({type(e).__name__}: {cut(str(e))}); re-bake with "
                              "vdmbake --force.") from None
         if not isinstance(self.manifest, dict):
             json_type = {list: "array", str: "string", type(None): "null"}.get(type(self.manifest), "number")
@@ -140,7 +140,7 @@ class Bundle:
         m = self.manifest
         version = m.get("format_version")
         if m.get("format") != FORMAT or type(version) is not int or version != FORMAT_VERSION:
-            raise InputError(f"{mf}: format {str(m.get('format'))[:40]!r} version {str(version)[:40]}; this tool "
+            raise InputError(f"{mf}: format {cut(str(m.get('format')), 40)!r} version {cut(str(version), 40)}; this tool "
                              f"reads {FORMAT!r} version {FORMAT_VERSION}. Re-bake the scene with this vdmbake.")
         from .manifest import validate
         self.scene = validate(self.manifest, str(mf))

@@ -15,14 +15,13 @@ from ..bundle import parts
 from ..bundle.directory import Bundle
 from ..bundle.staging import StagedDir
 from ..common.colour import to_srgb8
-from ..errors import InputError, escaped
+from ..errors import InputError, cut, escaped
 from ..formats.safeio import read_regular
-from ..scene import MAX_SIDE
+from ..scene import MAX_SIDE, TRIANGLE_MESHES
 from ..schema import REQUIRED, Boolean, Integer, Invalid, Reader, Text, Type, Vector
 from ..techniques import REGISTRY
 from .gltf import Writer
 
-TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF carries as they are (vdmrender.deciding.lod's meshes_only)
 SIDECAR = "vdm-impostors"
 
 
@@ -55,7 +54,7 @@ def check_identity(lod: dict, bundle: Bundle, lod_path: Path) -> None:
         raise InputError(f"{shown} records no bundle identity (bundle.manifest_sha256): it was written by an older "
                          f"vdmrender; render {bundle.path} again with this one and export with its lod.json.")
     if recorded != bundle.identity:
-        raise InputError(f"{shown} was rendered from another bundle (manifest sha256 {escaped(str(recorded))[:64]}"
+        raise InputError(f"{shown} was rendered from another bundle (manifest sha256 {cut(str(recorded), 64)}"
                          f"), not {bundle.path} ({bundle.identity}); export with the bundle the chain was rendered "
                          "from, or render this bundle again.")
 
@@ -104,7 +103,7 @@ def read_lod(path: Path) -> dict:
                          "[[render.sweep.lod]].") from None
     except (OSError, ValueError, RecursionError) as e:
         raise InputError(f"{shown}: not a lod.json written by vdmrender ({type(e).__name__}: "
-                         f"{escaped(str(e))[:200]}).") from None
+                         f"{cut(str(e))}).") from None
     top = Reader(lod, "", f"{shown}: not a lod.json written by vdmrender, or edited (render again)")
 
     def entries(r: Reader, key: str) -> list[dict]:
@@ -324,7 +323,7 @@ def _copied(bundle: Bundle, rel: str, kind, dest: Path):
         raise
     except Exception as e:   # a reader's own error on bytes that match their sha256: a bundle written wrong
         raise InputError(f"{bundle.path / rel}: the {kind.name} part does not read ({type(e).__name__}: "
-                         f"{escaped(str(e))[:200]}); re-bake with vdmbake --force.") from None
+                         f"{cut(str(e))}); re-bake with vdmbake --force.") from None
     if not dest.exists():
         dest.write_bytes(data)
     if hashlib.sha256(dest.read_bytes()).hexdigest() != meta["sha256"]:

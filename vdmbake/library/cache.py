@@ -50,7 +50,7 @@ from pathlib import Path
 from .. import code_fingerprint, imported_closure
 from ..bundle import staging
 from ..bundle.budget import BUDGET
-from ..errors import InputError
+from ..errors import InputError, cut
 from ..formats.safeio import read_regular
 
 MAGIC = b"VDMCACHE1"
@@ -514,7 +514,7 @@ def run_step(cache: "PartCache | None", writer, key: str | None, prefix: str, na
             for rel, kind, meta, data in checked:
                 writer.check_packed(rel, kind, data, meta)
         except Exception as e:      # bytes intact but not a part this code reads (whatever its reader raises): bake it
-            log(f"{name}: cache entry {key[:12]} unusable ({str(e)[:200]}); baking it again")
+            log(f"{name}: cache entry {key[:12]} unusable ({cut(str(e))}); baking it again")
             cache.counters.hits -= 1
             cache.counters.corrupt += 1
             cache.counters.misses += 1

@@ -19,11 +19,12 @@ from vdmbake.bundle import parts
 from vdmbake.common import geometry
 from vdmbake.scene import LIMIT_ON, REGISTRY
 
-from ..reporting import images
-from .metrics import compare, flip_values, pooled
-from ..passes.mesostructure import reference_mesh
+from ..common import images
+from ..common.mesostructure import reference_mesh
+from ..common.source import Source
 from ..passes.raster import RasterMesh
-from ..techniques import Source, Variant, variants
+from .metrics import compare, flip_values, pooled
+from ..techniques import Variant, variants
 
 # The row fields of the change against the full asset, by the field of the same error against the reference.
 FIELDS = {LIMIT_ON["reference"][k]: LIMIT_ON["change"][k] for k in LIMIT_ON["change"]}

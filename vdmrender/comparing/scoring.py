@@ -6,8 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..reporting import images
-from .. import progress
+from ..common import images
+from ..common import progress
+from ..common.markdown import number
 from .metrics import compare, flip_values, pooled
 
 
@@ -84,7 +85,8 @@ def score_frames(frames, ref8, classes, out, frame_dir: str, heat_dir: str, heat
 
 
 def show(x, width: int, digits: int) -> str:
-    return f"{'-':>{width}}" if x is None else f"{x:{width}.{digits}f}"
+    """A figure of a log line, right-aligned in `width` (markdown.number: "-" where there is none)."""
+    return f"{number(x, digits):>{width}}"
 
 
 def time_line(row: dict) -> str:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import moderngl
 
 from vdmbake.errors import InputError
+from vdmbake.scene import ANTIALIAS
 
 from ..gpu import gl
 
@@ -84,7 +85,7 @@ class Target(gl.Target):
 
     def __init__(self, ctx, width: int, height: int, mode: str):
         self.ctx, self.mode = ctx, mode
-        kind, n = mode[:4], int(mode[4:])
+        kind, n = ANTIALIAS[mode]
         self.buffers = (Multisampled if kind == "msaa" else Supersampled)(ctx, width, height, n)
         self.size, self.fbo = self.buffers.size, self.buffers.fbo
 

@@ -16,7 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import progress
+from vdmbake.scene import Render
+
+from ..common import progress
 
 # moderngl reads a query's result as 32 bits: a pass over 4.29 s (llvmpipe's slowest benches) saturates there.
 SATURATED_NS = 2**32 - 1
@@ -27,11 +29,11 @@ SPREAD_WARNING = 0.10   # a row whose within-camera spread exceeds this share of
 class Budget:
     """How long to warm up and how much to sample. The defaults keep llvmpipe runs short; on a GPU, ask
     for seconds (--warmup-s, --sample-s): its clocks need about one second of sustained work."""
-    warmup: int = 1             # untimed renders per camera, at least
+    warmup: int = Render.warmup     # untimed renders per camera, at least (the scene's default)
     warmup_s: float = 0.1       # warm-up time, at least
     warmup_max_s: float = 2.0   # then stop waiting for agreement (the row says steady: false)
     tolerance: float = 0.05     # successive warm-up windows' median GPU times agree within this ratio
-    repeats: int = 5            # timed renders per camera, at least
+    repeats: int = Render.repeats   # timed renders per camera, at least (the scene's default)
     sample_s: float = 0.0       # sampling time, at least
 
 
@@ -43,6 +45,8 @@ class Sample:
     submit_ms: float            # the renderer's calls returning (CPU time to issue the frame)
     passes: dict                # pass name -> GPU ms (a pass run twice sums)
     saturated: bool = False     # a pass's query saturated: gpu_ms is the wall time, that pass the remainder
+    cpu_ms: float = 0.0         # the process's CPU time over the frame, every thread (llvmpipe's rasterisers are the
+                                # process's own: the work done, barely inflated by other processes, unlike wall time)
 
 
 class FrameTimer:
@@ -60,6 +64,7 @@ class FrameTimer:
         return self.queries[k]
 
     def frame(self, renderer, camera, index: int = 0) -> Sample:
+        c0 = time.process_time()
         self.target.clear()
         self.ctx.finish()
         timed = []
@@ -82,7 +87,8 @@ class FrameTimer:
         if over:   # its true time is unknown: the frame's is its wall time, the pass the rest of it
             rest = wall - sum(v for k, v in passes.items() if k not in over)
             passes.update({k: max(rest, 0.0) / len(over) for k in over})
-        return Sample(index, wall if over else sum(passes.values()), wall, (t1 - t0) * 1e3, passes, bool(over))
+        return Sample(index, wall if over else sum(passes.values()), wall, (t1 - t0) * 1e3, passes, bool(over),
+                      (time.process_time() - c0) * 1e3)
 
     def read(self, renderer, camera, index: int = 0):
         """One frame of `renderer`, untimed, read back (linear RGBA float32, row 0 at the top)."""
@@ -128,7 +134,8 @@ def warm_up(timer: FrameTimer, renderer, cams, budget: Budget) -> dict:
 
 def warm_up_each(timer: FrameTimer, renderers: dict, cams, budget: Budget) -> dict[str, dict]:
     """Every renderer of an interleaved comparison ({label: renderer}) warmed up in turn by the same rule as a
-    row (warm_up), so the tool's rows, its pricing and the benches start timing from the same state."""
+    row (warm_up), so the tool's rows and the interleaved loop (vdmrender.measuring.interleaved: the sweep's pricing,
+    the benches) start timing from the same state."""
     return {k: warm_up(timer, r, cams, budget) for k, r in renderers.items()}
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from ..common.camera import Camera
 from ..gpu import gl
-from ..views.camera import Camera
 
 
 def ortho(half: float, near: float, far: float) -> np.ndarray:

@@ -80,7 +80,7 @@ LEGEND_TEXT, LEGEND_BACKGROUND = "#1a1a1a", "#f4f4f4"
 # matplotlib's tab10: the variants' colours in the plots, as in the PNG plots
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
            "#17becf")
-# inferno at 0, 1/4, 1/2, 3/4, 1: the heat maps' scale (vdmrender.reporting.images.heatmap)
+# inferno at 0, 1/4, 1/2, 3/4, 1: the heat maps' scale (vdmrender.common.images.heatmap)
 INFERNO = ("#000004", "#57106e", "#bc3754", "#f98e09", "#fcffa4")
 ALL_AT_ONCE = 6   # up to this many objects the page shows them all at first; more, one at a time
 

@@ -4,12 +4,13 @@ no NaN or Infinity: a number that is not finite is written as null and its path 
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 from pathlib import Path
 
-from ..deciding import baseline
-from .markdown import number
+from ..common.markdown import cell, number, table
+from ..common.plots import ERROR_LABEL, log_ticks
 
 COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "empty_frames", "median_ms", "min_ms",
            "q1_ms", "q3_ms", "spread_ms", "wall_ms", "submit_ms", "samples", "warmup_s", "warmup_frames", "steady",
@@ -61,8 +62,8 @@ def write(folder: Path, report: dict) -> None:
         w.writeheader()
         w.writerows(flat(r) for r in report["rows"])
     if "baseline" in report:
-        (folder / "baseline.md").write_text(baseline.table(report["baseline"]))
-        (folder / "baseline.csv").write_text(baseline.to_csv(report["baseline"]))
+        (folder / "baseline.md").write_text(baseline_table(report["baseline"]))
+        (folder / "baseline.csv").write_text(baseline_csv(report["baseline"]))
     if "composite" in report:
         (folder / "composite.md").write_text(composite_table(report))
     if report["rows"] or report.get("composite"):   # nothing drawn (every bundle failed): no plot of nothing
@@ -82,36 +83,14 @@ def composite_table(report: dict) -> str:
     lines = [f"Composite frames, {report['resolution'][0]}x{report['resolution'][1]}, {report['device']}: every object "
              "in one frame, against the reference tracing every object together; frames in composite/frames/SET/, "
              "heat maps in composite/heatmaps/SET/, the sheet in composite/overview.png.", "",
-             "| set | variants | median GPU ms/frame | mean ΔLuv | p95 ΔLuv | IoU | FLIP |", "|---:|---|---:|---:|---:|---:|---:|"]
-    for r in report["composite"]:
-        lines.append(f"| {r['set']} | {r['label']} | {r['median_ms']:.1f} | {number(r['mean_dluv'], 3)} | "
-                     f"{number(r['p95_dluv'], 2)} | {number(r['iou'], 4)} | {number(r['flip_mean'], 4)} |")
+             table(["set", "variants", "median GPU ms/frame", "mean ΔLuv", "p95 ΔLuv", "IoU", "FLIP"], "rlrrrrr",
+                   [[str(r["set"]), r["label"], f"{r['median_ms']:.1f}", number(r["mean_dluv"], 3),
+                     number(r["p95_dluv"], 2), number(r["iou"], 4), number(r["flip_mean"], 4)]
+                    for r in report["composite"]])]
     return "\n".join(lines) + "\n"
 
 
 PANEL_COLUMNS = 3   # panels per row of error_vs_time.png: any number of objects stays readable
-# The plots' error axis in words (the mean over covered pixels of the per-pixel CIE L*u*v* colour difference).
-ERROR_LABEL = "mean colour difference per pixel\nagainst the reference (CIE ΔE*uv)"
-
-
-def log_ticks(ax, which: str) -> None:
-    """Readable ticks on a log axis, as plain numbers (20, not 2×10¹): decades where the data span more than two
-    and a half, 1, 2 and 5 per decade where they span one or more, and a few round steps within a narrower span
-    (matplotlib's default labels every minor tick there, and they run together: "2.1×10²2.2×10²…")."""
-    from matplotlib import ticker
-
-    lo, hi = ax.get_xlim() if which == "x" else ax.get_ylim()
-    span = math.log10(hi / lo)
-    axis = ax.xaxis if which == "x" else ax.yaxis
-    if span < 1:
-        axis.set_major_locator(ticker.MaxNLocator(nbins=4, steps=[1, 2, 5, 10]))
-    else:
-        axis.set_major_locator(ticker.LogLocator(10, subs=(1.0, 2.0, 5.0) if span <= 2.5 else (1.0,), numticks=8))
-    axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
-    axis.set_minor_formatter(ticker.NullFormatter())
-
-
-
 def figure(report: dict):
     """Mean delta-Luv against median ms per frame, one panel per object in a grid of up to PANEL_COLUMNS
     columns; a technique's knob values joined by a line, each point labelled on the side facing the
@@ -169,3 +148,35 @@ def plot(path: Path, report: dict) -> None:
     fig = figure(report)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+BASELINE_COLUMNS = ["object", "label", "status", "old_mean_dluv", "new_mean_dluv", "d_mean_dluv", "old_p95_dluv",
+           "new_p95_dluv", "d_p95_dluv", "old_flip", "new_flip", "d_flip", "old_ms", "new_ms", "time_ratio",
+           "noise_ms", "counters_changed", "exceeds"]
+
+
+def baseline_table(block: dict) -> str:
+    """vdmrender.deciding.baseline.compare's block as a markdown table (stderr and OUT/baseline.md); a row over a threshold is marked."""
+    t = block["thresholds"]
+    lines = [f"change against the baseline (max error increase {t['max_error_increase']}, "
+             f"max slowdown {t['max_slowdown']})", *(f"note: {cell(n)}" for n in block["notes"]), "",
+             table(["object", "variant", "mean ΔLuv old → new", "Δ mean", "p95 old → new", "Δ p95", "FLIP Δ",
+                    "GPU ms old → new", "time ratio", "noise ms", "exceeds"], "lllrlrrlrrl",
+                   [[cell(c["object"]), cell(c["label"]),
+                     f"{number(c['old_mean_dluv'], 3)} → {number(c['new_mean_dluv'], 3)}", number(c["d_mean_dluv"], 3, True),
+                     f"{number(c['old_p95_dluv'], 2)} → {number(c['new_p95_dluv'], 2)}", number(c["d_p95_dluv"], 2, True),
+                     number(c["d_flip"], 4, True), f"{number(c['old_ms'], 2)} → {number(c['new_ms'], 2)}",
+                     number(c["time_ratio"], 2), number(c["noise_ms"], 2),
+                     cell(", ".join(c["exceeds"]) or ("" if c["status"] == "compared" else c["status"]))]
+                    for c in block["rows"]])]
+    return "\n".join(lines) + "\n"
+
+
+def baseline_csv(block: dict) -> str:
+    f = io.StringIO()
+    w = csv.DictWriter(f, BASELINE_COLUMNS, extrasaction="ignore")
+    w.writeheader()
+    w.writerows({**c, "exceeds": " ".join(c["exceeds"]),
+                 "counters_changed": ";".join(f"{k}={a}->{b}" for k, (a, b) in c["counters_changed"].items())}
+                for c in block["rows"])
+    return f.getvalue()

@@ -48,8 +48,8 @@ from vdmbake.bundle import parts
 from vdmbake.common import instances as copies
 from vdmbake.errors import InputError
 
-from ..gpu import gl
 from .billboards_hier import HierBillboards
+from ..gpu import gl
 from ..passes.boards import (
     BOARD_TEXELS, COARSE_BEHIND, CORNERS, CUBE, NORMAL_OFFSET_TEXELS, albedo_maps, coarse_draws, infinite_far,
     pushed)

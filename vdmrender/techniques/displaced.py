@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from vdmbake.bundle import parts
 
-from ..passes.mesostructure import textured
+from ..common.mesostructure import textured
 from ..passes.raster import RasterMesh
 
 

@@ -3,7 +3,7 @@ with a colour tile, the base surface textured by it (plain texture mapping: the 
 flat baseline)."""
 from __future__ import annotations
 
-from ..passes.mesostructure import textured
+from ..common.mesostructure import textured
 from ..passes.raster import RasterMesh
 
 

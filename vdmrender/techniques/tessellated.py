@@ -10,8 +10,8 @@ import numpy as np
 from vdmbake.common import geometry
 from vdmbake.bundle import parts
 
-from ..passes.raster import RasterPasses
 from .impostor import Copies
+from ..passes.raster import RasterPasses
 
 
 class Tessellated(RasterPasses):

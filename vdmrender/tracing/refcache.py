@@ -17,20 +17,18 @@ from vdmbake.formats import exr
 from vdmbake.bundle import parts
 
 from . import borders, reference
-from ..reporting import images
-from .. import progress
-from ..techniques import Source
-from ..passes import mesostructure
+from ..common import images, mesostructure, progress
+from ..common.source import Source
 
 
 # What every reference runs: the tracers, the cameras' pixel rays and the placing of an object's copies.
-REFERENCE_ROOTS = ("vdmrender.tracing.reference", "vdmrender.views.camera", "vdmbake.common.instances")
+REFERENCE_ROOTS = ("vdmrender.tracing.reference", "vdmrender.common.camera", "vdmbake.common.instances")
 
 
 def reference_code(mesostructure: bool) -> str:
     """The fingerprint of the code a reference runs: REFERENCE_ROOTS and what they import (for a mesostructure,
     also the displaced mesh it traces), as installed."""
-    roots = list(REFERENCE_ROOTS) + (["vdmrender.passes.mesostructure"] if mesostructure else [])
+    roots = list(REFERENCE_ROOTS) + (["vdmrender.common.mesostructure"] if mesostructure else [])
     return code_fingerprint(imported_closure(roots))
 
 
@@ -61,7 +59,7 @@ def reference_geometry(obj, entry, bundle) -> dict:
 
 # Per open bundle, the last object reference built: a sweep's sizes and the filtered and point references of an
 # object trace one, built once (a mesostructure's displaced mesh and its Embree scene take seconds); gone with the
-# bundle.
+# bundle, and dropped before another is built (the memory rule counts one object's at a time: bundle.budget).
 _LAST = weakref.WeakKeyDictionary()
 
 
@@ -72,9 +70,12 @@ def object_reference(obj, entry, bundle, scene):
     key = json.dumps([obj.name, reference_geometry(obj, entry, bundle), asdict(scene.light), asdict(obj.material),
                       list(scene.camera.up)], sort_keys=True)
     last = _LAST.get(bundle)
-    if last is None or last[0] != key:
-        last = _LAST[bundle] = (key, _object_reference(obj, entry, bundle, scene))
-    return last[1]
+    if last is not None and last[0] == key:
+        return last[1]
+    del last
+    _LAST.pop(bundle, None)   # the previous object's gone before this one's is built
+    _LAST[bundle] = (key, _object_reference(obj, entry, bundle, scene))
+    return _LAST[bundle][1]
 
 
 def _object_reference(obj, entry, bundle, scene):
@@ -84,11 +85,11 @@ def _object_reference(obj, entry, bundle, scene):
                 mesostructure.skirt_scene(src))
     if obj.kind == "surface":
         mesh = bundle.surface(entry)
-        if obj.instances:   # every copy, merged (the memory guard counts them: render.geometry_bytes)
+        if obj.instances:   # every copy, merged (the memory guard counts them: render.held_geometry)
             mesh = instances.placed(mesh, instances.matrices(obj.instances, scene.camera.up, entry["centre"]))
         return reference.MeshReference(mesh, scene.light, obj.material), None
     q = bundle.read(entry["quadrics"], parts.QUADRICS)
-    if obj.instances:   # every copy, merged (the memory guard counts them: render.geometry_bytes)
+    if obj.instances:   # every copy, merged (the memory guard counts them: render.held_geometry)
         q = instances.placed_quadrics(q, instances.matrices(obj.instances, scene.camera.up, entry["centre"]))
     return reference.QuadricReference(q, scene.light, obj.material), None
 

@@ -27,7 +27,7 @@ objects shadow which. Open borders of mesostructure surfaces are not scored apar
 pixel counts).
 
 Cameras frame the whole scene: the orbit is placed on a sphere holding every object's bounding sphere
-(vdmrender.views.camera.enclosing_sphere) and the near and far planes hug it.
+(vdmrender.common.camera.enclosing_sphere) and the near and far planes hug it.
 """
 from __future__ import annotations
 
@@ -36,14 +36,14 @@ from dataclasses import asdict
 import moderngl
 import numpy as np
 
+from ..common import images
+from ..common.camera import cameras_for, enclosing_sphere
 from ..comparing import change, scoring
-from ..reporting import images
-from ..tracing import refcache, reference
-from .camera import cameras_for, enclosing_sphere
 from ..comparing.metrics import summarise
-from ..techniques import variants
 from ..passes.raster import Passes
 from ..passes.shadowmap import ShadowMap, ShadowView
+from ..techniques import variants
+from ..tracing import refcache, reference
 
 FOLDER = "composite"   # OUT/composite/: reference/, frames/SET/, heatmaps/SET/, overview.png
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from vdmbake.common import instances
 
-from .camera import framed
+from ..common.camera import framed
 from .composite import Composite
 from ..techniques import Variant, variants
 

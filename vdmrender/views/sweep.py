@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..common.camera import Camera, clip_planes
+from ..common.plots import ERROR_LABEL, log_ticks
 from ..deciding.baseline import POINT
-from .camera import Camera, clip_planes
-from ..reporting.report import ERROR_LABEL, log_ticks
 from ..reporting.report import flat as report_flat
 
 COLUMNS = ["object", "size_px", "distance_radii", "label", "technique", "value", "median_ms", "spread_ms", "q1_ms",
