@@ -26,8 +26,7 @@ def plots_drawn_not_saved(request, monkeypatch):
     (an unmarked one finds no file and fails). Fixtures wider than a test run unpatched."""
     if request.node.get_closest_marker("plots"):
         return
-    from vdmrender.deciding import lod
-    from vdmrender.reporting import report
+    from vdmrender.reporting import chains, report
     from vdmrender.views import sweep
 
     def drawn(figure):
@@ -37,7 +36,7 @@ def plots_drawn_not_saved(request, monkeypatch):
             plt.close(figure(*args))
         return plot
 
-    for module in (report, sweep, lod):
+    for module in (report, sweep, chains):
         monkeypatch.setattr(module, "plot", drawn(module.figure))
 
 
