@@ -17,6 +17,29 @@ def pytest_collection_modifyitems(items):
     items.sort(key=lambda item: item.path not in slow)
 
 
+@pytest.fixture(autouse=True)
+def plots_drawn_not_saved(request, monkeypatch):
+    """vdmrender's matplotlib plots (error_vs_time.png, error_vs_size.png, cost_vs_size.png, lod.png) built from
+    the report as the run builds them, but not rasterised into PNG files, for a test not marked `plots`: a fifth
+    of a small render's CPU went to saving plots no test looked at. Building still fails the test where a report
+    breaks the figure; a test that looks for the files, or for report.html's links to them, is marked `plots`
+    (an unmarked one finds no file and fails). Fixtures wider than a test run unpatched."""
+    if request.node.get_closest_marker("plots"):
+        return
+    from vdmrender.reporting import chains, report
+    from vdmrender.views import sweep
+
+    def drawn(figure):
+        def plot(path, *args):
+            import matplotlib.pyplot as plt
+
+            plt.close(figure(*args))
+        return plot
+
+    for module in (report, sweep, chains):
+        monkeypatch.setattr(module, "plot", drawn(module.figure))
+
+
 @pytest.fixture(scope="module")
 def ctx():
     """One headless GL context per test module (vdmrender.gpu.gl: EGL, llvmpipe where there is no GPU)."""

@@ -1540,12 +1540,14 @@ ADDRESS = st.builds(
 
 def check_address_text(address: str) -> None:
     """check_address, then (for what it accepts over TCP) the reachability check: each refuses with an InputError
-    of one line or accepts, within CONNECT_S and a second; local:N is accepted only for 1 to MAX_LOCAL."""
+    of one line or accepts, never hanging; local:N is accepted only for 1 to MAX_LOCAL. The hang guard stays under
+    Dask's own 30 s of retries, which the plain connect replaces; that the connect is bounded by CONNECT_S is
+    test_cluster_trust's (a wall time here would be the loaded machine's)."""
     import re
 
     from vdmbake import cluster
 
-    with time_limit(cluster.CONNECT_S + 1, "the scheduler address checks"):
+    with time_limit(20, "the scheduler address checks"):
         try:
             cluster.check_address(address)
             m = cluster.LOCAL.fullmatch(address)

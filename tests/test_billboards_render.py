@@ -155,7 +155,7 @@ primitive = "torus"
 params = { segments = 48, rings = 24 }
 techniques = { billboards = { variants = ["greedy-hit0.02", "greedy-improved+coarse"], resolution = 48 } }
 """
-    r, out = bake_and_render(tmp_path, scene)
+    r, out = bake_and_render(tmp_path, scene, "--no-flip", "--no-counters")   # neither looked at here
     assert r.exit_code == 0, r.output
     rows = rows_by_label(r)
     assert set(rows) == {"billboards@greedy-hit0.02", "billboards@greedy-improved+coarse"}
@@ -204,7 +204,7 @@ name = "m"
 {source}
 techniques = {{ billboards = {{ variants = ["greedy-hit0.01", "greedy-improved"], resolution = 32 }} }}
 """
-    r, out = bake_and_render(tmp_path, scene)
+    r, out = bake_and_render(tmp_path, scene, "--no-flip", "--no-counters")   # neither looked at here
     assert r.exit_code == 0, r.output
     rows = rows_by_label(r)
     assert all(row["nonfinite"] == 0 for row in rows.values())

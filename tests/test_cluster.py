@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from bench.cluster import beside_a_blind_worker
-from test_batch import SLOW, SMALL, files, kill_the_baker, redone_elsewhere, whole, write
+from batches import SLOW, SMALL, files, kill_the_baker, redone_elsewhere, whole, write
 from vdmbake.library.cache import PartCache
 from vdmbake.cli import main as bake_main
 

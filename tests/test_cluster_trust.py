@@ -13,7 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from bench.cluster import ENV, scheduler, stop, worker
-from test_batch import SLOW, SMALL, _wait_for_staging, hidden, write
+from batches import SLOW, SMALL, _wait_for_staging, hidden, write
 from vdmbake.cli import main as bake_main
 from vdmbake import cluster
 

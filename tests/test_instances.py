@@ -109,7 +109,7 @@ def test_one_copy_in_place_draws_as_the_object_alone(tmp_path):
     one = ('[[objects]]\nname = "b"\nprimitive = "sphere"\n' + TECHNIQUES +
            '\n[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n')
     alone = '[[objects]]\nname = "a"\nprimitive = "sphere"\n' + TECHNIQUES + "\n"
-    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[48, 48]") + one + alone)
+    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[48, 48]") + one + alone, "--no-flip")
     assert res.exit_code == 0, res.output
     for label in ("reference", "mesh", "coarse@0.3", "octahedral@full-9x64-march", *BOARDS):
         a, b = frames(out, "a", label), frames(out, "b", label)
@@ -127,7 +127,8 @@ def test_overlapping_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_p
     pair = ('[[objects]]\nname = "pair"\nprimitive = "sphere"\ntechniques = { mesh = {} }\n'
             '[[objects.instances.placements]]\ntranslate = [0, 0, 0]\n'
             f'[[objects.instances.placements]]\ntranslate = [{b[0]}, {b[1]}, {b[2]}]\nscale = 0.8\n')
-    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[96, 96]").replace("256", "1024") + pair)
+    res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[96, 96]").replace("256", "1024") + pair,
+                               "--no-flip")
     assert res.exit_code == 0, res.output
     row = json.loads(res.stdout)["rows"][0]
     assert row["mean_dluv"] < 0.1 and row["iou"] > 0.999, row
@@ -214,7 +215,7 @@ techniques = { mesh = {}, coarse = { ratios = [0.2, 0.03] } }
 [objects.instances]
 scatter = { count = 40, area = [16, 16], scale = [0.6, 1.2], seed = 2 }
 """
-    res, out = bake_and_render(tmp_path, text)
+    res, out = bake_and_render(tmp_path, text, "--no-flip")
     assert res.exit_code == 0, res.output
     report = json.loads(res.stdout)
     rows = {r["label"]: r for r in report["rows"]}
@@ -278,7 +279,7 @@ def test_billboard_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_pat
     boards = 'billboards = { resolution = 32, variants = ["greedy-improved", "greedy-hier+coarse", "greedy-hier"] }'
     pair = torus_pair("pair", f"techniques = {{ mesh = {{}}, {boards} }}")
     res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[96, 96]").replace("256", "1024") + pair,
-                               "--no-counters")
+                               "--no-counters", "--no-flip")
     assert res.exit_code == 0, res.output
     rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
     for label in BOARDS:
@@ -289,11 +290,11 @@ def test_billboard_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_pat
 def pairs(tmp_path_factory):
     """One bake and render of the overlapping torus pair four times: at the origin at unit scale ("unit"), placed
     1.7e4 units from the object itself ("far"), and scaled by 1e-3 and 1e3 ("small", "large"); each object is
-    framed and drawn alone, so the tests below compare two of them. Without counters: the frames are the subject."""
+    framed and drawn alone, so the tests below compare two of them. Without counters or FLIP: the frames and ΔLuv are the subject."""
     text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "1024")
     text += (torus_pair("unit", SURFACES) + torus_pair("far", SURFACES, at=(1e4, -1e4, 1e4))
              + torus_pair("small", SURFACES, s=1e-3) + torus_pair("large", SURFACES, s=1e3))
-    res, out = bake_and_render(tmp_path_factory.mktemp("pairs"), text, "--no-counters")
+    res, out = bake_and_render(tmp_path_factory.mktemp("pairs"), text, "--no-counters", "--no-flip")
     assert res.exit_code == 0, res.output
     return {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}, out
 

@@ -60,7 +60,7 @@ def test_one_copy_in_place_draws_as_the_object_alone(tmp_path):
     """A copy at the identity: every technique's frames and the reference's are those of the object alone."""
     one = '[[objects]]\nname = "b"\n' + SHAPE + TECHNIQUES + placements(((0, 0, 0), (0, 0, 0), 1.0))
     alone = '[[objects]]\nname = "a"\n' + SHAPE + TECHNIQUES
-    res, out = bake_and_render(tmp_path, head(64) + one + alone)
+    res, out = bake_and_render(tmp_path, head(64) + one + alone, "--no-flip")
     assert res.exit_code == 0, res.output
     for label in ("reference", "impostor@direct", "impostor@deferred", "impostor@outlines", "tessellated@3"):
         a, b = frames(out, "a", label), frames(out, "b", label)
@@ -125,7 +125,7 @@ def test_overlapping_copies_against_the_merged_reference(tmp_path, source, centr
     shape = SHAPE if source == "inline" else villin()
     copies, poses = pair(centre, radius)
     res, out = bake_and_render(tmp_path, head(96, 1024, poses) + '[[objects]]\nname = "pair"\n' + shape + TECHNIQUES
-                               + copies)
+                               + copies, "--no-flip")
     assert res.exit_code == 0, res.output
     assert shadowed_share(tmp_path / "b.bundle", "pair") > 0.3   # measured: inline 0.5, villin 0.32
     rows = rows_by_label(res)
@@ -144,7 +144,7 @@ def test_a_copy_moved_and_turned_is_drawn_where_the_reference_has_it(tmp_path):
     ignored its matrix would draw the object outside the frames (IoU near 0), and one that ignored its turn or
     scale would miss much of it."""
     res, out = bake_and_render(tmp_path, head(64) + '[[objects]]\nname = "moved"\n' + SHAPE + TECHNIQUES
-                               + placements(((9, -4, 3), (0, 90, 45), 1.5)))
+                               + placements(((9, -4, 3), (0, 90, 45), 1.5)), "--no-flip")
     assert res.exit_code == 0, res.output
     for label, r in rows_by_label(res).items():
         assert r["iou"] > 0.99 and (label == "impostor@outlines" or r["mean_dluv"] < 0.75), (label, r)
@@ -156,7 +156,8 @@ def test_a_scatter_of_copies_is_one_instanced_draw_per_pass_and_kind(tmp_path):
     holds the quadrics once plus a matrix (64 bytes) a copy."""
     field = ('[[objects]]\nname = "field"\n' + SHAPE + TECHNIQUES
              + "[objects.instances]\nscatter = { count = 200, area = [60, 60], scale = [0.6, 1.4], seed = 3 }\n")
-    res, out = bake_and_render(tmp_path, head(64) + field + '[[objects]]\nname = "alone"\n' + SHAPE + TECHNIQUES)
+    res, out = bake_and_render(tmp_path, head(64) + field + '[[objects]]\nname = "alone"\n' + SHAPE + TECHNIQUES,
+                               "--no-flip")
     assert res.exit_code == 0, res.output
     rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
     cameras, per_kind = 2, 2 * 200   # two spheres and two cylinders in the shape
@@ -183,7 +184,7 @@ def test_copies_far_from_the_origin_keep_float32_precision(tmp_path):
     moved = f"transform = {{ translate = {list(shift)} }}\n"
     res, out = bake_and_render(tmp_path, head(96, 1024) + "".join(
         f'[[objects]]\nname = "{name}"\n' + SHAPE + extra + TECHNIQUES + copies
-        for name, extra, copies in (("near", "", near), ("far", "", far), ("moved", moved, near))))
+        for name, extra, copies in (("near", "", near), ("far", "", far), ("moved", moved, near))), "--no-flip")
     assert res.exit_code == 0, res.output
     rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
     # measured: every 8-bit frame of both equal to the near pair's; mean ΔLuv as near (0.016 direct, 0.038
@@ -247,7 +248,7 @@ def test_copies_scaled_by_orders_of_magnitude_look_as_at_unit_scale(tmp_path, sc
     for name, s in (("unit", 1.0), ("scaled", scale)):
         text += (f'[[objects]]\nname = "{name}"\n' + SHAPE + TECHNIQUES +
                  placements(((0, 0, 0), (0, 0, 0), s), (1.4 * radius * s * LIGHT, (30, 60, 10), 0.75 * s)))
-    res, out = bake_and_render(tmp_path, text)
+    res, out = bake_and_render(tmp_path, text, "--no-flip")
     assert res.exit_code == 0, res.output
     rows = {(r["object"], r["label"]): r for r in json.loads(res.stdout)["rows"]}
     for label in ("reference", "impostor@direct", "impostor@deferred", "impostor@outlines", "tessellated@3"):

@@ -48,6 +48,7 @@ def test_the_distance_puts_the_sphere_at_its_size():
 
 
 @pytest.mark.gl
+@pytest.mark.plots
 def test_sweep_renders_each_size_and_picks_chains(tmp_path):
     res, out = bake_and_render(tmp_path, RENDER.replace("[32, 32]", "[64, 64]") + SWEEP + BALL)
     assert res.exit_code == 0, res.output

@@ -25,6 +25,7 @@ def library(tmp_path):
 
 
 @pytest.mark.gl
+@pytest.mark.plots
 def test_a_folder_of_bundles_renders_each_and_combines_the_rows(library, tmp_path):
     out = tmp_path / "renders"
     r = CliRunner().invoke(render_main, [str(library), "-o", str(out), "--no-flip"])
@@ -96,6 +97,7 @@ def test_a_bundle_failing_with_any_error_is_named_and_the_others_render(library,
 
 @pytest.mark.gl
 @pytest.mark.slow
+@pytest.mark.plots
 def test_the_combined_folder_is_swapped_in_whole(library, tmp_path, monkeypatch):
     """OUT is staged as every output folder is: a run that fails while combining leaves the previous OUT exactly as
     it was (no half-written combined report beside new runs), and the next run finds each bundle's cached
@@ -122,6 +124,7 @@ def test_the_combined_folder_is_swapped_in_whole(library, tmp_path, monkeypatch)
     assert rows and all(x["reference_cached"] for x in rows)
 
 
+@pytest.mark.plots
 def test_every_bundle_failing_is_exit_1_with_the_table(tmp_path):
     """No bundle rendered: the combined report has no rows and no plot, and the run ends as any failure does."""
     folder = tmp_path / "bundles"

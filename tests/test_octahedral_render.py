@@ -192,7 +192,7 @@ primitive = "torus"
 params = { segments = 48, rings = 24 }
 techniques = { octahedral = { variants = ["full-9x64-march", "full-9x64-virtual"] } }
 """
-    result, out = bake_and_render(tmp_path, scene)
+    result, out = bake_and_render(tmp_path, scene, "--no-flip", "--no-counters")   # neither looked at here
     assert result.exit_code == 0, result.output
     rows = rows_by_label(result)
     assert set(rows) == {"octahedral@full-9x64-march", "octahedral@full-9x64-virtual"}

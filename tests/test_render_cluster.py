@@ -15,7 +15,7 @@ from click.testing import CliRunner
 
 from scenes import BRICK_PLANE, TINY_HEAD
 from bench.cluster import ENV, beside_a_blind_worker, differences, rendering, scheduler, stop, worker
-from test_batch import _ancestors
+from batches import _ancestors
 from vdmbake.bundle import staging
 from vdmbake.cli import main as bake_main
 

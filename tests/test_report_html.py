@@ -27,7 +27,7 @@ from vdmrender.reporting import html as vhtml
 from vdmrender import render
 from vdmrender.cli import main as render_main
 
-pytestmark = pytest.mark.gl
+pytestmark = [pytest.mark.gl, pytest.mark.plots]   # the page links the plots it finds
 
 SCENE = TINY_HEAD.replace("orbit = { count = 1 }", "orbit = { count = 2 }") + """
 [render.sweep]

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from test_batch import SLOW, SMALL, files, hidden, whole, write
+from batches import SLOW, SMALL, files, hidden, whole, write
 from vdmbake.bake import bake
 from vdmbake.bundle import staging
 from vdmbake.bundle.staging import StagedDir

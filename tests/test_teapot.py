@@ -239,7 +239,7 @@ def test_plain_teapot_mesh_matches_its_reference(tmp_path):
     segments): mean and p95 ΔLuv near 0 and IoU 1 (what remains lies on shadow edges: the renderer's shadow map
     against the traced shadow rays)."""
     teapot_object = '[[objects]]\nname = "t"\nprimitive = "teapot"\ntechniques = { mesh = {} }\n'
-    r, _ = bake_and_render(tmp_path, TINY_HEAD.replace("[32, 32]", "[64, 64]") + teapot_object)
+    r, _ = bake_and_render(tmp_path, TINY_HEAD.replace("[32, 32]", "[64, 64]") + teapot_object, "--no-flip")
     assert r.exit_code == 0, r.output
     row = rows_by_label(r)["mesh"]
     assert row["mean_dluv"] < 0.2 and row["p95_dluv"] < 0.5 and row["iou"] >= 0.999

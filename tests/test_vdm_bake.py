@@ -177,6 +177,7 @@ def test_curvature_samples():
 
 
 @pytest.mark.slow
+@pytest.mark.plots   # vdm.png is report.plot's
 def test_bench_quick_smoke(tmp_path, monkeypatch, no_warm_up):
     """make bench's VDM script runs end to end (small tables, bricks on a torus at 96x96) and writes its report.
     Its torus coarser (64 x 16 segments) and its shadow map 512 texels: the same rows, tables and report at a
