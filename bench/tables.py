@@ -3,6 +3,8 @@ renders the published JSON (docs/results) with the same functions, so the docs s
 printed it. The standard library only: make_docs runs on the system Python without the packages."""
 from __future__ import annotations
 
+import statistics
+
 
 def markdown(header: list[str], align: list[str], rows: list[list[str]]) -> str:
     def line(cells):
@@ -122,3 +124,134 @@ def vdm_interleaved_cpu(doc: dict) -> str:
                      ious[0] if ious[0] == ious[-1] else f"{ious[0]}-{ious[-1]}"])
     return markdown(["surface, height", "variant", "CPU ms/frame", "x pom@16", "mean ΔLuv", "IoU"],
                     ["---", "---", "---:", "---:", "---:", "---:"], rows)
+
+
+def billboards(doc: dict) -> str:
+    """bench.billboards: each model's bake, every variant at every resolution (with the thesis's figure, appendix
+    A-2, beside its own march), and on the profiled model the interleaved passes and the march's costs."""
+    out = [markdown(["model", "billboards greedy / axis", "faces left out (greedy)", "maps MB greedy / axis", "bake s",
+                     "hier: pyramids MB (float32) / bake s"], ["---", "---:", "---", "---:", "---:", "---:"],
+                    [[name, f"{b['greedy']} / {b['axis']}", str(b["leftover"]),
+                      f"{b['greedy_mb']:.2f} / {b['axis_mb']:.2f}", f"{b['bake_s']:.1f}",
+                      f"{b['pyramid_mb']:.2f} / {b['hier_bake_s']:.2f}"] for name, b in doc["bakes"].items()])]
+    rows = []
+    for r in doc["rows"]:
+        thesis, ref = doc["thesis"].get(r["object"]), ""
+        if thesis and r["resolution"] == "800x600" and r["label"].endswith("hit0.01"):
+            ref = f"{thesis[0]:.2f}"
+        elif thesis and r["resolution"] == "800x600" and r["label"].endswith("hit0.01+coarse"):
+            ref = f"{thesis[1]:.2f}"
+        rows.append([r["object"], r["resolution"], r["label"], f"{r['median_ms']:.1f}", f"{r['mean_dluv']:.3f}", ref,
+                     f"{r['p95_dluv']:.2f}", f"{r['iou']:.4f}"])
+    out.append(markdown(["model", "resolution", "variant", "median ms", "mean ΔLuv", "thesis (A-2)", "p95", "IoU"],
+                        ["---", "---", "---", "---:", "---:", "---:", "---:", "---:"], rows))
+    prof, model = doc["profile"], doc["profiled_model"]
+    if prof:
+        out += [f"## {model}, interleaved ({doc['rounds']} rounds, every pass timed)", "",
+                markdown(["variant", "resolution", "median GPU ms", "x full mesh", "median CPU ms", "x full mesh (CPU)",
+                          "shadow pass share", "passes (median GPU ms)"],
+                         ["---", "---", "---:", "---:", "---:", "---:", "---:", "---"],
+                         [[p["label"], p["resolution"], f"{p['median_ms']:.1f}", f"{p['ratio_to_mesh']:.2f}",
+                           f"{p['median_cpu_ms']:.1f}", f"{p['cpu_ratio_to_mesh']:.2f}", f"{p['shadow_share']:.0%}",
+                           ", ".join(f"{k} {v:.1f}" for k, v in p["passes_ms"].items())] for p in prof]),
+                "Time per halving of the resolution (median CPU ms of one over the next):", ""]
+        rows = []
+        for label in dict.fromkeys(p["label"] for p in prof):
+            t = {p["resolution"]: p["median_cpu_ms"] for p in prof if p["label"] == label}
+            if len(t) == 3:
+                rows.append([label, f"{t['800x600'] / t['400x300']:.2f}", f"{t['400x300'] / t['200x150']:.2f}"])
+        out.append(markdown(["variant", "800x600 / 400x300", "400x300 / 200x150"], ["---", "---:", "---:"], rows))
+    if doc["march_cost"]:
+        out += [f"## March cost, {model} {doc['cost_resolution']} (instrumented, vdmrender/measuring/counters.py)", "",
+                "Per covered pixel, over the frame's passes but the shadow map's; hier's steps are cell visits.", "",
+                markdown(["march (+coarse)", "covered pixels", "fragments / px", "fetches / px", "steps / px",
+                          "searches / px", "steps / search"], ["---", "---:", "---:", "---:", "---:", "---:", "---:"],
+                         [[name, str(c["covered_pixels"]), f"{c['fragments_per_pixel']:.1f}",
+                           f"{c['fetches_per_pixel']:.1f}", f"{c['steps_per_pixel']:.1f}",
+                           f"{c['searches_per_pixel']:.1f}", f"{c['steps_per_search']:.1f}"]
+                          for name, c in doc["march_cost"].items()])]
+    return "\n".join(out)
+
+
+# bench.octahedral's camera categories, by camera label
+CATEGORIES = [("outside", lambda lab: lab != "inside"), ("orbit", lambda lab: lab.startswith("orbit")),
+              ("top", lambda lab: lab in ("top-down", "near-top")), ("grazing", lambda lab: lab.startswith("grazing")),
+              ("below", lambda lab: lab == "below"), ("close", lambda lab: lab in ("close", "close-wide")),
+              ("inside", lambda lab: lab == "inside")]
+
+
+def _category(r: dict, pick) -> str:
+    """Mean of the per-frame mean ΔLuv, mean IoU and median CPU ms over the row's cameras that `pick` takes."""
+    cams = [v for lab, v in r["cameras"].items() if pick(lab)]
+    if not cams:
+        return ""
+    return (f"{statistics.fmean(v['mean_dluv'] for v in cams):.2f} / {statistics.fmean(v['iou'] for v in cams):.3f} / "
+            f"{statistics.median(v['cpu_ms'] for v in cams):.0f}")
+
+
+def octahedral(doc: dict) -> str:
+    """bench.octahedral: every model, resolution and variant, over all cameras and per camera category."""
+    def blank(x):
+        return "" if x is None else str(x)
+    return "\n".join([
+        "Mean ΔLuv over all cameras (union of coverage masks); median GPU ms (timer queries) and CPU ms per frame "
+        "(shadow pass included; CPU: the process's time over all its threads, llvmpipe's included, which other "
+        "processes on the machine barely inflate); shadow ms: the octahedral shadow pass alone (GPU); asset MB: the "
+        "textures and buffers a variant uploads (maps, pyramid atlases, coverage, coarse mesh, occupancy boxes, the "
+        "octahedral atlas); target MB: what it renders into every frame besides the frame and its shadow map (the "
+        "billboards' depth pre-pass and occupancy targets); bake seconds.", "",
+        markdown(["model", "resolution", "variant", "asset MB", "target MB", "bake s", "GPU ms", "CPU ms", "shadow ms",
+                  "fetches/px", "steps/px", "mean ΔLuv", "p95", "IoU"], ["---"] * 3 + ["---:"] * 11,
+                 [[r["object"], r["resolution"], r["label"], f"{r['gpu_bytes'] / 2**20:.2f}",
+                   f"{r['target_bytes'] / 2**20:.2f}", f"{r['bake_s']:.1f}", f"{r['median_ms']:.0f}",
+                   f"{r['median_cpu_ms']:.0f}", blank(r.get("shadow_ms")), blank(r.get("fetches_per_pixel")),
+                   blank(r.get("steps_per_pixel")), f"{r['mean_dluv']:.3f}", f"{r['p95_dluv']:.2f}", f"{r['iou']:.4f}"]
+                  for r in doc["rows"]]),
+        "Per camera category: mean ΔLuv / mean IoU / median CPU ms over the cameras of that kind.", "",
+        markdown(["model", "resolution", "variant", *(c for c, _ in CATEGORIES)], ["---"] * (3 + len(CATEGORIES)),
+                 [[r["object"], r["resolution"], r["label"], *(_category(r, pick) for _, pick in CATEGORIES)]
+                  for r in doc["rows"]]),
+        "outside: the cameras outside the bounding sphere (all but inside). orbit: 8 at 25 degrees; top: top-down and "
+        "80 degrees; grazing: 0 and 5 degrees; below: -30 degrees; close: 1.4 and 1.2 radii (fov 50 and 90); inside: "
+        "0.95 radii, inside the bounding sphere.\n"])
+
+
+# docs/results.md's digests of bench.billboards: mean ΔLuv at 800x600 per model (the thesis's, appendix A-2, in
+# brackets), and the profiled model's interleaved times at each resolution
+BILLBOARDS_SELECTED = [("full mesh", "mesh"), ("coarse mesh (10%)", "coarse@0.1"),
+                       ("thesis march, hit 0.01", "billboards@greedy-hit0.01"),
+                       ("+ coarse mesh", "billboards@greedy-hit0.01+coarse"),
+                       ("improved + coarse", "billboards@greedy-improved+coarse"), ("hier", "billboards@greedy-hier"),
+                       ("hier + coarse", "billboards@greedy-hier+coarse")]
+
+
+def billboards_models(doc: dict) -> str:
+    by = {(r["object"], r["label"]): r for r in doc["rows"] if r["resolution"] == "800x600"}
+    rows = []
+    for model in doc["bakes"]:
+        thesis = doc["thesis"].get(model)
+        cells = []
+        for _, label in BILLBOARDS_SELECTED:
+            r = by.get((model, label))
+            cell = "" if r is None else f"{r['mean_dluv']:.3f}"
+            if r is not None and thesis and label.endswith("hit0.01"):
+                cell += f" ({thesis[0]:.2f})"
+            elif r is not None and thesis and label.endswith("hit0.01+coarse"):
+                cell += f" ({thesis[1]:.2f})"
+            cells.append(cell)
+        faces = by.get((model, "mesh"), {}).get("faces")
+        rows.append([f"{model} ({faces:,} faces)" if model not in doc["thesis"] and faces else model, *cells])
+    return markdown(["model", *(h for h, _ in BILLBOARDS_SELECTED)], ["---"] + ["---:"] * len(BILLBOARDS_SELECTED), rows)
+
+
+def billboards_interleaved(doc: dict) -> str:
+    prof = doc["profile"]
+    at = {(p["label"], p["resolution"]): p for p in prof}
+    sizes = list(dict.fromkeys(p["resolution"] for p in prof))
+    rows = [[label, *(f"{at[label, s]['median_cpu_ms']:,.0f} ({at[label, s]['cpu_ratio_to_mesh']:.2f})"
+                      if (label, s) in at else "" for s in sizes),
+             f"{at[label, sizes[0]]['median_ms']:,.0f} ({at[label, sizes[0]]['ratio_to_mesh']:.2f})",
+             f"{at[label, sizes[0]]['shadow_share']:.0%}"]
+            for label in dict.fromkeys(p["label"] for p in prof)]
+    return markdown(["variant", *(f"{s}: CPU ms (x mesh)" for s in sizes), f"{sizes[0]}: GPU ms (x mesh)",
+                     f"shadow pass share at {sizes[0]}"], ["---"] + ["---:"] * (len(sizes) + 2), rows)

@@ -108,7 +108,10 @@ def _bench(views: dict):
 
 VIEWS = {"filtered": _filtered, "demo": _demo, "rooms": _rooms,
          "quadrics": _bench({"rows": tables.quadrics, "selected": tables.quadrics_selected}),
-         "vdm-bench": _bench({"page": tables.vdm, "interleaved-cpu": tables.vdm_interleaved_cpu})}
+         "vdm-bench": _bench({"page": tables.vdm, "interleaved-cpu": tables.vdm_interleaved_cpu}),
+         "billboards-bench": _bench({"page": tables.billboards, "models-800x600": tables.billboards_models,
+                                     "bunny-interleaved": tables.billboards_interleaved}),
+         "octahedral-bench": _bench({"page": tables.octahedral})}
 
 
 def table(name: str, key: str) -> str:
