@@ -365,12 +365,14 @@ def test_bench_quick_smoke(tmp_path, monkeypatch, no_warm_up):
     r = CliRunner().invoke(bench.quadrics.main, args)
     assert r.exit_code == 0, r.output
     published = json.loads((tmp_path / "results" / "quadrics.json").read_text())
+    view = make_docs().VIEWS["quadrics"]
+    assert f"`{shlex.join(['python', '-m', 'bench.quadrics', *args])}`" in view(published, "provenance")
     p = published.pop("provenance")
     assert p["command"] == shlex.join(["python", "-m", "bench.quadrics", *args]) and len(p["commit"]) == 40
     assert p["device"] == published["device"] and len(p["load_start"]) == len(p["load_end"]) == 3
     assert published == json.loads((tmp_path / "quadrics.json").read_text())
     # the docs' table is the bench's own table
-    assert (tmp_path / "quadrics.md").read_text().endswith(make_docs().VIEWS["quadrics"](published, "rows"))
+    assert (tmp_path / "quadrics.md").read_text().endswith(view(published, "rows"))
     report = json.loads((tmp_path / "quadrics.json").read_text())
     labels = {row["label"] for row in report["rows"]}
     assert {"impostor@direct", "impostor@deferred", "impostor@outlines", "tessellated@3"} <= labels
