@@ -85,10 +85,10 @@ FUZZ_EXAMPLES ?= 1000
 fuzz: $(STAMP)
 	VDM_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(BIN)/python -m pytest -q tests/test_fuzz.py
 
-# make bake-library: write the 118-scene test library (vdmbake/library/scenes.py) and bake it on the local cores
+# make bake-library: write the 118-scene test library (bench/library_scenes.py) and bake it on the local cores
 #                    through a part cache (out/library/: scenes/, bundles/, cache/); run again, only what changed bakes
 bake-library: $(STAMP)
-	$(BIN)/python -m vdmbake.library.scenes out/library/scenes
+	$(BIN)/python -m bench.library_scenes out/library/scenes
 	$(BIN)/vdmbake out/library/scenes -o out/library/bundles --cache out/library/cache --cache-stats
 
 kill-test: $(STAMP)

@@ -9,8 +9,9 @@ its billboard count and storage for comparison.
 
 Then, on the bunny, in one process (issue 9's closing measurements):
   * interleaved timing: full mesh, coarse mesh, hit0.01+coarse, improved+coarse, hier, hier+coarse,
-    ROUNDS rounds of one frame each per resolution, every pass timed by its own timer query: the
-    median frame and its shadow pass share; the ratio to the full mesh of the same round;
+    ROUNDS rounds of one frame each per resolution (vdmrender's interleaved loop), every pass timed by its own
+    timer query: the median frame and its shadow pass share; the ratio to the full mesh, paired frame by frame
+    (vdmrender.deciding.pricing: the median ratio and its 95% interval);
   * march cost, instrumented (vdmrender/measuring/counters.py): fragments, texture fetches, march steps (cell visits
     for hier) and searches per covered pixel, improved against hier, at 800x600.
 
@@ -21,7 +22,6 @@ from __future__ import annotations
 import itertools
 import json
 import statistics
-import time
 from pathlib import Path
 
 import click
@@ -71,12 +71,17 @@ def _builders(bundle_path: Path, width: int, height: int):
 
 
 def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> list[dict]:
-    """Interleaved timing in one GL context: per resolution, `rounds` rounds of one frame of each label
-    (after each is warmed up as vdmrender warms up a row: timing.warm_up_each), every pass in its own timer query (vdmrender/measuring/timing.py: GPU time, as
-    vdmrender reports it), and the frame's process CPU time (llvmpipe's threads are the process's own: the
-    work done, much less disturbed by other processes on a shared machine than wall time)."""
+    """Interleaved timing in one GL context through vdmrender's one loop (vdmrender.measuring.interleaved.frames:
+    each label warmed up as vdmrender warms up a row, then per resolution `rounds` rounds of one frame of each, the
+    order rotated by round), every pass in its own timer query (vdmrender/measuring/timing.py: GPU time, as
+    vdmrender reports it), and the frame's process CPU time (llvmpipe's threads are the process's own: the work
+    done, much less disturbed by other processes on a shared machine than wall time). The ratio to the full mesh is
+    the timing statistic's (vdmrender.deciding.pricing.ratio: the median of the paired frames' ratios, and its 95%
+    interval)."""
+    from vdmrender.deciding import pricing
     from vdmrender.gpu import gl
-    from vdmrender.measuring.timing import Budget, FrameTimer, warm_up_each
+    from vdmrender.measuring import interleaved
+    from vdmrender.measuring.timing import Budget, FrameTimer
 
     ctx = gl.create_context()
     rows = []
@@ -86,26 +91,24 @@ def profile(bundle_path: Path, labels: list[str], rounds: int, resolutions) -> l
             target = gl.Target(ctx, w, h)
             timer = FrameTimer(ctx, target)
             renderers = {k: builds[k](ctx) for k in labels}
-            wall, cpu = {k: [] for k in labels}, {k: [] for k in labels}
-            warm_up_each(timer, renderers, [cam], Budget())
-            for _ in range(rounds):
-                for k, r in renderers.items():
-                    c0 = time.process_time()
-                    wall[k].append(timer.frame(r, cam).passes)
-                    cpu[k].append((time.process_time() - c0) * 1e3)
+            samples, _ = interleaved.frames(timer, renderers, [cam], Budget(), rounds)
             for k, r in renderers.items():
                 r.release()
             target.release()
+            mesh = samples["mesh"]
             for k in labels:
-                total = [sum(p.values()) for p in wall[k]]
-                ratio = [t / sum(m.values()) for t, m in zip(total, wall["mesh"])]
-                cpu_ratio = [t / m for t, m in zip(cpu[k], cpu["mesh"])]
+                s = samples[k]
+                total = [x.gpu_ms for x in s]
+                gpu, cpu = (pricing.ratio([getattr(x, a) for x in s], [getattr(m, a) for m in mesh])
+                            for a in ("gpu_ms", "cpu_ms"))
                 rows.append({"label": k, "resolution": f"{w}x{h}", "median_ms": round(statistics.median(total), 2),
-                             "ratio_to_mesh": round(statistics.median(ratio), 3),
-                             "median_cpu_ms": round(statistics.median(cpu[k]), 2),
-                             "cpu_ratio_to_mesh": round(statistics.median(cpu_ratio), 3),
-                             "shadow_share": round(statistics.median(p["shadow"] / t for p, t in zip(wall[k], total)), 3),
-                             "passes_ms": {n: round(statistics.median(p[n] for p in wall[k]), 2) for n in wall[k][0]}})
+                             "ratio_to_mesh": gpu["ratio"], "ratio_to_mesh_95": [gpu["low"], gpu["high"]],
+                             "median_cpu_ms": round(statistics.median(x.cpu_ms for x in s), 2),
+                             "cpu_ratio_to_mesh": cpu["ratio"], "cpu_ratio_to_mesh_95": [cpu["low"], cpu["high"]],
+                             "shadow_share": round(statistics.median(x.passes["shadow"] / t
+                                                                     for x, t in zip(s, total)), 3),
+                             "passes_ms": {n: round(statistics.median(x.passes[n] for x in s), 2)
+                                           for n in s[0].passes}})
     finally:
         ctx.release()
     return rows

@@ -1,6 +1,7 @@
-"""Issue 41's closing figures: bundles rendered on one machine and on a local Dask cluster of two workers (same
-files apart from the times, and the wall time of each), and each cluster fault as the user meets it (what the
-command prints, its exit code, its time). Writes docs/results/cluster.json (docs/cluster.md's tables).
+"""Issue 41's closing figures: three small bundles (at --resolution) and configs/lod-bunny.toml's one bundle (at its
+own resolution: its references split over the workers) rendered on one machine and on a local Dask cluster of two
+workers (same files apart from the times, and the wall time of each), and each cluster fault as the user meets it
+(what the command prints, its exit code, its time). Writes docs/results/cluster.json (docs/cluster.md's tables).
 
     python -m bench.cluster WORK [--resolution 128x128]
 
@@ -25,12 +26,13 @@ from pathlib import Path
 BIN = Path(sys.executable).parent
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {k: v for k, v in os.environ.items() if k != "VDM_CACHE"}
-CONFIGS = ("bunny-coarse", "molecule-villin", "vdm-torus-bricks")
+CONFIGS = ("bunny-coarse", "molecule-villin", "vdm-torus-bricks")   # small bundles, rendered together
+LARGE = "lod-bunny"        # one bundle, two objects swept over six sizes at 16 spp: 28 references
 # What a run measures in time, or where it ran: the only fields a cluster's run may change.
 TIMED = re.compile(r".*_ms|.*_s|ratio_to_baseline|samples|spread_warning|warmup_frames|steady|saturated|seconds|worker"
                    r"|nvml")
-# Files that hold times (their other content is compared through report.json and report.csv).
-TIMING_FILES = {"report.html", "error_vs_time.png", "runs.md"}
+# Files that hold times (their other content is compared through report.json, report.csv, lod.json, sweep.csv).
+TIMING_FILES = {"report.html", "error_vs_time.png", "runs.md", "cost_vs_size.png", "lod.md", "composite.md"}
 
 
 # ------------------------------------------------------------------------------------- shared with tests
@@ -81,11 +83,12 @@ def blind(folder: Path) -> list[str]:
             "sh"]
 
 
-def beside_a_blind_worker(cmd: list[str], hidden: Path, work: Path, submitted: str,
+def beside_a_blind_worker(cmd: list[str], hidden: Path, work: Path, handed: int,
                           timeout: float) -> tuple[subprocess.Popen, str, str, float]:
     """`cmd --scheduler ADDRESS` on a scheduler (started in `work`) whose one worker cannot see `hidden` (blind),
-    until its stderr says `submitted` (every task went to that worker alone); then a worker that can see it joins.
-    The finished process, its stdout and stderr, and its seconds from start to end."""
+    until its stderr says `handed` tasks were handed back (every task sent went to that worker alone, and none is
+    left for the next to take from its queue); then a worker that can see it joins. The finished process, its
+    stdout and stderr, and its seconds from start to end."""
     with scheduler(work) as (address, _):
         workers = [worker(address, *blind(hidden))]
         try:
@@ -93,7 +96,7 @@ def beside_a_blind_worker(cmd: list[str], hidden: Path, work: Path, submitted: s
             p = subprocess.Popen([*cmd, "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                  text=True, env=ENV)
             said = ""
-            while submitted not in said:
+            while said.count(": handed back by ") < handed:
                 said += p.stderr.readline()
                 assert p.poll() is None, (said, p.communicate())
             workers.append(worker(address))
@@ -122,6 +125,16 @@ def rendering(out: Path, scene: str, proc, timeout: float = 600) -> tuple[int, P
     raise AssertionError(f"no render of {scene} started")
 
 
+def changed(a, b, path: str = "") -> list[str]:
+    """Where two reports differ once their times are left out (untimed): the paths of the differing fields."""
+    a, b = untimed(a), untimed(b)
+    if isinstance(a, dict) and isinstance(b, dict):
+        return [p for k in sorted(a.keys() | b.keys()) for p in changed(a.get(k), b.get(k), f"{path}/{k}")]
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        return [p for i, (x, y) in enumerate(zip(a, b)) for p in changed(x, y, f"{path}[{i}]")]
+    return [] if a == b else [path or "/"]
+
+
 def untimed(x):
     if isinstance(x, dict):
         return {k: untimed(v) for k, v in x.items() if not TIMED.fullmatch(k)}
@@ -131,15 +144,16 @@ def untimed(x):
 
 
 def differences(a: Path, b: Path) -> list[str]:
-    """The files of output folders `a` and `b` that differ: byte for byte, the reports (report.json, report.csv)
-    once their times are left out, the files of TIMING_FILES not at all; files in only one of them too."""
+    """The files of output folders `a` and `b` that differ: byte for byte, JSON and CSV files (report.json,
+    report.csv, lod.json, sweep.csv) once their times are left out, the files of TIMING_FILES not at all; files in
+    only one of them too."""
     names = lambda d: {p.relative_to(d).as_posix() for p in d.rglob("*") if p.is_file()}  # noqa: E731
     out = sorted(names(a) ^ names(b))
     for rel in sorted(names(a) & names(b)):
         x, y = a / rel, b / rel
-        if x.name == "report.json":
+        if x.suffix == ".json":
             same = untimed(json.loads(x.read_text())) == untimed(json.loads(y.read_text()))
-        elif x.name == "report.csv":
+        elif x.suffix == ".csv":
             rows = lambda p: [untimed(r) for r in csv.DictReader(p.open())]  # noqa: E731
             same = rows(x) == rows(y)
         else:
@@ -219,11 +233,34 @@ def faults(work: Path, bundles: Path, res: list[str]) -> list[list[str]]:
                  f"{sum(r['status'] == 'rendered' for r in runs)} of {len(runs)} bundles rendered, "
                  f"{len(list(out.rglob('.*')))} hidden files left"])
 
-    p, stdout, stderr, s = beside_a_blind_worker(render + ["-o", str(work / "f5")], bundles, work,
-                                                 "rendering 3 bundles", 1200)
+    p, stdout, stderr, s = beside_a_blind_worker(render + ["-o", str(work / "f5")], bundles, work, len(CONFIGS), 1200)
     rows.append(["a worker that cannot see the bundles (its own mount namespace), a second one joining",
                  "`--scheduler ADDRESS`", str(p.returncode), f"{s:.1f} s", _said(stdout + stderr, "| rendered", "| failed")])
     return rows
+
+
+def _compared(work: Path, name: str, target: Path, more: list[str]) -> list[list[str]]:
+    """`target` (a bundle, or a folder of them) rendered on one machine and on `--scheduler local:2`: a table row
+    each (wall time, the load average at its end, the reference tasks; the cluster's: what differs apart from
+    times)."""
+    walls, logs, loads = {}, {}, {}
+    for run, cluster in (("one", []), ("two", ["--scheduler", "local:2"])):
+        code, walls[run], logs[run] = _run([str(BIN / "vdmrender"), str(target), "-o", str(work / name / run),
+                                            "--no-flip", *more, *cluster])
+        loads[run] = os.getloadavg()[0]
+        assert code == 0, logs[run][-3000:]
+    one, two = (json.loads((work / name / run / "report.json").read_text()) for run in ("one", "two"))
+    diff = differences(work / name / "one", work / name / "two")
+    fields = changed(one, two)
+    files = sum(1 for f in (work / name / "one").rglob("*") if f.is_file())
+    traced = sum(float(s) for s in re.findall(r"frames traced in ([\d.]+) s", logs["one"]))
+    tasks = re.search(r"tracing (\d+) references on the cluster", logs["two"])
+    what = f"{name} (`{' '.join(more)}`)" if more else name
+    return [[what, "one machine", f"{walls['one']:.1f} s", f"{loads['one']:.1f}", str(len(one["rows"])),
+             f"- ({traced:.1f} s of it tracing references)", "-", "-"],
+            [what, "`--scheduler local:2`", f"{walls['two']:.1f} s", f"{loads['two']:.1f}", str(len(two["rows"])),
+             f"{tasks[1] if tasks else 0} reference tasks", "all" if not fields else f"NO: {', '.join(fields[:5])}",
+             f"{len(diff)} of {files}" + (f" ({', '.join(diff[:5])})" if diff else "")]]
 
 
 def main(argv=None) -> int:
@@ -232,36 +269,31 @@ def main(argv=None) -> int:
     ap.add_argument("--resolution", default="128x128")
     args = ap.parse_args(argv)
     work = args.work.absolute()
-    (work / "scenes").mkdir(parents=True, exist_ok=True)
-    for c in CONFIGS:
-        (work / "scenes" / f"{c}.toml").write_text((ROOT / "configs" / f"{c}.toml").read_text())
+    for folder, configs in (("scenes", CONFIGS), ("large", (LARGE,))):
+        (work / folder).mkdir(parents=True, exist_ok=True)
+        for c in configs:
+            (work / folder / f"{c}.toml").write_text((ROOT / "configs" / f"{c}.toml").read_text())
     code, bake_s, text = _run([str(BIN / "vdmbake"), str(work / "scenes"), "-o", str(work / "bundles"), "--jobs", "2"])
     assert code == 0, text
+    code, large_s, text = _run([str(BIN / "vdmbake"), str(work / "large" / f"{LARGE}.toml"), "-o",
+                                str(work / f"{LARGE}.bundle")])
+    assert code == 0, text
     res = ["--resolution", args.resolution]
-    walls = {}
-    for name, more in (("one", []), ("two", ["--scheduler", "local:2"])):
-        code, walls[name], text = _run([str(BIN / "vdmrender"), str(work / "bundles"), "-o", str(work / name),
-                                        "--no-flip", *res, *more])
-        assert code == 0, text[-3000:]
-    diff = differences(work / "one", work / "two")
-    rows = json.loads((work / "one" / "report.json").read_text())["rows"]
-    same = untimed(rows) == untimed(json.loads((work / "two" / "report.json").read_text())["rows"])
-    files = sum(1 for _ in (work / "one").rglob("*") if _.is_file())
-    table = [["one machine, one after another", f"{walls['one']:.1f} s", str(len(rows)), "-", "-"],
-             ["`--scheduler local:2`", f"{walls['two']:.1f} s", str(len(rows)), "all" if same else "NO",
-              f"{len(diff)} of {files}" + (f" ({', '.join(diff[:5])})" if diff else "")]]
-    load = os.getloadavg()
+    table = _compared(work, "three small bundles", work / "bundles", res) + \
+        _compared(work, LARGE, work / f"{LARGE}.bundle", [])
     doc = {"about": "docs/cluster.md's measured tables (bench/cluster.py)",
-           "measured_by": f"python -m bench.cluster WORK --resolution {args.resolution} (bundles of configs "
-                          f"{', '.join(CONFIGS)}, baked with --jobs 2 in {bake_s:.0f} s)",
-           "device": "llvmpipe on the project's shared 2-core machine (load average "
-                     f"{load[0]:.1f} at the end of the runs): every worker and the serial run on the same CPUs",
+           "measured_by": f"python -m bench.cluster WORK --resolution {args.resolution} (the small bundles: configs "
+                          f"{', '.join(CONFIGS)}, baked with --jobs 2 in {bake_s:.0f} s; {LARGE} baked in "
+                          f"{large_s:.0f} s)",
+           "device": "llvmpipe on the project's shared 2-core machine, shared with other jobs (the load average at "
+                     "the end of each run beside it): every worker and the serial run on the same two CPUs",
            "when": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
            "tables": {
                "serial-vs-cluster": {
-                   "header": ["run", "wall", "rows", "rows the same apart from times", "files that differ (apart "
-                              "from report.html, error_vs_time.png, runs.md)"],
-                   "align": ["---", "---:", "---:", "---", "---"], "rows": table},
+                   "header": ["bundles", "run", "wall", "load average (1 min) at its end", "rows", "references",
+                              "reports (rows, sweep, chains) the same apart from times",
+                              f"files that differ (apart from {', '.join(sorted(TIMING_FILES))})"],
+                   "align": ["---", "---", "---:", "---:", "---:", "---", "---", "---"], "rows": table},
                "faults": {
                    "header": ["fault", "command", "exit", "wall", "what it prints (the lines that say)"],
                    "align": ["---", "---", "---:", "---", "---"], "rows": faults(work, work / "bundles", res)}}}

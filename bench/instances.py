@@ -5,8 +5,8 @@ constant density (one copy per (SPACING r)^2 of ground, r the bounding radius, s
 seen by two cameras standing at the field's edge and looking across it (copies from near to far, as in a real
 scene). Every variant is timed interleaved (bench.interleave: GPU timer queries after a warm-up, medians), with its
 GPU bytes and per-pixel work (vdmrender.measuring.counters), and scored against the reference that traces every copy merged
-while that fits the memory budget (vdmbake.bundle.budget, estimated as vdmrender.render.check_memory estimates
-it); beyond it the error is not measured, and said so. A variant whose frame would take longer than FRAME_BUDGET_S at the next
+while that fits the memory budget (vdmbake.bundle.budget.render_bytes, the render's own rule); beyond it the
+error is not measured, and said so. A variant whose frame would take longer than FRAME_BUDGET_S at the next
 N (its time growing with N) is not run there. Per-copy LOD (row lod@dluvLIMIT): one copy measured at SIZES pixels
 across (vdmrender.views.sweep's cameras, the same interleaved timing, its own reference) gives the chain of the cheapest
 variant within mean ΔLuv LIMIT per band of screen sizes (vdmrender.deciding.lod.chain); in every field each copy is then
@@ -38,7 +38,6 @@ from vdmrender.views import lodmix, sweep
 from vdmrender.tracing import refcache
 from vdmrender.common.camera import Camera, cameras_for, clip_planes
 from vdmrender.common.markdown import number
-from vdmrender.render import BYTES_PER_FACE, reference_bytes_per_pixel
 from vdmrender.techniques import variants
 
 from .interleave import costs, measure
@@ -118,7 +117,8 @@ def run(out: Path, quick: bool, log) -> dict:
                 cams = cameras(np.asarray(entry["centre"]), entry["radius"], n, w, h)
                 chosen = [v for v in variants(copies, entry, bundle, bundle.scene) if v.label not in too_slow]
                 ref8, traced = None, None
-                if budget.fits(faces * n * BYTES_PER_FACE + w * h * reference_bytes_per_pixel()):   # the render's own rule
+                need = budget.Render(w, h, len(cams), objects=(budget.Geometry(name, faces * n),))   # 1 spp
+                if budget.fits(budget.render_bytes(need)):
                     t0 = time.perf_counter()
                     ref, _ = refcache.object_reference(copies, entry, bundle, bundle.scene)
                     ref8 = [images.encode(ref.render(c), bundle.scene.render.background) for c in cams]
@@ -158,7 +158,8 @@ def run(out: Path, quick: bool, log) -> dict:
 def chain(ctx, bundle, obj, entry, sizes, quick: bool, log) -> list[dict]:
     """The LOD chain of one copy: every variant timed interleaved and scored against the copy's reference at each
     screen size (vdmrender.views.sweep's cameras around the bench scene's own views), the cheapest within LIMIT per
-    band (vdmrender.deciding.lod.chain): lod.json's entries."""
+    band (vdmrender.deciding.lod.chain, costs compared on the paired frames as vdmrender's chains): lod.json's
+    entries."""
     one = dataclasses.replace(obj, instances=None)
     scene = bundle.scene
     w, h = scene.render.resolution

@@ -1,5 +1,6 @@
-"""Alternatives measured against each other in one process, interleaved (A, B, C, A, B, C, ...), for
-the benchmarks: on a shared machine a sequential run gives each variant different neighbours. Per frame,
+"""Alternatives measured against each other in one process, interleaved (vdmrender.measuring.interleaved, the loop
+vdmrender's pricing times with), for the benchmarks: on a shared machine a sequential run gives each variant
+different neighbours. Per frame,
 the GPU time of its passes by timer queries (vdmrender/measuring/timing.py, as vdmrender reports it), the wall
 time and the process's CPU time (llvmpipe's rasteriser threads are the process's own, so CPU time is
 the work done, much less disturbed by other processes than wall time), and each variant's
@@ -8,7 +9,6 @@ costs (vdmrender/measuring/counters.py: fragments, texture fetches, search steps
 from __future__ import annotations
 
 import statistics
-import time
 from pathlib import Path
 from typing import Callable
 
@@ -17,12 +17,12 @@ import numpy as np
 from vdmbake.formats import exr
 from vdmbake.bundle.directory import Bundle
 
-from vdmrender.measuring import counters
+from vdmrender.measuring import counters, interleaved
 from vdmrender.gpu import gl
 from vdmrender.common import images
-from vdmrender.measuring.timing import Budget, FrameTimer, warm_up_each
+from vdmrender.measuring.timing import Budget, FrameTimer
 from vdmrender.common.camera import cameras_for
-from vdmrender.comparing.metrics import compare
+from vdmrender.comparing.metrics import compare, pooled
 
 
 def scene_of(bundle_path: Path):
@@ -46,38 +46,27 @@ def reference8(render_dir: Path, name: str, count: int, background) -> list[np.n
 
 def measure(ctx, builds: dict[str, Callable], cams, ref8, background, rounds: int = 5,
             score: bool = True, budget: Budget = Budget()) -> dict[str, dict]:
-    """Each build(ctx) -> renderer, warmed up as vdmrender warms up a row (timing.warm_up_each, `budget`), then
-    `rounds` rounds of every variant on every camera; medians over all timed frames, error over all frames (thesis eq. 2.2) unless not `score`
-    (no reference: the error fields are None)."""
+    """Each build(ctx) -> renderer timed through the one interleaved loop (vdmrender.measuring.interleaved.frames:
+    warmed up as vdmrender warms up a row, with `budget`, then `rounds` rounds of every camera, every variant in
+    turn): medians over all timed frames, each frame's GPU ms (`interleaved_ms`, aligned across variants: the paired
+    frames vdmrender.deciding.pricing judges), and the error pooled over all frames (metrics.pooled, thesis eq. 2.2)
+    unless not `score` (no reference: the error fields are None)."""
     target = gl.Target(ctx, cams[0].width, cams[0].height)
     timer = FrameTimer(ctx, target)
     renderers = {k: b(ctx) for k, b in builds.items()}
-    gpu, wall, cpu = ({k: [] for k in builds} for _ in range(3))
-    warm = warm_up_each(timer, renderers, cams, budget)
-    for _ in range(rounds):
-        for k, r in renderers.items():
-            for cam in cams:
-                c0 = time.process_time()
-                s = timer.frame(r, cam)
-                cpu[k].append((time.process_time() - c0) * 1e3)
-                gpu[k].append(s.gpu_ms)
-                wall[k].append(s.wall_ms)
+    samples, warm = interleaved.frames(timer, renderers, cams, budget, rounds)
     rows = {}
     for k, r in renderers.items():
-        rows[k] = {"median_ms": round(statistics.median(gpu[k]), 2), "min_ms": round(min(gpu[k]), 2),
-                   "median_wall_ms": round(statistics.median(wall[k]), 2),
-                   "median_cpu_ms": round(statistics.median(cpu[k]), 2),
-                   "steady": warm[k]["steady"], "mean_dluv": None, "p95_dluv": None, "iou": None}
+        s = samples[k]
+        gpu = [x.gpu_ms for x in s]
+        rows[k] = {"median_ms": round(statistics.median(gpu), 2), "min_ms": round(min(gpu), 2),
+                   "median_wall_ms": round(statistics.median(x.wall_ms for x in s), 2),
+                   "median_cpu_ms": round(statistics.median(x.cpu_ms for x in s), 2),
+                   "steady": warm[k]["steady"], "interleaved_ms": [round(x, 4) for x in gpu],
+                   "mean_dluv": None, "p95_dluv": None, "iou": None}
         if score:
-            dists, ious = [], []
-            for cam, r8 in zip(cams, ref8):
-                r.render(cam, target)
-                c = compare(images.encode(target.read(), background), r8)
-                dists.append(c["values"])
-                ious.append(c["iou"])
-            d = np.concatenate(dists)
-            rows[k].update(mean_dluv=round(float(d.mean()), 4), p95_dluv=round(float(np.percentile(d, 95)), 3),
-                           iou=round(float(np.mean(ious)), 5))
+            rows[k].update(pooled([compare(images.encode(timer.read(r, cam, c), background), r8)
+                                   for c, (cam, r8) in enumerate(zip(cams, ref8))]))
         r.release()
     target.release()
     return rows

@@ -9,8 +9,8 @@ holes; it casts hier's shadows either way) are baked first; the larger variant's
 maps, pyramid atlases, coarse mesh and occupancy-box buffers; not the per-frame depth and occupancy
 targets, reported apart) fix the octahedral atlases: N x N views of R^2 texels at 8 bytes a texel (RGBA16)
 with 8 N^2 R^2 as close as possible to the billboards' bytes, for N = 5, 9, 13, and N = 9 at a quarter
-of them. All variants of a model are timed interleaved (per camera: one render
-each, in turn) after a warm-up to steady times as vdmrender's rows (timing.warm_up_each), each pass in its own timer query (vdmrender/measuring/timing.py); the shadow map pass
+of them. All variants of a model are timed interleaved (vdmrender.measuring.interleaved, one round: per camera one
+render each, in turn) after a warm-up to steady times as vdmrender's rows, each pass in its own timer query (vdmrender/measuring/timing.py); the shadow map pass
 is part of every frame (billboards: the scene's 1024^2 map of the coarse mesh; octahedral: its own, shadow_scale 2, and one
 row with the scene's 1024^2 map for a like-for-like comparison). Octahedral rows also give the frame pass's
 texture fetches (atlas lookups, the albedo atlas's, the shadow map's) and search steps per covered pixel
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import statistics
-import time
 from pathlib import Path
 
 import click
@@ -35,15 +34,16 @@ from vdmbake.scene import load_scene
 from vdmbake.techniques.octahedral import VARIANT as OCT_VARIANT
 
 from bench import publish, tables
-from vdmrender.measuring import counters
+from vdmrender.measuring import counters, interleaved
 from vdmrender.gpu import gl
 from vdmrender.common import images
 from vdmrender.tracing import reference
 from vdmrender import techniques
 from vdmrender.common.camera import cameras_for
-from vdmrender.comparing.metrics import compare
+from vdmrender.comparing.metrics import compare, pooled
 from vdmrender.techniques import octahedral
-from vdmrender.measuring.timing import Budget, FrameTimer, warm_up_each
+from vdmrender.measuring.timing import Budget, FrameTimer
+from vdmrender.common.markdown import number
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
           ("cylinder", 'primitive = "cylinder"'), ("bunny", 'mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"')]
@@ -196,6 +196,13 @@ def _model(out: Path, name: str, source: str, quick: bool) -> list[dict]:
         ctx.release()
 
 
+# The cameras by kind (bench cameras' labels); outside: all but the one inside the bounding sphere.
+CATEGORIES = [("outside", lambda lab: lab != "inside"), ("orbit", lambda lab: lab.startswith("orbit")),
+              ("top", lambda lab: lab in ("top-down", "near-top")),
+              ("grazing", lambda lab: lab.startswith("grazing")), ("below", lambda lab: lab == "below"),
+              ("close", lambda lab: lab in ("close", "close-wide")), ("inside", lambda lab: lab == "inside")]
+
+
 def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[dict]:
     cams = cameras_for(scene.camera, entry["centre"], entry["radius"], w, h)
     ref = reference.MeshReference(mesh, scene.light, obj.material)
@@ -204,41 +211,31 @@ def _measure(ctx, name, scene, obj, mesh, entry, builds, w, h, labels) -> list[d
     renderers = {label: b(ctx) for label, (b, _, _) in builds.items()}
     target = gl.Target(ctx, w, h)
     timer = FrameTimer(ctx, target)
-    try:
-        warm_up_each(timer, renderers, cams, Budget())   # as vdmrender warms up a row
-        ms = {k: [] for k in renderers}
-        cpu = {k: [] for k in renderers}
-        shadow_ms = {k: [] for k in renderers if k.startswith("octahedral")}
-        per_cam = {k: [] for k in renderers}
-        dists = {k: [] for k in renderers}
-        for cam, r8 in zip(cams, refs):
-            for label, r in renderers.items():   # interleaved: every variant on this camera, in turn
-                c0 = time.process_time()
-                s = timer.frame(r, cam)
-                ms[label].append(s.gpu_ms)
-                cpu[label].append((time.process_time() - c0) * 1e3)
-                frame = target.read()
-                c = compare(images.encode(frame, bg), r8)
-                per_cam[label].append({"mean_dluv": round(c["mean"] or 0.0, 4), "iou": round(c["iou"] or 0.0, 6),
-                                       "nonfinite": int((~np.isfinite(frame)).any(-1).sum())})
-                dists[label].append(c["values"])
-                if label in shadow_ms:
-                    shadow_ms[label].append(s.passes["shadow"])
+    scores = {k: [] for k in renderers}
+
+    def seen(label, c, _):   # the frame just timed, scored while it is in the target
+        frame = target.read()
+        scores[label].append({**compare(images.encode(frame, bg), refs[c]),
+                              "nonfinite": int((~np.isfinite(frame)).any(-1).sum())})
+
+    try:   # one round of the loop vdmrender prices with: every variant on each camera in turn, after its warm-up
+        samples, _ = interleaved.frames(timer, renderers, cams, Budget(), 1, seen=seen)
         rows = []
         for label, r in renderers.items():
-            d = np.concatenate(dists[label])
+            s, sc = samples[label], scores[label]
             row = {"object": name, "resolution": f"{w}x{h}", "label": label, "device": gl.renderer_name(ctx),
-                   "median_ms": round(statistics.median(ms[label]), 2),
-                   "median_cpu_ms": round(statistics.median(cpu[label]), 2),
-                   "mean_dluv": round(float(d.mean()), 4) if d.size else 0.0,
-                   "p95_dluv": round(float(np.percentile(d, 95)), 4) if d.size else 0.0,
-                   "iou": round(float(np.mean([p["iou"] for p in per_cam[label]])), 6),
-                   "nonfinite": sum(p["nonfinite"] for p in per_cam[label]),
+                   "median_ms": round(statistics.median(x.gpu_ms for x in s), 2),
+                   "median_cpu_ms": round(statistics.median(x.cpu_ms for x in s), 2), **pooled(sc),
+                   "nonfinite": sum(x["nonfinite"] for x in sc),
                    **dict(zip(("gpu_bytes", "target_bytes"), gpu_bytes(r))), "bake_s": builds[label][1], **builds[label][2],
-                   "cameras": {lab: {**p, "ms": round(t, 2), "cpu_ms": round(c, 2)}
-                               for lab, p, t, c in zip(labels, per_cam[label], ms[label], cpu[label])}}
-            if label in shadow_ms:
-                row["shadow_ms"] = round(statistics.median(shadow_ms[label]), 2)
+                   "cameras": {lab: {**pooled([x]), "nonfinite": x["nonfinite"], "ms": round(t.gpu_ms, 2),
+                                     "cpu_ms": round(t.cpu_ms, 2)} for lab, x, t in zip(labels, sc, s)},
+                   "categories": {cat: {**pooled([x for lab, x in zip(labels, sc) if pick(lab)]),
+                                        "cpu_ms": round(statistics.median(t.cpu_ms for lab, t in zip(labels, s)
+                                                                          if pick(lab)), 2)}
+                                  for cat, pick in CATEGORIES if any(pick(lab) for lab in labels)}}
+            if label.startswith("octahedral"):
+                row["shadow_ms"] = round(statistics.median(x.passes["shadow"] for x in s), 2)
                 row.update(_costs(ctx, builds[label][0], cams[0], target))
             rows.append(row)
         return rows
@@ -277,11 +274,11 @@ def main(out: Path, quick: bool, models: str | None, publish_dir: Path | None):
     for name, source in chosen:
         for r in _model(out, name, source, quick):
             rows.append(r)
-            click.echo(f"{name:8} {r['resolution']:8} {r['label']:42} {r['median_ms']:9.1f} ms {r['median_cpu_ms']:9.1f} CPU ms  dLuv {r['mean_dluv']:.3f}  "
-                       f"IoU {r['iou']:.4f}  {r['gpu_bytes'] / 2**20:6.1f} MB", err=True)
+            click.echo(f"{name:8} {r['resolution']:8} {r['label']:42} {r['median_ms']:9.1f} ms {r['median_cpu_ms']:9.1f} CPU ms  dLuv {number(r['mean_dluv'], 3)}  "
+                       f"IoU {number(r['iou'], 4)}  {r['gpu_bytes'] / 2**20:6.1f} MB", err=True)
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
-    doc = {"device": device, "shadow_map": SHADOW_MAP, "rows": rows}
+    doc = {"device": device, "shadow_map": SHADOW_MAP, "categories": [c for c, _ in CATEGORIES], "rows": rows}
     (out / "octahedral.json").write_text(json.dumps(doc, indent=1) + "\n")
     (out / "octahedral.md").write_text(_markdown(doc))
     click.echo(f"wrote {out / 'octahedral.json'}, {out / 'octahedral.md'}")

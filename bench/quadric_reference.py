@@ -1,8 +1,8 @@
 """The quadric reference's cost against the number of quadrics: real molecules of 22k and 165k atoms
 and the 165k one tiled 3x2 (991k atoms), space-filling, one orbit camera at 3 bounding radii.
 
-Two tracers, interleaved (old, new, old, new, ...), median of 3 rounds, each round building its
-tracer afresh (vdmrender's reference log times the build with the frames):
+Two tracers, interleaved (vdmrender's loop: old, new, then new, old, ...), median of 3 rounds, each round building
+its tracer afresh (vdmrender's reference log times the build with the frames):
   box-walk  the original, kept here so the gain stays visible: one box a quadric, Embree float32
             alone deciding which boxes a ray meets;
   grouped   vdmrender.tracing.reference.QuadricTracer: a box a grid cell's group, each its own orientation,
@@ -28,10 +28,13 @@ import numpy as np
 
 from vdmbake.assets.meshes import resolve_path
 from vdmbake.assets.molecules import load_molecule
+from vdmbake.bundle import budget
 from vdmbake.common.geometry import onb
+from vdmbake.errors import InputError
 from vdmbake.kernels.quadrics import QuadricSet
 from vdmbake.scene import Cameras, Light, Material, Orbit
 
+from vdmrender.measuring import interleaved
 from vdmrender.tracing import quadric_math, reference
 from vdmrender.common.camera import cameras_for
 
@@ -131,13 +134,16 @@ def one_round(name, q, cam, light, material) -> tuple[dict, tuple]:
 
 
 def measure(q, cam, rounds: int) -> tuple[dict, dict]:
+    """Both tracers through vdmrender's one interleaved loop (vdmrender.measuring.interleaved.rounds: each round
+    one_round of each in turn, the order rotated by round): medians over the rounds, and each one's last hits."""
     light, material = Light(), Material()
-    runs = {k: [] for k in VARIANTS}
     hits = {}
-    for _ in range(rounds):
-        for name in VARIANTS:
-            r, hits[name] = one_round(name, q, cam, light, material)
-            runs[name].append(r)
+
+    def step(name, _):
+        r, hits[name] = one_round(name, q, cam, light, material)
+        return r
+
+    runs = interleaved.rounds(VARIANTS, step, rounds)
     out = {}
     for name, rs in runs.items():
         med = {k: statistics.median(r[k] for r in rs) for k in ("build_s", "first_frame_s", "frame_s")}
@@ -196,6 +202,11 @@ def main(out: Path, size: int, quick: bool):
         q = tiled(load_molecule(resolve_path(paths[name], Path(".")), "spacefill"), copies)
         label = name if copies == 1 else f"{name} x{copies}"
         cam = cameras_for(scene_camera, *q.bounding_sphere(), size, size)[0]
+        try:   # the render's memory rule, for one reference frame of these quadrics
+            budget.check_render(budget.Render(size, size, 1, objects=(
+                budget.Geometry(label, quadrics=len(q.spheres) + len(q.cylinders)),)))
+        except InputError as e:
+            raise click.BadParameter(str(e), param_hint="--size") from None
         timings, hits = measure(q, cam, rounds)
         rows.append({"molecule": label, "atoms": len(q.spheres), **timings, "exactness": exactness(q, cam, hits)})
         click.echo(f"{label}: " + ", ".join(f"{k} {v['rays_per_s_frame']} rays/s (frame), "

@@ -13,8 +13,8 @@ ray and, where it hits, one shadow ray), two orbit cameras, square frames. Varia
   mitsuba-1  Mitsuba 3 `scalar_rgb`, `direct` integrator (1 emitter sample, no BSDF sample), `multijitter` sampler,
              box filter, one thread;
   mitsuba    the same on every core.
-Timing: at 480 x 480 and 16 and 64 spp, each round every variant in turn (the order rotating by round), wall and
-CPU seconds (the process's, every thread), medians over the rounds. Error: at 400, 96, 48 and 24 px across, mean
+Timing: at 480 x 480 and 16 and 64 spp, each round every variant in turn (vdmrender's interleaved loop, the order
+rotating by round), wall and CPU seconds (the process's, every thread), medians over the rounds. Error: at 400, 96, 48 and 24 px across, mean
 ΔLuv of each at 4, 16 and 64 spp (ours also at a budget of 256, against Mitsuba's only: where it traces every
 sample they are the truth's) against each renderer's own 256-spp frame (ours: uniform's) and against Mitsuba's (the renderers agree within their noise), and the seconds each needs to reach
 Mitsuba's 16-spp error, and ours to reach uniform's 64-spp error (log-log interpolation of error against wall time,
@@ -44,6 +44,7 @@ from vdmbake.assets.meshes import load_mesh_file, resolve_path
 from vdmbake.scene import Light, Material
 from vdmrender.common import images
 from vdmrender.comparing import metrics
+from vdmrender.measuring import interleaved as loop
 from vdmrender.tracing import reference
 from vdmrender.common.camera import Camera, clip_planes
 from vdmrender.common.markdown import number
@@ -167,30 +168,34 @@ def variants(ref, mitsuba, cores: int) -> dict:
 
 
 def interleaved(fns: dict, cams, spps: dict, rounds: int, ref) -> tuple[dict, dict]:
-    """Each round, every variant in turn (rotated by round) over every camera, at each of its samples per pixel
-    (spps: name -> spp list): {(name, spp): {wall_s, cpu_s, rays, mean_spp}} (medians over the rounds; rays of
-    ours; mean_spp, the samples per pixel ours traced), and the first round's frames {(name, spp): [frame]}."""
-    names, times, frames, traced = list(fns), {}, {}, {}
-    for r in range(rounds):
-        for spp in sorted({s for v in spps.values() for s in v}):
-            for name in [n for n in names[r % len(names):] + names[:r % len(names)] if spp in spps[n]]:
-                rays0 = ref.scene.rays_cast
-                out, wall, cpu = timed(lambda: [fns[name](c, spp) for c in cams])
-                times.setdefault((name, spp), []).append((wall, cpu, ref.scene.rays_cast - rays0))
-                frames.setdefault((name, spp), [f for f, _ in out])
-                if out[0][1] is not None:
-                    traced[name, spp] = round(float(np.mean([n.mean() for _, n in out])), 3)
-                click.echo(f"  round {r + 1} {name} {spp} spp: {wall:.2f} s wall, {cpu:.2f} s CPU", err=True)
+    """Every variant at each of its samples per pixel (spps: name -> spp list) over every camera, through vdmrender's
+    one interleaved loop (vdmrender.measuring.interleaved.rounds: each round all of them in turn, the order rotated
+    by round): {(name, spp): {wall_s, cpu_s, rays, mean_spp}} (medians over the rounds; rays of ours; mean_spp, the
+    samples per pixel ours traced), and the first round's frames {(name, spp): [frame]}."""
+    traced, frames = {}, {}
+
+    def step(key, _):
+        name, spp = key
+        rays0 = ref.scene.rays_cast
+        out, wall, cpu = timed(lambda: [fns[name](c, spp) for c in cams])
+        frames.setdefault(key, [f for f, _ in out])
+        if out[0][1] is not None:
+            traced[key] = round(float(np.mean([n.mean() for _, n in out])), 3)
+        click.echo(f"  {name} {spp} spp: {wall:.2f} s wall, {cpu:.2f} s CPU", err=True)
+        return wall, cpu, ref.scene.rays_cast - rays0
+
+    times = loop.rounds([(n, spp) for n in fns for spp in spps[n]], step, rounds)
     return ({k: {"wall_s": round(statistics.median(t[0] for t in v), 3),
                  "cpu_s": round(statistics.median(t[1] for t in v), 3), "rays": v[0][2],
                  "mean_spp": traced.get(k, k[1]), "wall_runs_s": [round(t[0], 3) for t in v]}
              for k, v in times.items()}, frames)
 
 
-def error(frames, truths) -> float:
-    """Mean ΔLuv over the cameras' frames, each encoded over the background against its truth."""
-    return round(statistics.fmean(metrics.compare(images.encode(f, BACKGROUND), images.encode(t, BACKGROUND))["mean"]
-                                  for f, t in zip(frames, truths)), 4)
+def error(frames, truths) -> float | None:
+    """Mean ΔLuv of the cameras' frames, each encoded over the background against its truth, pooled as vdmrender's
+    rows pool it (metrics.pooled: over every scored pixel of every frame)."""
+    return metrics.pooled([metrics.compare(images.encode(f, BACKGROUND), images.encode(t, BACKGROUND))
+                           for f, t in zip(frames, truths)])["mean_dluv"]
 
 
 def seconds_to(target: float, points: list[tuple[float, float]]) -> float | None:

@@ -3,7 +3,10 @@ renders the published JSON (docs/results) with the same functions, so the docs s
 printed it. The standard library only: make_docs runs on the system Python without the packages."""
 from __future__ import annotations
 
-import statistics
+
+def number(v, digits: int) -> str:
+    """A figure with `digits` decimals, or "-" where there is none (as vdmrender.common.markdown.number)."""
+    return "-" if v is None else f"{v:.{digits}f}"
 
 
 def markdown(header: list[str], align: list[str], rows: list[list[str]]) -> str:
@@ -85,7 +88,7 @@ def vdm(doc: dict) -> str:
                 markdown(["variant", "median ms", "CPU ms", "CPU ratio to pom@16", "mean ΔLuv", "p95", "IoU"],
                          ["---", "---:", "---:", "---:", "---:", "---:", "---:"],
                          [[k, f"{r['median_ms']:.1f}", f"{r['median_cpu_ms']:.1f}", f"{r['median_cpu_ms'] / base:.2f}",
-                           f"{r['mean_dluv']:.3f}", f"{r['p95_dluv']:.2f}", f"{r['iou']:.4f}"]
+                           number(r["mean_dluv"], 3), number(r["p95_dluv"], 2), number(r["iou"], 4)]
                           for k, r in m["rows"].items()]),
                 "The frame pass's costs per covered pixel (instrumented builds, vdmrender/measuring/counters.py; "
                 "fragments: every one the stage ran, discarded ones too), and its fetches per fragment:", ""]
@@ -117,13 +120,18 @@ def vdm_interleaved_cpu(doc: dict) -> str:
         base = m["rows"]["pom@16"]["median_cpu_ms"]
         variants = [v for v in variants if v in m["rows"]]
         rs = [m["rows"][v] for v in variants]
-        ious = sorted(f"{r['iou']:.4f}" for r in rs)
+        ious = sorted(number(r["iou"], 4) for r in rs)
         rows.append([tag.replace("-", ", "), " / ".join(variants), " / ".join(f"{r['median_cpu_ms']:.1f}" for r in rs),
                      " / ".join(f"{r['median_cpu_ms'] / base:.2f}" for r in rs),
-                     " / ".join(f"{r['mean_dluv']:.3f}" for r in rs),
+                     " / ".join(number(r["mean_dluv"], 3) for r in rs),
                      ious[0] if ious[0] == ious[-1] else f"{ious[0]}-{ious[-1]}"])
     return markdown(["surface, height", "variant", "CPU ms/frame", "x pom@16", "mean ΔLuv", "IoU"],
                     ["---", "---", "---:", "---:", "---:", "---:"], rows)
+
+
+def _ratio(p: dict, key: str) -> str:
+    """A ratio with its 95% interval (KEY_95)."""
+    return f"{p[key]:.2f} ({p[key + '_95'][0]:.2f}-{p[key + '_95'][1]:.2f})"
 
 
 def billboards(doc: dict) -> str:
@@ -148,11 +156,11 @@ def billboards(doc: dict) -> str:
     prof, model = doc["profile"], doc["profiled_model"]
     if prof:
         out += [f"## {model}, interleaved ({doc['rounds']} rounds, every pass timed)", "",
-                markdown(["variant", "resolution", "median GPU ms", "x full mesh", "median CPU ms", "x full mesh (CPU)",
-                          "shadow pass share", "passes (median GPU ms)"],
+                markdown(["variant", "resolution", "median GPU ms", "x full mesh (95%)", "median CPU ms",
+                          "x full mesh, CPU (95%)", "shadow pass share", "passes (median GPU ms)"],
                          ["---", "---", "---:", "---:", "---:", "---:", "---:", "---"],
-                         [[p["label"], p["resolution"], f"{p['median_ms']:.1f}", f"{p['ratio_to_mesh']:.2f}",
-                           f"{p['median_cpu_ms']:.1f}", f"{p['cpu_ratio_to_mesh']:.2f}", f"{p['shadow_share']:.0%}",
+                         [[p["label"], p["resolution"], f"{p['median_ms']:.1f}", _ratio(p, "ratio_to_mesh"),
+                           f"{p['median_cpu_ms']:.1f}", _ratio(p, "cpu_ratio_to_mesh"), f"{p['shadow_share']:.0%}",
                            ", ".join(f"{k} {v:.1f}" for k, v in p["passes_ms"].items())] for p in prof]),
                 "Time per halving of the resolution (median CPU ms of one over the next):", ""]
         rows = []
@@ -173,44 +181,32 @@ def billboards(doc: dict) -> str:
     return "\n".join(out)
 
 
-# bench.octahedral's camera categories, by camera label
-CATEGORIES = [("outside", lambda lab: lab != "inside"), ("orbit", lambda lab: lab.startswith("orbit")),
-              ("top", lambda lab: lab in ("top-down", "near-top")), ("grazing", lambda lab: lab.startswith("grazing")),
-              ("below", lambda lab: lab == "below"), ("close", lambda lab: lab in ("close", "close-wide")),
-              ("inside", lambda lab: lab == "inside")]
-
-
-def _category(r: dict, pick) -> str:
-    """Mean of the per-frame mean ΔLuv, mean IoU and median CPU ms over the row's cameras that `pick` takes."""
-    cams = [v for lab, v in r["cameras"].items() if pick(lab)]
-    if not cams:
-        return ""
-    return (f"{statistics.fmean(v['mean_dluv'] for v in cams):.2f} / {statistics.fmean(v['iou'] for v in cams):.3f} / "
-            f"{statistics.median(v['cpu_ms'] for v in cams):.0f}")
-
-
 def octahedral(doc: dict) -> str:
     """bench.octahedral: every model, resolution and variant, over all cameras and per camera category."""
     def blank(x):
         return "" if x is None else str(x)
+    cats = doc["categories"]
     return "\n".join([
-        "Mean ΔLuv over all cameras (union of coverage masks); median GPU ms (timer queries) and CPU ms per frame "
-        "(shadow pass included; CPU: the process's time over all its threads, llvmpipe's included, which other "
-        "processes on the machine barely inflate); shadow ms: the octahedral shadow pass alone (GPU); asset MB: the "
-        "textures and buffers a variant uploads (maps, pyramid atlases, coverage, coarse mesh, occupancy boxes, the "
-        "octahedral atlas); target MB: what it renders into every frame besides the frame and its shadow map (the "
-        "billboards' depth pre-pass and occupancy targets); bake seconds.", "",
+        "Mean and p95 ΔLuv pooled over every scored pixel of every camera (the union of coverage masks; "
+        "vdmrender.comparing.metrics.pooled, as vdmrender's rows), IoU averaged over the frames that are not empty, "
+        "'-' where no frame had a pixel to score; median GPU ms (timer queries) and CPU ms per frame (shadow pass "
+        "included; CPU: the process's time over all its threads, llvmpipe's included, which other processes on the "
+        "machine barely inflate); shadow ms: the octahedral shadow pass alone (GPU); asset MB: the textures and "
+        "buffers a variant uploads (maps, pyramid atlases, coverage, coarse mesh, occupancy boxes, the octahedral "
+        "atlas); target MB: what it renders into every frame besides the frame and its shadow map (the billboards' "
+        "depth pre-pass and occupancy targets); bake seconds.", "",
         markdown(["model", "resolution", "variant", "asset MB", "target MB", "bake s", "GPU ms", "CPU ms", "shadow ms",
                   "fetches/px", "steps/px", "mean ΔLuv", "p95", "IoU"], ["---"] * 3 + ["---:"] * 11,
                  [[r["object"], r["resolution"], r["label"], f"{r['gpu_bytes'] / 2**20:.2f}",
                    f"{r['target_bytes'] / 2**20:.2f}", f"{r['bake_s']:.1f}", f"{r['median_ms']:.0f}",
                    f"{r['median_cpu_ms']:.0f}", blank(r.get("shadow_ms")), blank(r.get("fetches_per_pixel")),
-                   blank(r.get("steps_per_pixel")), f"{r['mean_dluv']:.3f}", f"{r['p95_dluv']:.2f}", f"{r['iou']:.4f}"]
-                  for r in doc["rows"]]),
-        "Per camera category: mean ΔLuv / mean IoU / median CPU ms over the cameras of that kind.", "",
-        markdown(["model", "resolution", "variant", *(c for c, _ in CATEGORIES)], ["---"] * (3 + len(CATEGORIES)),
-                 [[r["object"], r["resolution"], r["label"], *(_category(r, pick) for _, pick in CATEGORIES)]
-                  for r in doc["rows"]]),
+                   blank(r.get("steps_per_pixel")), number(r["mean_dluv"], 3), number(r["p95_dluv"], 2),
+                   number(r["iou"], 4)] for r in doc["rows"]]),
+        "Per camera category: mean ΔLuv / IoU (pooled as above) / median CPU ms over the cameras of that kind.", "",
+        markdown(["model", "resolution", "variant", *cats], ["---"] * (3 + len(cats)),
+                 [[r["object"], r["resolution"], r["label"],
+                   *(f"{number(c['mean_dluv'], 2)} / {number(c['iou'], 3)} / {c['cpu_ms']:.0f}" if c else ""
+                     for c in (r["categories"].get(k) for k in cats))] for r in doc["rows"]]),
         "outside: the cameras outside the bounding sphere (all but inside). orbit: 8 at 25 degrees; top: top-down and "
         "80 degrees; grazing: 0 and 5 degrees; below: -30 degrees; close: 1.4 and 1.2 radii (fov 50 and 90); inside: "
         "0.95 radii, inside the bounding sphere.\n"])

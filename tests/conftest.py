@@ -29,8 +29,8 @@ def ctx():
 
 @pytest.fixture
 def no_warm_up(monkeypatch):
-    """No warm-up before timing (vdmrender.measuring.timing.warm_up, as the rows and the benches' interleaved loops call
-    it, with warmup = 0 and warmup_s = 0). The bench smoke tests prove a bench's plumbing; waiting for llvmpipe's
+    """No warm-up before timing (vdmrender.measuring.timing.warm_up, as the rows and the one interleaved loop that the
+    benches time through call it, with warmup = 0 and warmup_s = 0). The bench smoke tests prove a bench's plumbing; waiting for llvmpipe's
     frame times to agree (up to warmup_max_s per variant on a loaded machine) proves nothing there, and the
     warm-up rule itself is test_timing's."""
     from dataclasses import replace

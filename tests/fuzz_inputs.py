@@ -143,7 +143,7 @@ def check_manifest(bundle: Path, manifest) -> None:
     from vdmbake.bundle.directory import Bundle
     from vdmbake.bundle.parts import KINDS
     from vdmrender.common.camera import cameras_for
-    from vdmrender.render import geometry_bytes
+    from vdmrender.render import held_geometry
 
     (bundle / "manifest.json").write_text(json.dumps(manifest))
     try:
@@ -156,7 +156,10 @@ def check_manifest(bundle: Path, manifest) -> None:
             b.read(rel, KINDS[meta["kind"]])
         except InputError as e:
             one_line(e)
-    geometry_bytes(b)
+    try:   # a mesostructure's base mesh is read for its displaced reference's size
+        held_geometry(b)
+    except InputError as e:
+        one_line(e)
     for obj in b.scene.objects:
         entry = b.manifest["objects"][obj.name]
         for cam in cameras_for(b.scene.camera, entry["centre"], entry["radius"], 8, 8):

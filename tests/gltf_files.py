@@ -19,6 +19,7 @@ from PIL import Image
 
 from vdmbake.common.mesh import TriMesh
 from vdmbake.common import texture
+from vdmbake.formats.gltf import COMPONENT_OF
 from vdmrender.gpu import gl
 from vdmrender.common import images
 from vdmrender.comparing import metrics
@@ -48,7 +49,7 @@ class Gltf:
         self.tree["bufferViews"].append({"buffer": 0, "byteOffset": len(self.blob), "byteLength": a.nbytes})
         self.blob += np.ascontiguousarray(a).tobytes()
         acc = {"bufferView": len(self.tree["bufferViews"]) - 1, "count": len(a),
-               "componentType": {"f": 5126, "B": 5121, "H": 5123, "b": 5120}[a.dtype.char],
+               "componentType": COMPONENT_OF[a.dtype.char],
                "type": "SCALAR" if a.ndim == 1 else f"VEC{a.shape[1]}"}
         if normalized:
             acc["normalized"] = True

@@ -2,6 +2,7 @@
 path checked, small asset files, and edits of a bench's templates for its smoke test."""
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 from pathlib import Path
@@ -11,6 +12,7 @@ from click.testing import CliRunner
 from PIL import Image
 
 from vdmbake.cli import main as vdmbake_main
+from vdmrender import techniques
 from vdmrender.cli import main as vdmrender_main
 
 from scenes import CAMERA, RENDER
@@ -196,3 +198,20 @@ def make_docs():
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def doubled(renderer, name: str):
+    """`renderer` with its pass `name` listed twice, so it runs twice: a regression a --baseline must catch. The
+    same object, so the counters find its programs."""
+    passes = renderer.passes
+    renderer.passes = lambda camera, target: [p for p in passes(camera, target)
+                                              for _ in range(2 if p[0] == name else 1)]
+    return renderer
+
+
+def doubling(name: str):
+    """render's variants, each built doubled(pass `name`): timed, counted and read back so."""
+    def variants(*args, **kwargs):
+        return [dataclasses.replace(v, build=lambda ctx, b=v.build: doubled(b(ctx), name))
+                for v in techniques.variants(*args, **kwargs)]
+    return variants

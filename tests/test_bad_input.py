@@ -9,8 +9,6 @@ from pathlib import Path
 import pytest
 
 from vdmbake.bundle.directory import FORMAT_VERSION
-from vdmbake.errors import InputError
-from vdmrender.render import check_memory, reference_bytes_per_pixel
 
 from helpers import assert_input_error, bake, leftovers, render, write_scene
 from scenes import BALL, CAMERA, GOOD_SCENE, RENDER
@@ -219,29 +217,3 @@ def test_render_resolution_usage_error(bundle, tmp_path):
     assert "Traceback" not in r.output
     assert "--resolution" in r.stderr and "0x10" in r.stderr
     assert not out.exists() and leftovers(out) == []
-
-
-# ------------------------------------------------------------------------------------ memory guard
-
-def test_check_memory_refuses_above_what_is_available():
-    w, h = 640, 480
-    need = w * h * reference_bytes_per_pixel()
-    with pytest.raises(InputError, match=r"640x480.*memory available now"):
-        check_memory(w, h, free=need - 1)
-
-
-def test_check_memory_passes_within_the_budget():
-    w, h = 640, 480
-    need = w * h * reference_bytes_per_pixel()
-    assert check_memory(w, h, free=need) is None
-    assert check_memory(w, h, free=100 * need) is None
-
-
-def test_check_memory_holds_to_the_budget_however_much_is_free(monkeypatch):
-    """One rule for every job (vdmbake.bundle.budget): the render is held to the bake's BUDGET too."""
-    from vdmbake.bundle import budget
-
-    w, h = 640, 480
-    monkeypatch.setattr(budget, "BUDGET", w * h * reference_bytes_per_pixel() - 1)
-    with pytest.raises(InputError, match=r"640x480.*vdmbake.bundle.budget.BUDGET"):
-        check_memory(w, h, free=1 << 50)

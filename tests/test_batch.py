@@ -1,6 +1,6 @@
 """Many scenes per call (vdmbake/batch.py, issue 24): OUTDIR/<stem>.bundle per scene, a failing scene never
 stops the others, the closing table and the exit codes, a worker killed mid-bake, a signal to the batch;
-and the library of 100+ scenes (vdmbake/library/scenes.py)."""
+and the library of 100+ scenes (bench/library_scenes.py)."""
 import json
 import os
 import re
@@ -230,7 +230,7 @@ def test_signal_stops_the_batch_and_its_workers(tmp_path):
 
 
 def test_library_has_100_varied_scenes(tmp_path):
-    from vdmbake.library import scenes as library
+    from bench import library_scenes as library
     from vdmbake.bake import input_hash
     from vdmbake.scene import load_scene
 
@@ -251,7 +251,7 @@ def test_library_has_100_varied_scenes(tmp_path):
 @pytest.mark.slow
 def test_library_sample_bakes_and_shares_the_cache(tmp_path):
     """One scene of each family baked on two workers through a cache, then again: every step from the cache."""
-    from vdmbake.library import scenes as library
+    from bench import library_scenes as library
 
     scenes = tmp_path / "scenes"
     scenes.mkdir()

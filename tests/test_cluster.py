@@ -75,7 +75,7 @@ def test_a_worker_that_cannot_see_the_scenes_hands_them_back(tmp_path):
         pytest.skip("needs unshare -m (root) to hide a folder from one worker")
     write(tmp_path / "s", a=SMALL.format(name="a", prim="sphere"), b=SMALL.format(name="b", prim="torus"))
     p, stdout, stderr, _ = beside_a_blind_worker([str(BIN / "vdmbake"), str(tmp_path / "s"), "-o", str(tmp_path / "out")],
-                                                 tmp_path / "s", tmp_path, "baking 2 scenes", 300)
+                                                 tmp_path / "s", tmp_path, 2, 300)
     assert p.returncode == 0, stderr
     for stem in "ab":
         line = next(x for x in stdout.splitlines() if x.startswith(f"{stem}.toml"))

@@ -537,16 +537,18 @@ def test_concurrent_bakes_to_one_output(tmp_path):
 def test_memory_guard_counts_geometry(baked):
     """The guard counts the largest object's faces and quadrics beside the pixels (the issue: a 1e6-atom render
     at a tiny resolution ran out of memory while only the resolution was checked)."""
-    from vdmrender.render import BYTES_PER_FACE, check_memory, geometry_bytes, reference_bytes_per_pixel
+    from vdmbake.bundle import budget
+    from vdmrender.render import held_geometry
 
     b = Bundle(baked)
-    need, what = geometry_bytes(b)
     faces = b.manifest["parts"][MESH]["faces"] + b.manifest["parts"]["objects/ball/coarse-0.5.ply"]["faces"]
-    assert need == faces * BYTES_PER_FACE and "'ball'" in what
-    pixels = 48 * 48 * reference_bytes_per_pixel()
-    with pytest.raises(InputError, match="geometry of object 'ball'"):
-        check_memory(48, 48, free=pixels + need - 1, geometry=(need, what))
-    assert check_memory(48, 48, free=pixels + need, geometry=(need, what)) is None
+    assert held_geometry(b) == (budget.Geometry("ball", faces), budget.Geometry("atoms", quadrics=2))
+    r = budget.Render(48, 48, 1, objects=held_geometry(b))
+    need = budget.render_bytes(r)   # the largest object's: the ball's faces
+    assert need - budget.render_bytes(budget.Render(48, 48, 1)) == faces * budget.BYTES_PER_FACE
+    with pytest.raises(InputError, match="geometry .* GiB: object 'ball'"):
+        budget.check_render(r, free=need - 1)
+    assert budget.check_render(r, free=need) is None
 
 
 def test_vdm_bake_memory_guard():

@@ -149,16 +149,16 @@ def test_overlapping_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_p
 def test_memory_guard_counts_every_copy(tmp_path):
     from vdmbake.cli import main as bake_main
     from vdmbake.bundle.directory import Bundle
-    from vdmrender.render import BYTES_PER_FACE, geometry_bytes
+    from vdmbake.bundle.budget import Geometry
+    from vdmrender.render import held_geometry
 
     p = tmp_path / "s.toml"
     p.write_text(RENDER + '[[objects]]\nname = "b"\nprimitive = "sphere"\ntechniques = { mesh = {} }\n'
                  "[objects.instances]\nscatter = { count = 1000, area = [100, 100] }\n")
     assert CliRunner().invoke(bake_main, [str(p), "-o", str(tmp_path / "b")]).exit_code == 0
     bundle = Bundle(tmp_path / "b")
-    need, what = geometry_bytes(bundle)
     faces = bundle.manifest["parts"]["objects/b/mesh.ply"]["faces"]
-    assert need == 1000 * faces * BYTES_PER_FACE and "1000 copies" in what
+    assert held_geometry(bundle) == (Geometry("b", 1000 * faces),)
 
 
 @pytest.mark.gl

@@ -142,11 +142,13 @@ def test_shared_rooms_never_import_the_file_readers():
 GL_ROOMS = ("vdmrender.gpu", "vdmrender.measuring", "vdmrender.passes", "vdmrender.techniques", "vdmrender.views")
 
 
-def test_tracing_and_common_draw_nothing():
-    """The renderer's rooms that trace the reference (tracing/) or are shared by all (common/) reach no GL, directly or through what they import: no module of a drawing room, no moderngl; and nothing
-    but the run imports the run (render, many, cluster, cli)."""
+def test_tracing_deciding_and_common_draw_nothing():
+    """The renderer's rooms that trace the reference (tracing/), decide from measured rows (deciding/: the timing
+    statistic is there, the loop that times is measuring's) or are shared by all (common/) reach no GL, directly or
+    through what they import: no module of a drawing room, no moderngl; and nothing but the run imports the run
+    (render, many, cluster, cli)."""
     root = Path(vdmrender.__file__).parent
-    for room in ("tracing", "common"):
+    for room in ("tracing", "deciding", "common"):
         roots = [f"vdmrender.{room}.{p.stem}" for p in sorted((root / room).glob("*.py")) if p.stem != "__init__"]
         reached = vdmbake.imported_closure(roots)
         assert not [m for m in reached if m.startswith(GL_ROOMS)], (room, reached)

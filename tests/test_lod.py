@@ -79,7 +79,7 @@ def test_sweep_renders_each_size_and_picks_chains(tmp_path):
             if paired:   # the variants within the limits and 4x of the fastest: timed interleaved, decided there
                 assert not clearly_slower(paired, e["variant"]), (e["variant"], paired)
             else:        # one alone within 4x (a loaded machine): separately timed medians within the noise
-                assert m["median_ms"] <= (1 + lod.NOISE) * min(r["median_ms"] for r in here) + 2 * max(
+                assert m["median_ms"] <= (1 + pricing.EQUAL) * min(r["median_ms"] for r in here) + 2 * max(
                     r["spread_ms"] for r in here) + 1e-9
     assert any("interleaved_ms" in r for r in rows)
 
@@ -133,9 +133,9 @@ def test_chain_takes_the_cheapest_variant_within_the_limits_per_band():
 
 
 def test_costs_within_the_noise_tie_and_the_smaller_error_wins():
-    a, b = row("coarse@0.3", 32, 5.0, 0.9), row("coarse@0.05", 32, 5.0 * (1 + lod.NOISE / 2), 0.4)
+    a, b = row("coarse@0.3", 32, 5.0, 0.9), row("coarse@0.05", 32, 5.0 * (1 + pricing.EQUAL / 2), 0.4)
     assert lod.cheapest([a, b])["label"] == "coarse@0.05"
-    far = {**b, "median_ms": 5.0 * (1 + 2 * lod.NOISE)}
+    far = {**b, "median_ms": 5.0 * (1 + 2 * pricing.EQUAL)}
     assert lod.cheapest([a, far])["label"] == "coarse@0.3"
     noisy = {**far, "spread_ms": 2.0}   # inside the two runs' spreads together
     assert lod.cheapest([a, noisy])["label"] == "coarse@0.05"

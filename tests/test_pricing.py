@@ -1,5 +1,6 @@
-"""Deciding which variant is cheaper so that two runs decide alike (vdmrender.deciding.pricing): the median's confidence
-interval, the verdicts on paired frames under a load that moves, and the LOD chain's choice from them."""
+"""Deciding which variant is cheaper so that two runs decide alike (vdmrender.deciding.pricing, the one timing
+statistic): the median's confidence interval, the verdicts on paired frames under a load that moves, the rule for
+rows timed apart, and the LOD chain's choice from them."""
 from __future__ import annotations
 
 import numpy as np
@@ -79,18 +80,35 @@ class _Renderer:
 
 
 def test_interleaved_pricing_warms_up_each_candidate_by_the_rows_rule():
-    """pricing.interleaved warms every candidate up as a row is warmed up (timing.warm_up with the run's budget:
-    at least `warmup` rounds over the cameras, one candidate after the other) before the first interleaved round;
-    with no warm-up asked for, it times from the first frame."""
+    """The sweep's pricing (interleaved.gpu_ms, until pricing.settled) warms every candidate up as a row is warmed up
+    (timing.warm_up with the run's budget: at least `warmup` rounds over the cameras, one candidate after the other)
+    before the first interleaved round, then rotates the order by round; with no warm-up asked for, it times from
+    the first frame."""
     from types import SimpleNamespace
 
+    from vdmrender.measuring import interleaved
     from vdmrender.measuring.timing import Budget
 
     cams = ["c0", "c1"]
     for budget, warm in ((Budget(warmup=5, warmup_s=0.0), 10), (Budget(warmup=0, warmup_s=0.0), 0)):
         timer = _Timer()
         harness = SimpleNamespace(timer=timer, budget=budget, as_shipped=lambda r: r)
-        times = pricing.interleaved(harness, {k: (lambda k=k: _Renderer(k)) for k in "ab"}, cams)
+        times = interleaved.gpu_ms(harness, {k: (lambda k=k: _Renderer(k)) for k in "ab"}, cams, pricing.MAX_ROUNDS,
+                                   pricing.settled, pricing.MIN_ROUNDS)
         assert timer.drawn[:2 * warm] == ["a"] * warm + ["b"] * warm
-        assert timer.drawn[2 * warm:2 * warm + 4] == ["a", "b", "a", "b"]   # the first interleaved round
+        assert timer.drawn[2 * warm:2 * warm + 8] == ["a", "b", "a", "b", "b", "a", "b", "a"]   # two rounds, rotated
+        # equal frames are the same cost at once: the fewest rounds
         assert len(times["a"]) == len(times["b"]) == (len(timer.drawn) - 2 * warm) // 2
+        assert len(times["a"]) == pricing.MIN_ROUNDS * len(cams)
+
+
+def test_separately_timed_rows_are_slower_beyond_their_spreads_and_the_share():
+    """Without paired frames (rows timed apart, a baseline's two runs) one row is slower than another only where the
+    difference of medians exceeds both their spreads together and the share (EQUAL for chains, the allowed slowdown
+    for a baseline)."""
+    fast = {"median_ms": 10.0, "spread_ms": 0.2}
+    assert not pricing.slower(fast, {"median_ms": 10.9, "spread_ms": 0.2})                # within EQUAL
+    assert pricing.slower(fast, {"median_ms": 11.2, "spread_ms": 0.2})
+    assert not pricing.slower(fast, {"median_ms": 11.2, "spread_ms": 1.1})                # within the spreads
+    assert not pricing.slower(fast, {"median_ms": 11.2, "spread_ms": None}, share=0.5)    # within a 1.5x slowdown
+    assert pricing.slower(fast, {"median_ms": 15.1, "spread_ms": None}, share=0.5)

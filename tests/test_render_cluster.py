@@ -3,6 +3,7 @@ one machine writes, apart from the timings; a worker killed mid-render costs onl
 (no worker, the scheduler lost, a worker that cannot see the bundles) end bounded and named."""
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -153,16 +154,21 @@ def test_a_scheduler_lost_mid_render(library, tmp_path):
 
 def test_a_worker_that_cannot_see_the_bundles_hands_them_back(library, tmp_path):
     """A worker in its own mount namespace with the bundles' folder hidden (a machine without the share) hands
-    each bundle back; they render on the worker that joins later, and the closing table names who handed back."""
+    back each reference task (all of them sent while it is alone) and each bundle it is given; they run on the worker
+    that joins later, and the log and the closing table name who handed back."""
     if not (shutil.which("unshare") and subprocess.run(["unshare", "-m", "true"]).returncode == 0):
         pytest.skip("needs unshare -m (root) to hide a folder from one worker")
     out = tmp_path / "out"
     p, stdout, stderr, _ = beside_a_blind_worker([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip"],
-                                                 library, tmp_path, "rendering 3 bundles", 600)
+                                                 library, tmp_path, 3, 600)
     assert p.returncode == 0, stderr[-3000:]
     runs = json.loads((out / "report.json").read_text())["runs"]
     assert {r["status"] for r in runs} == {"rendered"}, runs
     for r in runs:
-        assert [f"cannot read {library.absolute() / r['scene']}.bundle/manifest.json" in h for h in r["handed_back"]] \
-            == [True] and r["worker"] not in r["handed_back"][0], r
-    assert "handed back by tcp://127.0.0.1:" in stderr, stderr[-3000:]
+        assert all(f"cannot read {library.absolute() / r['scene']}.bundle/manifest.json" in h and r["worker"] not in h
+                   for h in r.get("handed_back", [])), r
+    refs = re.findall(r"\] reference (\w+)/reference/\w+: traced on (\S+) in [\d.]+ s \(handed back by (\S+) \(cannot read "
+                      r"(\S+)/manifest\.json\)\)", stderr)
+    assert sorted(s for s, *_ in refs) == sorted(r["scene"] for r in runs), stderr[-3000:]
+    for scene, seeing, blind, manifest in refs:
+        assert seeing != blind and manifest == f"{library.absolute() / scene}.bundle", (scene, seeing, blind, manifest)

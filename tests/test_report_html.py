@@ -21,9 +21,10 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
+from helpers import doubling
 from scenes import TINY_HEAD, bake_and_render
 from vdmrender.reporting import html as vhtml
-from vdmrender.measuring import measure
+from vdmrender import render
 from vdmrender.cli import main as render_main
 
 pytestmark = pytest.mark.gl
@@ -199,7 +200,7 @@ def test_a_regression_comes_first_with_frames_before_and_after(swept, monkeypatc
         if r["label"] == "coarse@0.05":
             r["mean_dluv"] = 0.0   # its error here is about 0.5-0.8
     (out / "old.json").write_text(json.dumps(old))
-    monkeypatch.setenv(measure.DOUBLE_PASS, "frame")
+    monkeypatch.setattr(render, "variants", doubling("frame"))
     new = tmp / "new"
     r = CliRunner().invoke(render_main, [str(tmp / "b.bundle"), "-o", str(new), "--no-flip", "--baseline",
                                          str(out / "old.json"), "--max-error-increase", "0.2"])

@@ -9,7 +9,6 @@ import pytest
 from vdmbake.common import geometry, texspace
 from vdmbake.assets import primitives
 from vdmbake.kernels import vdm
-from vdmbake.errors import InputError
 from vdmbake.common.mesh import TriMesh
 
 RNG = np.random.default_rng(2003)
@@ -322,13 +321,3 @@ def test_reference_levels_figures():
     m = primitives.plane(2.0, 4)
     assert geometry.edge_texels(m, 16, (3.0, 2.0)) == pytest.approx(12.0)
     assert geometry.reference_levels(m, 16, (3.0, 2.0)) == 5
-
-
-def test_too_many_faces_is_an_input_error_before_any_work():
-    m = primitives.plane(2.0, 64)                    # 8192 faces
-    levels = next(L for L in range(12) if len(m.faces) * 4 ** L > geometry.MAX_FACES)
-    assert levels == 6                               # 8192 * 4^6 = 33.5 M > 16 M
-    up = np.broadcast_to([0.0, 0.0, 1.0], (8, 8, 3))
-    with pytest.raises(InputError, match="limit"):
-        geometry.displaced(m, np.ones((8, 8)), up, 0.1, (1.0, 1.0), levels)
-    assert len(geometry.displaced(m, np.ones((8, 8)), up, 0.1, (1.0, 1.0), 0).faces) == 8192

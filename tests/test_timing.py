@@ -1,6 +1,6 @@
 """GPU time by timer queries (vdmrender.measuring.timing): the warm-up's steady-state rule, the within-camera spread,
 the harness's clear kept out of every technique's time, --baseline that knows noise (on scripted reports), and
-a doubled pass (the test-only knob VDM_TEST_DOUBLE_PASS) caught exactly by the counters."""
+a doubled pass (every variant built by helpers.doubled) caught exactly by the counters."""
 from __future__ import annotations
 
 import json
@@ -8,12 +8,14 @@ import json
 import numpy as np
 from click.testing import CliRunner
 
+from helpers import doubled, doubling
 from scenes import TINY_HEAD, bake_and_render
 from vdmrender.deciding import baseline
 from vdmrender.reporting import report
 from vdmrender.gpu import gl
-from vdmrender.measuring import measure, timing
+from vdmrender.measuring import timing
 from vdmrender.cli import main as render_main
+from vdmrender import render
 
 
 class Scripted:
@@ -116,13 +118,13 @@ def test_the_clear_is_timed_apart_as_the_median_of_its_queries(ctx):
         target.release()
 
 
-def test_double_pass_knob_runs_the_pass_twice(monkeypatch):
+def test_a_pass_listed_twice_runs_twice_timed_under_its_name():
+    """The timer runs every pass a renderer lists (doubled lists one twice) and times them under their names."""
     ctx = gl.create_context()
     target = gl.Target(ctx, 16, 16)
-    monkeypatch.setenv(measure.DOUBLE_PASS, "frame")
     try:
-        probe = measure.built(lambda: Probe(target))
-        s = timing.FrameTimer(ctx, target).frame(probe, None)
+        probe = Probe(target)
+        s = timing.FrameTimer(ctx, target).frame(doubled(probe, "frame"), None)
         assert len(probe.views) == 2 and list(s.passes) == ["frame"]
     finally:
         target.release()
@@ -212,7 +214,7 @@ COUNTS = ("fragments", "fetches", "steps", "searches", "primitives", "draws", "i
 
 def test_a_doubled_pass_doubles_its_counters_exactly(tmp_path, monkeypatch):
     """Against a baseline of the same bundle, a run changes no counter; a run with its frame pass run twice (the
-    test-only knob VDM_TEST_DOUBLE_PASS) has that pass's every counter exactly doubled, the other passes' the same,
+    variants built by `doubled`) has that pass's every counter exactly doubled, the other passes' the same,
     and --baseline reports exactly that change of the totals. No time is compared: two timings on a shared
     machine need not agree (a doubled pass's time is not asserted to exceed any ratio)."""
     r, out = bake_and_render(tmp_path, SCENE, "--no-flip")
@@ -224,7 +226,7 @@ def test_a_doubled_pass_doubles_its_counters_exactly(tmp_path, monkeypatch):
     r = CliRunner().invoke(render_main, [*args, "-o", str(tmp_path / "same")])
     assert r.exit_code == 0, r.output
     assert json.loads((tmp_path / "same" / "report.json").read_text())["baseline"]["rows"][0]["counters_changed"] == {}
-    monkeypatch.setenv(measure.DOUBLE_PASS, "frame")
+    monkeypatch.setattr(render, "variants", doubling("frame"))
     r = CliRunner().invoke(render_main, [*args, "-o", str(tmp_path / "doubled")])
     assert r.exit_code == 0, r.output                        # counters are reported, not a threshold
     report = json.loads((tmp_path / "doubled" / "report.json").read_text())

@@ -75,12 +75,11 @@ def _demo(doc: dict, key: str) -> str:
 
 
 def _rooms(doc: dict, key: str) -> str:
-    """tools/rooms.py's rooms.json: each room, its modules, lines and the rooms it imports."""
-    rows = [[f"`{name}`" if name != "(top)" else "the run (top level)", ", ".join(r["modules"]), f"{r['lines']:,}",
+    """tools/rooms.py's rooms.json: each room, its modules and the rooms it imports."""
+    rows = [[f"`{name}`" if name != "(top)" else "the run (top level)", ", ".join(r["modules"]),
              ", ".join(r["imports"]) or "-"] for name, r in doc["rooms"].items()]
-    rows.append(["all", f"{doc['modules']} modules", f"{doc['lines']:,}",
-                 f"{doc['floors']} floors (highest: {', '.join(doc['highest'])})"])
-    return markdown(["room", "modules", "lines", "imports rooms"], ["---", "---", "---:", "---"], rows)
+    rows.append(["all", f"{doc['modules']} modules", f"{doc['floors']} floors (highest: {', '.join(doc['highest'])})"])
+    return markdown(["room", "modules", "imports rooms"], ["---", "---", "---"], rows)
 
 
 def _provenance(doc: dict) -> str:

@@ -4,7 +4,7 @@
 same figures for another tree, e.g. an old checkout's vdmrender/ to compare with. A room is a folder of the
 package (the modules at its top form the room "(top)"); a module's floor is 0 when it imports nothing of the
 package and one above the highest module it imports otherwise, counting imports inside functions too.
-The ast is read, nothing is imported: `make docs` runs this on the system Python."""
+Lines are not counted, so the file changes only when the structure does. The ast is read, nothing is imported: `make docs` runs this on the system Python."""
 from __future__ import annotations
 
 import ast
@@ -76,15 +76,13 @@ def survey(package: Path) -> dict:
         if m == "" or m in folders and docstring_only(path):
             continue
         home = room(m, folders)
-        r = rooms.setdefault(home, {"modules": [], "lines": 0, "imports": set()})
+        r = rooms.setdefault(home, {"modules": [], "imports": set()})
         r["modules"].append(m.split(".", 1)[1] if "." in m else "__init__" if home != TOP else m)
-        r["lines"] += len(path.read_text().splitlines())
         r["imports"] |= {room(d, folders) for d in graph[m] if room(d, folders) != home and d != ""}
     return {"package": package.name,
             "modules": sum(len(r["modules"]) for r in rooms.values()),
-            "lines": sum(r["lines"] for r in rooms.values()),
             "floors": 1 + max(floors.values()),
-            "rooms": {k: {"modules": sorted(v["modules"]), "lines": v["lines"], "imports": sorted(v["imports"])}
+            "rooms": {k: {"modules": sorted(v["modules"]), "imports": sorted(v["imports"])}
                       for k, v in sorted(rooms.items())},
             "highest": sorted(m for m, f in floors.items() if f == max(floors.values()))}
 

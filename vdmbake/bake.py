@@ -23,7 +23,6 @@ from .kernels import curvature, quadric_mesh, quadrics, vdm
 from .assets import heightfields, meso_albedo, primitives
 from .bundle import parts, staging
 from .common import instances
-from .bundle.parts.mesostructure import check_reference
 from .bundle.directory import FORMAT_VERSION, MANIFEST, Bundle, BundleWriter, RefusedBundle, update_scene
 from .errors import InputError
 from .assets.meshes import file_sha256, load_mesh_file, resolve_path
@@ -295,8 +294,6 @@ def _object_parts(writer: BundleWriter, obj: Object, base: Path, say) -> tuple[d
                                           if mesh.texture is not None else ""))
         if obj.mesostructure:
             m = obj.mesostructure
-            # the reference vdmrender traces for it (every mesostructure technique's) must be one it builds
-            check_reference(stored_mesh, m.size, m.tiling, f"object {obj.name!r}")
             heights = heightfields.from_spec(m.height, m.size, base).astype(np.float32)
             maps = parts.MesostructureMaps(heights, vdm.height_normals(heights.astype(np.float64), m.depth)
                                            .astype(np.float32))

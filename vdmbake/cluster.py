@@ -169,11 +169,11 @@ def on_worker(fn, task, readable: tuple[str, ...], writable: tuple[str, ...]) ->
 # ----------------------------------------------------------------------------------------- on the client
 
 def run_tasks(client, address: str, fn, tasks: list, needs, failed, done, wait_s: float = WAIT_S,
-              name: str = "task") -> tuple[list[dict], str | None]:
+              name: str = "task", handed=lambda task, worker, why: None) -> tuple[list[dict], str | None]:
     """fn(task) for every task on the cluster; `needs(task)` -> (paths to read, folders to write into) on the
     worker; `failed(task, reason)` is the row of one that could not run; `done(row)` hears each row as it
-    comes. A task handed back goes to the workers that have not handed it back, waiting up to `wait_s` for one to
-    join. Returns the rows in task order and, when the run stopped early (the scheduler lost, or no worker for
+    comes, `handed(task, worker, why)` each hand-back. A task handed back goes to the workers that have not
+    handed it back, waiting up to `wait_s` for one to join. Returns the rows in task order and, when the run stopped early (the scheduler lost, or no worker for
     `wait_s`), why: the tasks not finished then are failed with that reason."""
     *_, as_completed = _dask()
     run = uuid.uuid4().hex[:8]
@@ -226,6 +226,7 @@ def run_tasks(client, address: str, fn, tasks: list, needs, failed, done, wait_s
             fut.release()               # finished: a worker lost later does not make the scheduler run it again
         if HAND_BACK in row:            # this worker cannot see the shared folders: another may
             refused[i].append((row["worker"], row[HAND_BACK]))
+            handed(tasks[i], row["worker"], row[HAND_BACK])
             parked[i] = time.monotonic()
             continue
         finish(i, row)

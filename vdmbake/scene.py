@@ -24,6 +24,8 @@ from .schema import (REQUIRED, Boolean, Choice, Custom, Direction, unit, Integer
 from .techniques import REGISTRY
 
 MAX_SCENE_BYTES = 64 << 20
+TRIANGLE_MESHES = tuple(n for n, t in REGISTRY.items() if t.triangles == "mesh")   # what a glTF carries as it is
+BY_FACES = tuple(n for n, t in REGISTRY.items() if t.triangles)                    # levels ranked by their faces
 MAX_SIDE = 8192  # largest accepted image side; the memory guard in vdmrender checks the rest
 MAX_SPP = 256    # the reference's samples per pixel, at most (16 x 16)
 # The anti-aliasing modes (render.antialias) by name: (kind, n), msaaN N samples per pixel, ssaaK K x K pixels per pixel.

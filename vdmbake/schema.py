@@ -464,6 +464,9 @@ class Technique:
     reads: Callable | None = None     # (its manifest entry, a variant's value, the object) -> {part path: part
                                       # kind} the variant's renderer reads; with `bake`. The bundle checks these
                                       # before rendering (vdmbake.bundle.manifest); any lookup error is a bad entry
+    triangles: str | None = None      # draws the object as triangles: "mesh" (its mesh or a simplification, which a
+                                      # glTF carries as it is), "made" (made at load: displaced, tessellated); a
+                                      # level of detail ranked by its faces (vdmrender.deciding.lod)
 
     @property
     def knob(self) -> dataclasses.Field | None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import sys
+import uuid
 from pathlib import Path
 
 import click
@@ -19,6 +20,7 @@ from .gpu import gl
 from .measuring.timing import Budget
 from .render import OVERRIDES, Options, run
 from .reporting.report import baseline_table
+from .tracing.refcache import Shared
 
 
 class Setting(click.ParamType):
@@ -88,16 +90,22 @@ def overrides(command):
               help="ΔLuv at the top of the heat maps' colour scale.")
 @click.option("--scheduler", metavar="ADDRESS",
               help="Render on a Dask cluster: tcp://HOST:8786 (a running `dask scheduler`, its workers each with their "
-                   "own GL device), or local:N for N worker processes here; one task per bundle, every file but the "
-                   "timings as on one machine. Needs the `cluster` extra (docs/cluster.md).")
+                   "own GL device), or local:N for N worker processes here: every reference a task on any worker, "
+                   "then one task per bundle (all its timed GL work on one device), every file but the timings as "
+                   "on one machine. Needs the `cluster` extra (docs/cluster.md).")
 @click.option("--workers-wait", type=click.FloatRange(0, 86400), default=60.0, show_default=True, metavar="SECONDS",
               help="With --scheduler: how long the scheduler may have no worker (before the first bundle or later) "
                    "before the run stops (exit 2, naming the scheduler and what finished).")
+@click.option("--reference-cache", type=click.Path(file_okay=False, path_type=Path), metavar="DIR",
+              help="Keep references by content key (bundle parts, light, material, cameras, samples, tracer code) in "
+                   "DIR, found there by any later run, on any machine that sees DIR; with --scheduler every worker "
+                   "needs it (default there: a hidden sibling of OUTPUT, removed after the run).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON on stdout.")
 @click.option("--debug", is_flag=True, help="Show tracebacks instead of one-paragraph errors.")
 @click.version_option(__version__)
 def main(bundles, out, techniques, warmup_s, sample_s, device, max_error, baseline, max_error_increase, max_slowdown,
-         compare_devices, counters, flip, heat_max, scheduler, workers_wait, as_json, debug, **overridden):
+         compare_devices, counters, flip, heat_max, scheduler, workers_wait, reference_cache, as_json, debug,
+         **overridden):
     """Render each BUNDLE (made by vdmbake) into OUTPUT and report error against run time.
 
     For every object, each technique variant (a technique at one value of its quality
@@ -127,6 +135,7 @@ def main(bundles, out, techniques, warmup_s, sample_s, device, max_error, baseli
     OUTPUT/report.json, report.csv, error_vs_time.png
     OUTPUT/report.html                       all of it on one offline page (plots, table, frames)
     OUTPUT/baseline.md, baseline.csv         with --baseline: the change per variant
+    DIR/KEY/                                 with --reference-cache: each reference by its key
     OUTPUT/sizes/NNNpx/...                   with --sizes or render.sweep: frames, heat maps,
                                              reference and overviews at each screen size
     OUTPUT/sweep.csv, error_vs_size.png, cost_vs_size.png   the same, against screen size
@@ -165,7 +174,9 @@ def main(bundles, out, techniques, warmup_s, sample_s, device, max_error, baseli
     log = (lambda m: None) if as_json else (lambda m: click.echo(escaped(m), err=True))   # paths are raw input
     opts = Options(techniques=techniques or None, warmup_s=warmup_s, sample_s=sample_s, device=device,
                    heat_max=heat_max, flip=flip, baseline=baseline, max_error_increase=max_error_increase,
-                   max_slowdown=max_slowdown, compare_devices=compare_devices, counters=counters, **overridden)
+                   max_slowdown=max_slowdown, compare_devices=compare_devices, counters=counters,
+                   reference_cache=reference_cache and Shared(str(reference_cache.absolute()), uuid.uuid4().hex),
+                   **overridden)
     if debug:
         gl.STRICT = True
     found, many = guarded(lambda: many_bundles.bundles(bundles), debug)

@@ -20,6 +20,7 @@ from vdmbake.bundle.staging import StagedDir
 from vdmbake.errors import InputError, paragraph
 from vdmbake.cluster import handed_back
 
+from .common import markdown
 from .common.markdown import cell
 from .deciding import baseline
 from .render import run
@@ -153,9 +154,8 @@ def table(runs) -> str:
     """runs.md, and the closing table on stderr; on a cluster (vdmrender.cluster) with the worker each ran on,
     and those that handed it back."""
     where = any("worker" in r or "handed_back" in r for r in runs)
-    lines = ["| scene | status | rows | seconds | " + ("worker | " if where else "") + "reason |",
-             "|---|---|---:|---:|" + ("---|" if where else "") + "---|"]
-    lines += [f"| {cell(r['scene'])} | {cell(r['status'])} | {r['rows']} | {r['seconds']:.1f} | "
-              + (f"{cell(r.get('worker') or '')} | " if where else "")
-              + f"{cell(r['reason'] or handed_back(r))} |" for r in runs]
-    return "\n".join(lines) + "\n"
+    return markdown.table(["scene", "status", "rows", "seconds", *(["worker"] * where), "reason"],
+                          "llrr" + "l" * where + "l",
+                          [[cell(r["scene"]), cell(r["status"]), str(r["rows"]), f"{r['seconds']:.1f}",
+                            *([cell(r.get("worker") or "")] * where), cell(r["reason"] or handed_back(r))]
+                           for r in runs]) + "\n"

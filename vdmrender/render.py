@@ -11,8 +11,9 @@ from pathlib import Path
 
 from vdmbake import __version__
 from vdmbake.bundle import budget as memory
+from vdmbake.bundle import parts
 from vdmbake.bundle.directory import Bundle
-from vdmbake.common import instances
+from vdmbake.common import geometry, instances
 from vdmbake.errors import InputError
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.scene import ANTIALIAS, REGISTRY, Scene
@@ -24,40 +25,39 @@ from .comparing import change, scoring
 from .comparing.metrics import summarise
 from .deciding import baseline, lod, pricing
 from .gpu import device as gpu, gl
-from .measuring import measure, timing
+from .measuring import interleaved, measure, timing
 from .reporting import chains, html, report
 from .techniques import variants
 from .tracing import refcache, reference
 from .views import composite, lodmix, sweep
 
-# Peak working memory of the reference per pixel, with 2x headroom: tracemalloc measured 242 bytes
-# (mesh reference, 512^2 and 1024^2) and 402 bytes (quadric reference, 4JSV at 512^2).
-BYTES_PER_PIXEL = 800
-# tracemalloc: 180 more bytes per pixel per further reference thread (docs/reference.md), with 2x headroom
-BYTES_PER_THREAD_PIXEL = 400
-# Peak memory of an object's geometry (the reference's Embree scene and the uploaded buffers; llvmpipe
-# keeps them in RAM), with about 4x headroom: peak RSS over 80k -> 200k inline spheres (impostor, 48^2)
-# grew 2.15 kB per sphere, over 200k -> 800k mesh faces (mesh, 48^2) 150 bytes per face.
-BYTES_PER_QUADRIC = 8192
-BYTES_PER_FACE = 600
 
-
-def geometry_bytes(bundle) -> tuple[int, str]:
-    """The largest object's geometry memory (every mesh part of the object counted, the quadrics; each times the
-    object's copies) and a description of it, from the manifest alone."""
-    worst, what = 0, ""
-    copies = {o.name: instances.count(o.instances) if o.instances else 1 for o in bundle.scene.objects}
-    for name, entry in bundle.manifest["objects"].items():
-        prefix = f"objects/{name}/"
-        meshes = [m for rel, m in bundle.manifest["parts"].items() if rel.startswith(prefix) and m["kind"] == "mesh"]
-        faces = sum(m["faces"] for m in meshes) * copies[name]   # the reference merges every copy
+def held_geometry(bundle) -> tuple[memory.Geometry, ...]:
+    """What each object gives the render to hold (vdmbake.bundle.budget.Geometry), from the manifest and, for a
+    mesostructure, its base mesh: every mesh part of the object and its quadrics, times its copies (the reference
+    merges them), and the faces of the displaced reference (the base mesh subdivided to reference_levels)."""
+    out = []
+    for obj in bundle.scene.objects:
+        entry, copies = bundle.manifest["objects"][obj.name], instances.count(obj.instances) if obj.instances else 1
+        prefix = f"objects/{obj.name}/"
+        faces = sum(m["faces"] for rel, m in bundle.manifest["parts"].items()
+                    if rel.startswith(prefix) and m["kind"] == "mesh")
         q = bundle.manifest["parts"][entry["quadrics"]] if entry.get("quadrics") else {"spheres": 0, "cylinders": 0}
-        quadrics = (q["spheres"] + q["cylinders"]) * copies[name]   # the quadric reference merges them too
-        need = faces * BYTES_PER_FACE + quadrics * BYTES_PER_QUADRIC
-        if need > worst:
-            worst, what = need, (f"object {name!r}: {faces} mesh faces and {quadrics} spheres and cylinders"
-                                 + (f" ({copies[name]} copies)" if copies[name] > 1 else ""))
-    return worst, what
+        displaced = 0
+        if obj.mesostructure:
+            m, base = obj.mesostructure, bundle.read(entry["mesh"], parts.MESH)
+            displaced = len(base.faces) * 4 ** geometry.reference_levels(base, m.size, m.tiling)
+        out.append(memory.Geometry(obj.name, faces * copies, (q["spheres"] + q["cylinders"]) * copies, displaced))
+    return tuple(out)
+
+
+def memory_need(bundle, width: int, height: int, opts: "Options") -> memory.Render:
+    """What the run holds at its peak, as vdmbake.bundle.budget estimates it (`opts` resolved by filtering): the
+    reference at this size on reference.workers() threads, every object's geometry, the targets."""
+    scene = bundle.scene
+    return memory.Render(width, height, len(cameras_for(scene.camera, (0.0, 0.0, 0.0), 1.0, width, height)),
+                         opts.reference_spp, reference.workers(), ANTIALIAS[opts.antialias], held_geometry(bundle),
+                         together=bool(scene.render.composite))
 
 
 # The scene's settings a run overrides, each declared once in vdmbake.scene (`setting(..., flag=...)`): the
@@ -81,6 +81,7 @@ class Options(Overrides):
     max_slowdown: float | None = None
     compare_devices: bool = False                # compare times with a baseline from another device
     counters: bool = True                        # count each variant's work (vdmrender.measuring.counters)
+    reference_cache: refcache.Shared | None = None   # references by content key, shared by a cluster's workers
 
 
 def filtering(opts: Options, scene) -> Options:
@@ -88,20 +89,6 @@ def filtering(opts: Options, scene) -> Options:
     the options leave them)."""
     return dataclasses.replace(opts, reference_spp=opts.reference_spp or scene.render.reference_spp,
                                antialias=opts.antialias or scene.render.antialias)
-
-
-def reference_bytes_per_pixel() -> int:
-    """Peak working memory of the reference per pixel, on the threads it traces on (reference.workers)."""
-    return BYTES_PER_PIXEL + BYTES_PER_THREAD_PIXEL * (reference.workers() - 1)
-
-
-def check_memory(width: int, height: int, free: int | None = None, geometry: tuple[int, str] = (0, "")) -> None:
-    """Refuse resolutions and geometry (bytes, what) whose reference and buffers would not fit the memory budget
-    (vdmbake.bundle.budget: one rule for every job), before any work starts."""
-    need = width * height * reference_bytes_per_pixel()
-    memory.check(need + geometry[0], f"resolution {width}x{height} ({need / 2**30:.1f} GiB for the reference)"
-                 + (f" and the geometry of {geometry[1]} (about {geometry[0] / 2**30:.1f} GiB)" if geometry[0] else ""),
-                 "lower render.resolution or --resolution, or bake fewer or simpler objects", free)
 
 
 def _technique_filter(opts: Options, scene) -> set | None:
@@ -164,10 +151,7 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
     if old is not None and opts.max_slowdown is not None:
         baseline.check_spread(old, plan.repeats)       # before any rendering: no spread, no slowdown to judge
     opts = filtering(opts, scene)
-    kind, k = ANTIALIAS[opts.antialias]
-    ssaa = k if kind == "ssaa" else 1
-    check_memory(width, height, geometry=geometry_bytes(bundle))
-    check_memory(ssaa * width, ssaa * height)   # the supersampled target (llvmpipe keeps it in RAM)
+    memory.check_render(memory_need(bundle, width, height, opts))   # the one memory guard, before any work
     ctx = gl.create_context(opts.device)
     device = gl.renderer_name(ctx)
     why_not = old and baseline.times_comparable(old, {"time": "gpu", "device": device}, opts.compare_devices)
@@ -186,11 +170,13 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
         raise
     out = StagedDir(out_path, "report.json", "vdmrender output folder")
     try:
-        sizes = sorted(opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ()), reverse=True)
+        sizes = _sizes(opts, scene)
         lod_sets = scene.render.sweep.lod if sizes and scene.render.sweep else ()
+        drawn = view_sets(bundle, scene, only, sizes, width, height)
         rows, sweep_rows, per_object = [], [], {}
         for obj in scene.objects:   # each object once: its sweep, its chains, then its cameras (vdmrender.views.lodmix)
-            views = render_views(harness, out, bundle, scene, obj, only, opts, device, log, sizes, lod_sets)
+            views = render_views(harness, out, bundle, scene, obj, [v for v in drawn if v.obj and v.obj.name == obj.name],
+                                 only, opts, device, log, lod_sets)
             rows += views.rows
             sweep_rows += views.sweep
             if views.chains:
@@ -203,7 +189,10 @@ def run(bundle_path: Path, out_path: Path, opts: Options, log=lambda m: None) ->
                 lod.priced_on_field(sized["lod"], rows)
                 _log_chains(sized["lod"], log, "priced on the field")
         report.add_baseline_ratios(rows)
-        composite_rows = composite.render_sets(harness, out, bundle, scene, only, opts, device, log)
+        whole = [v for v in drawn if v.obj is None]
+        composite_rows = composite.render_sets(harness, out, bundle, scene, composite.variant_sets(scene, only),
+                                               whole[0].cams, _references(out, bundle, scene, whole[0], opts, log),
+                                               opts, device, log) if whole else []
         result = {"tool_version": __version__, "bundle": str(bundle.path), "device": device,
                   "gl": device_info, "nvml": nvml, "resolution": [width, height], "budget": asdict(plan),
                   "time": "gpu", "timing": TIMING,
@@ -283,17 +272,14 @@ def _measure(harness, v, cams, refs, out, obj, opts, background, prefix="", what
     return row, enc, heats
 
 
-def render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, device, log, prefix="", what=None,
-                  keep: dict | None = None) -> list[dict]:
-    """One object's variants from cameras `cams`, against its reference and, for their change, its full asset
-    (`full`: change.full_asset's variant, drawn untimed where it is not one of `chosen`): their report rows; frames,
-    heat maps, reference and overview sheet written under `prefix` (a screen-size sweep's sizes/NNNpx/); keep: also
-    each variant's frames (sRGB, by label) put here."""
-    entry, what = bundle.manifest["objects"][obj.name], what or obj.name
+def render_object(harness, out, bundle, scene, view, chosen, full, opts, device, log, keep: dict | None = None) -> list[dict]:
+    """One object's variants from the cameras of `view` (a ViewSet), against its reference and, for their change,
+    its full asset (`full`: change.full_asset's variant, drawn untimed where it is not one of `chosen`): their
+    report rows; frames, heat maps, reference and overview sheet written under the view's prefix (a screen-size
+    sweep's sizes/NNNpx/); keep: also each variant's frames (sRGB, by label) put here."""
+    obj, cams, prefix, what = view.obj, view.cams, view.prefix, view.what
     background = scene.render.background
-    refs = scoring.References.traced(
-        lambda spp, folder: refcache.object_frames(out, obj, entry, bundle, scene, cams, log, folder, what, spp),
-        f"{prefix}reference/{obj.name}", opts.reference_spp, background)
+    refs = _references(out, bundle, scene, view, opts, log)
     sheet, rows, frames = [("reference", refs.filtered)], [], {}
     for v in chosen:
         row, enc, heats = _measure(harness, v, cams, refs, out, obj, opts, background, prefix, what)
@@ -310,6 +296,79 @@ def render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, de
     return rows
 
 
+@dataclass(frozen=True)
+class ViewSet:
+    """Cameras a run draws from, scored against the reference traced from them (in `folder`): an object's (`obj`;
+    one copy at `size` px in the sweep, its files under `prefix` sizes/NNNpx/) or, `obj` None, the composite's;
+    `what` names it in the log."""
+    obj: object | None
+    cams: list
+    prefix: str = ""
+    what: str = ""
+    size: int | None = None
+
+    @property
+    def folder(self) -> str:
+        return f"{self.prefix}reference/{self.obj.name}" if self.obj else f"{composite.FOLDER}/reference"
+
+    def named(self, spp: int) -> str:
+        """How the log names its reference at `spp` samples per pixel."""
+        return self.what + (f" ({spp} spp)" if spp > 1 else "")
+
+    def source(self, bundle, scene, spp: int):
+        """Its reference at `spp` samples per pixel: (cache key, tracer) for refcache.load_or_trace."""
+        if self.obj is None:
+            return composite.reference_source(bundle, scene, self.cams, spp)
+        return refcache.object_source(self.obj, bundle.manifest["objects"][self.obj.name], bundle, scene, self.cams, spp)
+
+
+def _sizes(opts: Options, scene) -> list[int]:
+    """The screen sizes of the sweep, largest first."""
+    return sorted(opts.sizes or (scene.render.sweep.sizes if scene.render.sweep else ()), reverse=True)
+
+
+def view_sets(bundle, scene, only, sizes, width: int, height: int) -> list[ViewSet]:
+    """Every set of views a run draws, in its order, without GL: each object that has a variant to draw, one copy at
+    each size of the sweep (the chain is the object's), then from its own cameras; then the composite's, where it
+    draws a variant set. run() draws these; vdmrender.cluster traces their references on workers first
+    (references)."""
+    out = []
+    for obj in scene.objects:
+        entry = bundle.manifest["objects"][obj.name]
+        if not variants(obj, entry, bundle, scene, only):
+            continue
+        one = dataclasses.replace(obj, instances=None)
+        centre, radius = framed(one, entry, scene)
+        own = cameras_for(scene.camera, centre, radius, width, height)
+        out += [ViewSet(one, sweep.sized(own, centre, radius, size), f"sizes/{size}px/", f"{obj.name} @{size}px", size)
+                for size in sizes]
+        out.append(ViewSet(obj, cameras_for(scene.camera, *framed(obj, entry, scene), width, height), what=obj.name))
+    if composite.variant_sets(scene, only):
+        out.append(ViewSet(None, composite.cameras(bundle, scene, width, height), what="composite"))
+    return out
+
+
+def references(bundle, opts: Options) -> list[tuple[ViewSet, str, int]]:
+    """Every reference a run of `bundle` under `opts` traces, (view set, folder, samples per pixel): each view set's
+    (view_sets) filtered and pixel-centre ones (scoring.folders). Bad input raises InputError as run() does."""
+    scene = bundle.scene
+    opts = filtering(opts, scene)
+    width, height = opts.resolution or scene.render.resolution
+    return [(v, folder, spp) for v in view_sets(bundle, scene, _technique_filter(opts, scene), _sizes(opts, scene),
+                                                width, height)
+            for folder, spp in scoring.folders(v.folder, opts.reference_spp)]
+
+
+def _references(out, bundle, scene, view: ViewSet, opts: Options, log) -> scoring.References:
+    """The references `view` is scored against (refcache.load_or_trace: the previous run's, the shared cache's, or
+    traced here)."""
+    def load(spp, folder):
+        key, trace = view.source(bundle, scene, spp)
+        return refcache.load_or_trace(out, folder, key, view.cams, trace, scene.render.background, view.named(spp),
+                                      log, opts.reference_cache)
+    return scoring.References.traced(load, view.folder, opts.reference_spp, scene.render.background)
+
+
 @dataclass
 class Views:
     """One object's rows: at its cameras (`rows`, with an instanced object's lod@CHAIN rows), at each size of the
@@ -319,54 +378,53 @@ class Views:
     chains: dict
 
 
-def render_views(harness, out, bundle, scene, obj, only, opts, device, log, sizes, lod_sets) -> Views:
-    """One object, once: its variants at each screen size of the sweep (one copy: the chain is the object's), its
-    LOD chains chosen from those rows (vdmrender.deciding.lod, no drawing), then its variants from its cameras, an instanced
-    object's also per chain with each copy drawn by the variant its screen size selects (lod@CHAIN:
-    vdmrender.views.lodmix)."""
+def render_views(harness, out, bundle, scene, obj, views, only, opts, device, log, lod_sets) -> Views:
+    """One object, once, from its view sets (view_sets'; none: it draws nothing): its variants at each screen size
+    of the sweep (one copy: the chain is the object's), its LOD chains chosen from those rows (vdmrender.deciding.lod, no
+    drawing), then its variants from its cameras, an instanced object's also per chain with each copy drawn by the
+    variant its screen size selects (lod@CHAIN: vdmrender.views.lodmix)."""
+    if not views:
+        return Views([], [], {})
+    *sized, own = views
     entry = bundle.manifest["objects"][obj.name]
     chosen = variants(obj, entry, bundle, scene, only)
-    if not chosen:
-        return Views([], [], {})
-    sweep_rows, frames = _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) if sizes else ([], {})
+    sweep_rows, frames = _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sized) if sized else ([], {})
     chains = lod.object_chains(sweep_rows, lod_sets, harness.target.size[1], scoring.pops(frames)) \
         if lod_sets else {}
     for name, c in chains.items():
         _log_chain(name, obj.name, c["entries"], log, "from the sweep")
-    cams = cameras_for(scene.camera, *framed(obj, entry, scene), *harness.target.size)
     world = instances.matrices(obj.instances, scene.camera.up, entry["centre"]) if obj.instances else None
     mixes = {name: c["entries"] for name, c in chains.items()} if world is not None else {}
-    rows = render_object(harness, out, bundle, scene, obj, cams,
+    rows = render_object(harness, out, bundle, scene, own,
                          chosen + [lodmix.mixed(obj, entry, bundle, scene, name, entries, world)
                                    for name, entries in mixes.items()], change.full_asset(obj, entry, bundle, scene),
                          opts, device, log)
     for row in rows:
         if row["technique"] == "lod":
-            row["lod_copies"] = lodmix.copies_chosen(entry, world, mixes[row["value"]], cams)
+            row["lod_copies"] = lodmix.copies_chosen(entry, world, mixes[row["value"]], own.cams)
     return Views(rows, sweep_rows, chains)
 
 
-def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, sizes) -> tuple[list[dict], dict]:
-    """An object's variants at each screen size (vdmrender.views.sweep), an instanced object's as one copy: rows as
-    render_object's, with size_px; and the frames, {size: {label: sRGB frames}} (the LOD chains' pops)."""
-    width, height = harness.target.size
+def _sweep(harness, out, bundle, scene, obj, only, opts, device, log, views) -> tuple[list[dict], dict]:
+    """An object's variants at each screen size (vdmrender.views.sweep) from `views` (its sized view sets, one copy each):
+    rows as render_object's, with size_px; and the frames, {size: {label: sRGB frames}} (the LOD chains' pops)."""
+    height = harness.target.size[1]
     entry = bundle.manifest["objects"][obj.name]
     obj = dataclasses.replace(obj, instances=None)   # one copy: the chain is the object's
     chosen = variants(obj, entry, bundle, scene, only)
     full = change.full_asset(obj, entry, bundle, scene)   # one for every size: a mesostructure's is built once
-    centre, radius = framed(obj, entry, scene)
-    views = cameras_for(scene.camera, centre, radius, width, height)
     rows, frames = [], {}
-    for size in sizes:
-        cams = sweep.sized(views, centre, radius, size)
-        distance = round(sweep.distance_for(size, 1.0, views[0].fov_deg, height), 4)
+    for view in views:
+        size, cams = view.size, view.cams
+        distance = round(sweep.distance_for(size, 1.0, cams[0].fov_deg, height), 4)
         here = [{**r, "size_px": size, "distance_radii": distance}
-                for r in render_object(harness, out, bundle, scene, obj, cams, chosen, full, opts, device, log,
-                                       f"sizes/{size}px/", f"{obj.name} @{size}px", frames.setdefault(size, {}))]
+                for r in render_object(harness, out, bundle, scene, view, chosen, full, opts, device, log,
+                                       frames.setdefault(size, {}))]
         contest = lod.contenders(here, scene.render.sweep.lod if scene.render.sweep else ())
         if len(contest) > 1:   # the chains' choice decided on frames timed side by side (vdmrender.deciding.pricing)
-            times = pricing.interleaved(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
-                                                  if v.label in contest}, cams)
+            times = interleaved.gpu_ms(harness, {v.label: partial(v.build, harness.ctx) for v in chosen
+                                                 if v.label in contest}, cams, pricing.MAX_ROUNDS, pricing.settled,
+                                       pricing.MIN_ROUNDS)
             for r in here:
                 if r["label"] in times:
                     r["interleaved_ms"] = times[r["label"]]

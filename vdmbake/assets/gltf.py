@@ -27,16 +27,10 @@ import numpy as np
 from ..bundle import budget
 from ..common import texture
 from ..errors import InputError, cut, escaped
+from ..formats.gltf import (BYTE, COLOUR_TYPES, DTYPES, FLOAT, INDEX_TYPES, MODES, REPEAT, SHORT, UNSIGNED_INT,
+                            WIDTHS, WRAPS)
 from .references import MAX_TEXTURE_SIDE, check_picture, gltf_buffer, gltf_tree
 
-_REPEAT = 10497          # glTF 2.0 §5.26: the sampler's default wrapS/wrapT, as the renderer and the reference wrap
-_COLOUR_TYPES = {5121: np.dtype("u1"), 5123: np.dtype("<u2"), 5126: np.dtype("<f4")}   # COLOR_0's (§3.7.2.1)
-_COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}                # §3.6.2.2
-_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}          # what a primitive's attributes and indices are
-_DTYPES = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}     # §3.6.2.2, little-endian
-_WRAPS = (33071, 33648, _REPEAT)                                   # CLAMP_TO_EDGE, MIRRORED_REPEAT, REPEAT (§5.26)
-_MODES = {0: "points", 1: "lines", 2: "line loop", 3: "line strip", 4: "triangles", 5: "triangle strip",
-          6: "triangle fan"}                                       # §3.7.2.1
 WHITE_TILE = 32           # the side of the white tile an atlas gives unpictured primitives: at (0, 0), the atlas's
                           # sides multiples of it, so its box-filtered mip levels stay white to level 5 (a mipmapping
                           # engine reading the exported map, or a level forced, does not average in its neighbours)
@@ -205,14 +199,14 @@ def _draco(tree: dict, buffer, added, origin: str) -> None:
             shown = f"{where} {escaped(name)}"
             index = prim["attributes"].get(name)
             a = _at(tree, "accessors", index, shown)
-            width, ct = _WIDTHS.get(a.get("type")), a.get("componentType")
+            width, ct = WIDTHS.get(a.get("type")), a.get("componentType")
             got = by_id.get(uid)
-            if got is None or width is None or ct not in _DTYPES:
+            if got is None or width is None or ct not in DTYPES:
                 raise InputError(f"{shown}: {_DRACO} names attribute {escaped(repr(uid))} of the decoded data "
                                  f"(which has {sorted(by_id)}) for accessor {index} ({escaped(repr(a.get('type')))} "
                                  f"of componentType {escaped(repr(ct))}); fix the file.")
             decoded = np.asarray(got["data"]).reshape(len(got["data"]), -1)
-            typed = decoded.astype(_DTYPES[ct])
+            typed = decoded.astype(DTYPES[ct])
             if decoded.shape != (a.get("count"), width) or not np.array_equal(typed, decoded, equal_nan=True):
                 raise InputError(f"{shown}: decodes to {decoded.shape[0]} x {decoded.shape[1]} values of "
                                  f"{decoded.dtype}, where accessor {index} declares {escaped(repr(a.get('count')))} "
@@ -223,7 +217,7 @@ def _draco(tree: dict, buffer, added, origin: str) -> None:
         if given and given.get("count") != len(faces):
             raise InputError(f"{where}: decodes to {len(faces)} indices where its indices accessor declares "
                              f"{escaped(repr(given.get('count')))}; fix the file.")
-        prim["indices"] = plain(faces, {"componentType": 5125, "type": "SCALAR", "count": len(faces)})
+        prim["indices"] = plain(faces, {"componentType": UNSIGNED_INT, "type": "SCALAR", "count": len(faces)})
 
 
 def check_accessors(gltf: Opened, origin: str) -> None:
@@ -275,11 +269,11 @@ def _accessor(tree: dict, index, buffer, shown: str) -> int:
     if type(index) is not int or not 0 <= index < len(tree["accessors"]):
         raise InputError(f"{shown}: no such accessor (the file has {len(tree['accessors'])}); fix the file.")
     a = tree["accessors"][index]
-    size, width, count = _COMPONENT_BYTES.get(a.get("componentType")), _WIDTHS.get(a.get("type")), a.get("count")
+    size, width, count = (d.itemsize if (d := DTYPES.get(a.get("componentType"))) else None), WIDTHS.get(a.get("type")), a.get("count")
     if size is None or width is None or type(count) is not int or count < 1:
         raise InputError(f"{shown}: componentType {escaped(repr(a.get('componentType')))}, type "
                          f"{escaped(repr(a.get('type')))}, count {escaped(repr(count))}; glTF 2.0 allows a "
-                         f"componentType of {sorted(_COMPONENT_BYTES)}, a type of {list(_WIDTHS)} for a primitive "
+                         f"componentType of {sorted(DTYPES)}, a type of {list(WIDTHS)} for a primitive "
                          "and a count of at least 1; fix the file.")
     if "bufferView" not in a:
         return count                                  # zeros (or sparse): no bytes to lay out
@@ -360,9 +354,9 @@ def _read(tree, files, buffer, textures, origin, warn) -> Read:
         for p, prim in enumerate(mesh["primitives"]):
             where, mode = f"mesh {mesh_index} primitive {p}", prim.get("mode", 4)
             if mode in (0, 1, 2, 3):
-                skipped[where] = f"{where} draws {_MODES[mode]} (mode {mode})"
+                skipped[where] = f"{where} draws {MODES[mode]} (mode {mode})"
                 continue
-            if mode not in _MODES:
+            if mode not in MODES:
                 raise InputError(f"{origin}: {where} has mode {escaped(repr(mode))}; glTF 2.0 gives 0 to 6; fix the "
                                  "file.")
             key = (mesh_index, p, repr(weights))
@@ -450,7 +444,7 @@ def _gpu_instances(tree: dict, node: dict, buffer, shown: str, room: int) -> np.
         return np.eye(4)[None]
     read = {name: values(tree, index, buffer, f"{shown} EXT_mesh_gpu_instancing {name}",
                          ("VEC4",) if name == "ROTATION" else ("VEC3",),
-                         (5126, 5120, 5122) if name == "ROTATION" else (5126,)) for name, index in attrs.items()}
+                         (FLOAT, BYTE, SHORT) if name == "ROTATION" else (FLOAT,)) for name, index in attrs.items()}
     counts = {len(v) for v in read.values()}
     if len(counts) > 1:
         raise InputError(f"{shown}: its EXT_mesh_gpu_instancing attributes have different counts "
@@ -523,7 +517,7 @@ def _geometry(tree, buffer, prim, weights, where):
             else:
                 normal = normal + w * delta
     if "indices" in prim:
-        idx = values(tree, prim["indices"], buffer, f"{where} indices", ("SCALAR",), (5121, 5123, 5125), raw=True)
+        idx = values(tree, prim["indices"], buffer, f"{where} indices", ("SCALAR",), INDEX_TYPES, raw=True)
         idx = idx[:, 0].astype(np.int64)
         if len(idx) and idx.max() >= count:
             raise InputError(f"{where}: index {int(idx.max())} reaches past its {count} vertices; fix the file.")
@@ -548,7 +542,7 @@ def _geometry(tree, buffer, prim, weights, where):
     return pos, normal, uv, faces
 
 
-def values(tree: dict, index, buffer, shown: str, types, components=tuple(_DTYPES), raw: bool = False) -> np.ndarray:
+def values(tree: dict, index, buffer, shown: str, types, components=tuple(DTYPES), raw: bool = False) -> np.ndarray:
     """(count, width) elements of accessor `index`: from its bufferView (or zeros without one), its sparse part
     written over them (§3.6.2.3), as float64 with normalized integers mapped to [0, 1] or [-1, 1] (§3.11), or as
     stored (`raw`). `types` and `components` are what the attribute allows."""
@@ -561,17 +555,17 @@ def values(tree: dict, index, buffer, shown: str, types, components=tuple(_DTYPE
         raise InputError(f"{shown}: {escaped(repr(kind))} of componentType {escaped(repr(ct))}, count "
                          f"{escaped(repr(count))}; allowed here: {' or '.join(types)} of componentType "
                          f"{sorted(components)}, a count from 1 to {MAX_ELEMENTS}; fix the file.")
-    dtype, width = np.dtype(_DTYPES[ct]), _WIDTHS[kind]
+    dtype, width = DTYPES[ct], WIDTHS[kind]
     out = (_strided(tree, a["bufferView"], a.get("byteOffset", 0), count, dtype, width, buffer, shown).copy()
            if "bufferView" in a else np.zeros((count, width), dtype))
     sparse = a.get("sparse")
     if sparse is not None:
         n, ix = sparse["count"], sparse["indices"]
-        if type(n) is not int or not 1 <= n <= count or ix.get("componentType") not in (5121, 5123, 5125):
+        if type(n) is not int or not 1 <= n <= count or ix.get("componentType") not in INDEX_TYPES:
             raise InputError(f"{shown}: sparse count {escaped(repr(n))} with indices of componentType "
                              f"{escaped(repr(ix.get('componentType')))}; glTF 2.0 gives 1 to the accessor's count "
                              "(5121, 5123 or 5125); fix the file.")
-        at = _strided(tree, ix["bufferView"], ix.get("byteOffset", 0), n, np.dtype(_DTYPES[ix["componentType"]]), 1,
+        at = _strided(tree, ix["bufferView"], ix.get("byteOffset", 0), n, DTYPES[ix["componentType"]], 1,
                       buffer, f"{shown} sparse indices")[:, 0].astype(np.int64)
         if (np.diff(at) <= 0).any() or at[-1] >= count:
             raise InputError(f"{shown}: its sparse indices are not strictly increasing below its count {count}, as "
@@ -645,9 +639,9 @@ def _material(tree, part, buffer, textures, origin) -> dict:
         raise InputError(f"{said} names its picture only through an extension ({cut(repr(list(tex)), 80)}), "
                          "which is not read; export a PNG or JPEG source, or set textures = \"ignore\".")
     sampler = _at(tree, "samplers", tex["sampler"], said) if "sampler" in tex else {}
-    wrap = (sampler.get("wrapS", _REPEAT), sampler.get("wrapT", _REPEAT))
-    if not all(w in _WRAPS for w in wrap):
-        raise InputError(f"{said}: sampler wrap modes {escaped(repr(wrap))}; glTF 2.0 gives {list(_WRAPS)}; fix the "
+    wrap = (sampler.get("wrapS", REPEAT), sampler.get("wrapT", REPEAT))
+    if not all(w in WRAPS for w in wrap):
+        raise InputError(f"{said}: sampler wrap modes {escaped(repr(wrap))}; glTF 2.0 gives {list(WRAPS)}; fix the "
                          "file.")
     _at(tree, "images", tex["source"], said)
     return {"albedo": albedo, "picture": (tex["source"], *wrap), "shown": shown, "uv": uv}
@@ -727,7 +721,7 @@ def _texture(tree, files, buffer, parts, origin):
         picture, uvs = pictures[keys[0]], np.concatenate([q["uv"] for q in parts])
         inside = [(0.5 / size <= uvs[:, axis]).all() and (uvs[:, axis] <= 1 - 0.5 / size).all()
                   for axis, size in enumerate((picture.shape[1], picture.shape[0]))]
-        if all(mode == _REPEAT or near for mode, near in zip(keys[0][1:], inside)):
+        if all(mode == REPEAT or near for mode, near in zip(keys[0][1:], inside)):
             return uvs, picture
     spans = {}   # per key, the UVs its parts read, and at least the whole picture (so a file of UVs in [0, 1]
     for q in parts:   # lays out as it always did: each picture with a one-texel gutter)
@@ -760,7 +754,7 @@ def _wrapped(index: np.ndarray, size: int, mode: int) -> np.ndarray:
     """Texel indices as a sampler of `mode` reads them past the edge (the GL 4.6 spec, §8.14.2, to which glTF 2.0
     §5.26 defers): REPEAT modulo the size, CLAMP_TO_EDGE clamped, MIRRORED_REPEAT (size - 1) - mirror((i mod
     2 size) - size), mirror(a) = a for a >= 0, else -(1 + a)."""
-    if mode == _REPEAT:
+    if mode == REPEAT:
         return index % size
     if mode == 33071:
         return np.clip(index, 0, size - 1)
@@ -823,14 +817,14 @@ def colour_0(tree: dict, index: int, buffer, origin: str) -> np.ndarray:
     """(V, 3) linear RGB of COLOR_0 accessor `index`: float, or unsigned byte or short normalized to [0, 1]
     (glTF 2.0 §3.7.2.1; divided by 255 or 65535), sparse or not."""
     a = tree["accessors"][index] if type(index) is int and 0 <= index < len(tree.get("accessors", [])) else {}
-    dtype, width = _COLOUR_TYPES.get(a.get("componentType")), {"VEC3": 3, "VEC4": 4}.get(a.get("type"))
+    dtype, width = (DTYPES[c] if (c := a.get("componentType")) in COLOUR_TYPES else None), {"VEC3": 3, "VEC4": 4}.get(a.get("type"))
     shown = f"{origin}: COLOR_0 accessor {escaped(repr(index))}"
     if dtype is None or width is None or a.get("normalized", False) != (dtype.kind == "u"):
         raise InputError(f"{shown} is {escaped(repr(a.get('type')))} of componentType "
                          f"{escaped(repr(a.get('componentType')))}{' normalized' if a.get('normalized') else ''}; "
                          "glTF 2.0 allows VEC3 or VEC4 of float (5126), or of normalized unsigned byte (5121) or "
                          "short (5123); fix the file.")
-    rgb = values(tree, index, buffer, f"{origin}: COLOR_0", ("VEC3", "VEC4"), (5121, 5123, 5126))[:, :3]
+    rgb = values(tree, index, buffer, f"{origin}: COLOR_0", ("VEC3", "VEC4"), COLOUR_TYPES)[:, :3]
     if not ((rgb >= 0) & (rgb <= 1)).all():
         raise InputError(f"{shown} has values outside [0, 1]; a colour is a multiplier from 0 to 1; fix the file.")
     return rgb

@@ -9,10 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import texspace
-from ..errors import InputError
 from .mesh import SurfaceFrame, TriMesh, weld
-
-MAX_FACES = 16_000_000   # a displaced mesh finer than this would not fit a 24 GiB machine's Embree build
 
 
 def onb(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -166,11 +163,6 @@ def displaced(mesh: TriMesh, heights: np.ndarray, normals: np.ndarray, depth: fl
     mesostructure's texture-space normals `normals` (MesostructureMaps) mapped through the
     interpolated frame, so the comparison measures geometry, not a different normal. The texture
     coordinates are the base mesh's, interpolated (the tile albedo is read at them times `tiling`)."""
-    faces_out = len(mesh.faces) * 4 ** levels
-    if faces_out > MAX_FACES:
-        raise InputError(f"displacement at {levels} subdivision levels would make {faces_out:,} faces "
-                         f"(limit {MAX_FACES:,}); use fewer levels, a smaller mesostructure size, "
-                         "less tiling or a finer base mesh.")
     w = weld(mesh.vertices)
     first = np.unique(w, return_index=True)[1]
     normal = np.zeros((len(first), 3))

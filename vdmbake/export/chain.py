@@ -17,12 +17,11 @@ from ..bundle.staging import StagedDir
 from ..common.colour import to_srgb8
 from ..errors import InputError, cut, escaped
 from ..formats.safeio import read_regular
-from ..scene import MAX_SIDE
+from ..scene import MAX_SIDE, TRIANGLE_MESHES
 from ..schema import REQUIRED, Boolean, Integer, Invalid, Reader, Text, Type, Vector
 from ..techniques import REGISTRY
 from .gltf import Writer
 
-TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF carries as they are (vdmrender.deciding.lod's meshes_only)
 SIDECAR = "vdm-impostors"
 
 

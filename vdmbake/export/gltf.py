@@ -16,8 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
-FLOAT, UNSIGNED_INT = 5126, 5125
+from ..formats.gltf import ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, FLOAT, UNSIGNED_INT
 
 
 class Writer:

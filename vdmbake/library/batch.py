@@ -252,9 +252,19 @@ class Progress:
         line = escaped(f"[{self.n}/{self.total}] {Path(row['scene']).name}: {_status(row)}")   # names are raw input
         for msg in row.get("log") or []:
             line += f"\n    {escaped(msg)}"
+        self._say(line)
+        if self.bar is not None:
+            self.bar.update(1)
+
+    def handed(self, task, worker: str, why: str) -> None:
+        """A scene a cluster worker handed back (vdmbake.cluster.run_tasks): said as it happens, as a user waiting
+        for another worker would want to know."""
+        if not self.quiet:
+            self._say(escaped(f"{Path(task.scene).name}: handed back by {worker} ({why}); another worker may take it"))
+
+    def _say(self, line: str) -> None:
         if self.bar is not None:
             self.bar.write(line, file=sys.stderr)
-            self.bar.update(1)
         else:
             print(line, file=sys.stderr, flush=True)
 
@@ -295,11 +305,14 @@ def _failed(task: Task, reason: str) -> dict:
             "seconds": 0.0, "reason": reason}
 
 
-def run_dask(tasks: list[Task], address: str, done, wait_s: float = WAIT_S) -> tuple[list[dict], str, str | None]:
-    """Bake `tasks` on the cluster at `address`; `done(row)` hears each result as it comes. Returns the rows in
-    task order, a line describing the cluster, and why the run stopped early (None if it did not)."""
+def run_dask(tasks: list[Task], address: str, progress: Progress,
+             wait_s: float = WAIT_S) -> tuple[list[dict], str, str | None]:
+    """Bake `tasks` on the cluster at `address`; `progress` hears each result and each hand-back as it comes.
+    Returns the rows in task order, a line describing the cluster, and why the run stopped early (None if it did
+    not)."""
     with connected(address, wait_s) as (client, about):
-        rows, stopped = run_tasks(client, address, bake_one, tasks, _bake_needs, _failed, done, wait_s, "vdmbake")
+        rows, stopped = run_tasks(client, address, bake_one, tasks, _bake_needs, _failed, progress, wait_s, "vdmbake",
+                                  progress.handed)
     return rows, about, stopped
 
 

@@ -41,4 +41,4 @@ def reads(entry: dict, ratio: float, obj) -> dict:
 
 
 TECHNIQUE = Technique("coarse", "the mesh simplified by fast-simplification (quadric collapses)", ("surface",),
-                      Options, bake=bake, reads=reads)
+                      Options, bake=bake, reads=reads, triangles="mesh")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..common import geometry
-from ..bundle import parts
+from ..bundle import budget, parts
 from ..schema import Integer, ListOf, Technique, setting
 
 
@@ -20,6 +20,9 @@ def bake(job) -> dict:
     base = job.stored_mesh     # the base mesh the reference displaces too
     meshes = []
     for level in job.options.levels:
+        faces = len(base.faces) * 4 ** level
+        budget.check(faces * budget.DISPLACE_BYTES_PER_FACE, f"object {job.obj.name!r}: displaced level {level} "
+                     f"({faces:,} faces)", "use fewer levels (techniques.displaced.levels) or a coarser base mesh")
         d = geometry.displaced(base, job.maps.heights, job.maps.normals, m.depth, m.tiling, level)
         if m.albedo is None:   # texture coordinates only for the tile albedo (vdmrender/techniques/displaced.py)
             d.uvs = None
@@ -33,4 +36,5 @@ def reads(entry: dict, level: int, obj) -> dict:
 
 
 TECHNIQUE = Technique("displaced", "conventional displacement mapping: the base mesh subdivided and displaced, "
-                      "rasterised", ("surface",), Options, mesostructure=True, bake=bake, reads=reads)
+                      "rasterised", ("surface",), Options, mesostructure=True, bake=bake, reads=reads,
+                      triangles="made")

@@ -12,4 +12,5 @@ class Options:
     pass
 
 
-TECHNIQUE = Technique("mesh", "the full mesh, rasterised, shared shading, shadow map", ("surface",), Options)
+TECHNIQUE = Technique("mesh", "the full mesh, rasterised, shared shading, shadow map", ("surface",), Options,
+                      triangles="mesh")

@@ -14,4 +14,5 @@ class Options:
                                       "sides", knob="level")
 
 
-TECHNIQUE = Technique("tessellated", "instanced icospheres and prisms, rasterised", ("quadrics",), Options)
+TECHNIQUE = Technique("tessellated", "instanced icospheres and prisms, rasterised", ("quadrics",), Options,
+                      triangles="made")

@@ -17,3 +17,10 @@ def cell(value) -> str:
 def number(v, digits: int, signed: bool = False) -> str:
     """A figure of a Markdown table: `digits` decimals (with its sign if `signed`), or "-" where there is none."""
     return "-" if v is None else f"{v:{'+' if signed else ''}.{digits}f}"
+
+
+def table(header: list[str], align: str, rows) -> str:
+    """A GFM table: the header, its rule with each column aligned as `align` says ('l' left, 'r' right, one letter a
+    column), then each row of cells (strings, already made Markdown by `cell` and `number`)."""
+    rule = "|" + "".join("---|" if a == "l" else "---:|" for a in align)
+    return "\n".join(["| " + " | ".join(header) + " |", rule, *("| " + " | ".join(r) + " |" for r in rows)])

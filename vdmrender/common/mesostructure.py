@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 from vdmbake.bundle import parts
-from vdmbake.bundle.parts.mesostructure import check_reference
 from vdmbake.common import geometry
 from vdmbake.common.embree import RayScene
 from vdmbake.errors import InputError
@@ -42,7 +41,6 @@ def reference_mesh(src):
     the bundle's base mesh and maps by the same kernel the `displaced` bake uses."""
     m = src.obj.mesostructure
     base = src.bundle.read(src.entry["mesh"], parts.MESH)
-    check_reference(base, m.size, m.tiling, f"object {src.obj.name!r}")
     meso = maps(src)
     return textured(geometry.displaced(base, meso.heights, meso.normals, m.depth, m.tiling,
                                        geometry.reference_levels(base, m.size, m.tiling)), src)

@@ -28,11 +28,11 @@ class References:
     def traced(cls, load, folder: str, spp: int, background) -> "References":
         """load(spp, folder) -> (frames, classes, info), refcache.load_or_trace's: the filtered reference in
         `folder`, and at more than 1 spp the pixel-centre one in FOLDER/point."""
-        frames, classes, info = load(spp, folder)
+        (frames, classes, info), *point = [load(s, f) for f, s in folders(folder, spp)]
         filtered = [images.encode(f, background) for f in frames]
-        if spp == 1:
+        if not point:
             return cls(filtered, classes, filtered, info["cached"])
-        point, _, point_info = load(1, f"{folder}/point")
+        (point, _, point_info), = point
         return cls(filtered, classes, [images.encode(f, background) for f in point],
                    info["cached"] and point_info["cached"], noise(frames, info["halves"], background))
 
@@ -45,6 +45,12 @@ class References:
         else:
             cs = [compare(images.encode(f, background), r8, cls) for f, r8, cls in zip(frames, self.point, self.classes)]
         return {f"aliased_{k}": v for k, v in pooled(cs).items()}
+
+
+def folders(folder: str, spp: int) -> list[tuple[str, int]]:
+    """The references a set of views is scored against, (folder, samples per pixel): the filtered one in `folder`,
+    and at more than 1 spp the pixel-centre one in FOLDER/point."""
+    return [(folder, spp)] + ([(f"{folder}/point", 1)] if spp > 1 else [])
 
 
 def noise(frames: list, halves: list, background) -> float | None:

@@ -4,9 +4,11 @@ Per object and variant: the change in mean ΔLuv, p95 ΔLuv and FLIP (new minus 
 ratio (new median over old median) and every cost counter that changed. Thresholds in the style of
 OpenImageIO's idiff (`-fail`, `-failpercent`): an absolute error increase, and a slowdown ratio that
 fails the run (exit 1) only where the slowdown also exceeds the two runs' combined spread (each row's
-within-camera interquartile range), so two runs of the same bundle pass under noise. Times are compared
-only between reports of the same device and time source (GPU timer queries) unless asked; counters
-count work, not time, so any change is reported. Pure data in, data out: no GL, no rendering.
+within-camera interquartile range): the timing statistic's rule for rows not timed side by side
+(vdmrender.deciding.pricing.slower, the allowed slowdown in place of its EQUAL), so two runs of the same bundle
+pass under noise. Times are compared only between reports of the same device and time source (GPU timer
+queries) unless asked; counters count work, not time, so any change is reported. Pure data in, data out: no
+GL, no rendering.
 
 The earlier report is input like any other: load() reads it through the regular-file guard and checks
 every key compare() uses against a schema before the run renders anything, so a report that is damaged,
@@ -22,6 +24,7 @@ from vdmbake.errors import InputError, escaped
 from vdmbake.formats.safeio import read_regular
 from vdmbake.schema import REQUIRED, Integer, Invalid, Number, Reader, Text, Type, Vector
 
+from . import pricing
 
 MAX_BYTES = 64 << 20     # a report of 1000 variants x 100 cameras is about 30 MB
 COUNT = Integer(0, 2**63 - 1)
@@ -154,7 +157,7 @@ def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown
         get = lambda r, k: None if r is None else r.get(k)  # noqa: E731
         timed = why_not is None and o and n and o["median_ms"] and n["median_ms"]
         ratio = round(n["median_ms"] / o["median_ms"], 4) if timed else None
-        noise = round((o.get("spread_ms") or 0.0) + (n.get("spread_ms") or 0.0), 4) if timed else None
+        noise = round(pricing.noise_ms(o, n), 4) if timed else None
         c = {"object": key[0], "label": key[1], "status": "compared" if o and n else ("new" if n else "missing"),
              "old_mean_dluv": get(o, "mean_dluv"), "new_mean_dluv": get(n, "mean_dluv"),
              "d_mean_dluv": _diff(get(n, "mean_dluv"), get(o, "mean_dluv")),
@@ -169,8 +172,7 @@ def compare(old: dict, new: dict, max_error_increase: float | None, max_slowdown
         exceeds = []
         if max_error_increase is not None and c["d_mean_dluv"] is not None and c["d_mean_dluv"] > max_error_increase:
             exceeds.append("error")
-        if (max_slowdown is not None and ratio is not None and ratio > max_slowdown
-                and n["median_ms"] - o["median_ms"] > noise):
+        if max_slowdown is not None and timed and pricing.slower(o, n, max_slowdown - 1):
             exceeds.append("time")
         changes.append({**c, "exceeds": exceeds})
     notes = [f"baseline {k} {old.get(k)!r} differs from this run's {new.get(k)!r}"

@@ -26,14 +26,11 @@ import math
 
 import numpy as np
 
-from vdmbake.scene import LIMIT_ON
+from vdmbake.scene import BY_FACES, LIMIT_ON, TRIANGLE_MESHES
 
 from . import pricing
 from .baseline import POINT
 
-NOISE = 0.1   # separately timed medians (no interleaved times): a difference below this share is not one in cost
-TRIANGLE_MESHES = ("mesh", "coarse")   # the variants a glTF can carry as they are (vdmbake.export)
-BY_FACES = ("mesh", "coarse", "displaced", "tessellated")   # levels of detail ranked by their triangles
 CHANGE = LIMIT_ON["change"]["mean_dluv"]   # the mean change against the full asset (vdmrender.comparing.change)
 MEASURED = ("mean_dluv", "p95_dluv", "flip_mean", "iou", "aliased_mean_dluv", *LIMIT_ON["change"].values(),
             "floor_dluv", "reference_noise_dluv", "median_ms", "spread_ms", "empty_frames")
@@ -71,15 +68,14 @@ def least(rows: list[dict], error: str) -> dict:
 def _cost_ties(rows: list[dict]) -> list[dict]:
     """The rows that cost the same as the cheapest: where every row within pricing.NEAR of the fastest median
     carries its interleaved frame times (`interleaved_ms`, aligned), pricing's "same" (or a difference it could not
-    show); otherwise medians within the noise."""
+    show); otherwise those pricing.slower does not find slower by their separately timed medians."""
     best = min(rows, key=lambda r: r["median_ms"])
     near = [r for r in rows if r["median_ms"] <= pricing.NEAR * best["median_ms"]]
     paired = len(near) > 1 and all(r.get("interleaved_ms") for r in near) and len({len(r["interleaved_ms"]) for r in near}) == 1
     if paired:
         verdict = pricing.verdicts({r["label"]: np.array(r["interleaved_ms"]) for r in near})
         return [r for r in near if verdict[r["label"]] != "slower"]
-    return [r for r in rows if r["median_ms"] - best["median_ms"]
-            <= max((r["spread_ms"] or 0) + (best["spread_ms"] or 0), NOISE * best["median_ms"])]
+    return [r for r in rows if not pricing.slower(best, r)]
 
 
 def cheapest(rows: list[dict], error: str = CHANGE) -> dict:
@@ -91,7 +87,7 @@ def cheapest(rows: list[dict], error: str = CHANGE) -> dict:
 
 def cheaper(a: dict, b: dict) -> bool:
     """Row a costs less than row b: b is slower by pricing's verdict on their interleaved frames, or by their
-    separately timed medians beyond the noise (as _cost_ties)."""
+    separately timed medians (as _cost_ties)."""
     return a["median_ms"] < b["median_ms"] and b not in _cost_ties([a, b])
 
 

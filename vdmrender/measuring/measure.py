@@ -6,7 +6,6 @@ back for scoring: as shipped, under the run's anti-aliasing mode (vdmrender.meas
 counted), and point-sampled, one sample per pixel (the `aliased_*` error beside the filtered one)."""
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from typing import Callable
 
@@ -14,30 +13,6 @@ import numpy as np
 
 from . import antialias, counters, timing
 from ..gpu import device, gl
-
-
-# Test-only knob: VDM_TEST_DOUBLE_PASS=NAME runs every pass of that name twice, timed and counted (a regression
-# a --baseline comparison must catch: tests/test_timing.py).
-DOUBLE_PASS = "VDM_TEST_DOUBLE_PASS"
-
-
-class Doubled:
-    """A renderer whose pass `name` runs twice."""
-
-    def __init__(self, renderer, name: str):
-        self.renderer, self.name = renderer, name
-
-    def passes(self, camera, target) -> list:
-        return [p for p in self.renderer.passes(camera, target) for _ in range(2 if p[0] == self.name else 1)]
-
-    def __getattr__(self, attr):
-        return getattr(self.renderer, attr)
-
-
-def built(build: Callable):
-    """build(), under the test-only knob if it is set."""
-    name = os.environ.get(DOUBLE_PASS, "")
-    return Doubled(build(), name) if name else build()
 
 
 def is_light_pass(name: str) -> bool:
@@ -72,7 +47,7 @@ class Harness:
     def measure(self, build: Callable, cams, desc: str) -> tuple[dict, list, list]:
         """Build a renderer, time its frames, read them back, release it: (row fields, frames as shipped, frames
         point-sampled: the same list without anti-aliasing)."""
-        renderer = built(build)
+        renderer = build()
         try:
             before = device.nvml_clocks()
             stats, frames = timing.time_variant(self.timer, self.as_shipped(renderer), cams, self.budget, desc)
@@ -104,7 +79,7 @@ class Harness:
         per pass, and per covered pixel over the camera's passes (fragments, fetches and steps: overdraw and
         per-pixel search cost), with the GPU memory it holds."""
         with counters.counting(self.ctx):
-            renderer = built(build)
+            renderer = build()
         try:
             c = counters.count_frames(self.ctx, self.as_shipped(renderer), cams, self.shipped)
             total, passes, covered = c["total"], c["passes"], c["covered"]

@@ -45,6 +45,8 @@ class Sample:
     submit_ms: float            # the renderer's calls returning (CPU time to issue the frame)
     passes: dict                # pass name -> GPU ms (a pass run twice sums)
     saturated: bool = False     # a pass's query saturated: gpu_ms is the wall time, that pass the remainder
+    cpu_ms: float = 0.0         # the process's CPU time over the frame, every thread (llvmpipe's rasterisers are the
+                                # process's own: the work done, barely inflated by other processes, unlike wall time)
 
 
 class FrameTimer:
@@ -62,6 +64,7 @@ class FrameTimer:
         return self.queries[k]
 
     def frame(self, renderer, camera, index: int = 0) -> Sample:
+        c0 = time.process_time()
         self.target.clear()
         self.ctx.finish()
         timed = []
@@ -84,7 +87,8 @@ class FrameTimer:
         if over:   # its true time is unknown: the frame's is its wall time, the pass the rest of it
             rest = wall - sum(v for k, v in passes.items() if k not in over)
             passes.update({k: max(rest, 0.0) / len(over) for k in over})
-        return Sample(index, wall if over else sum(passes.values()), wall, (t1 - t0) * 1e3, passes, bool(over))
+        return Sample(index, wall if over else sum(passes.values()), wall, (t1 - t0) * 1e3, passes, bool(over),
+                      (time.process_time() - c0) * 1e3)
 
     def read(self, renderer, camera, index: int = 0):
         """One frame of `renderer`, untimed, read back (linear RGBA float32, row 0 at the top)."""
@@ -130,7 +134,8 @@ def warm_up(timer: FrameTimer, renderer, cams, budget: Budget) -> dict:
 
 def warm_up_each(timer: FrameTimer, renderers: dict, cams, budget: Budget) -> dict[str, dict]:
     """Every renderer of an interleaved comparison ({label: renderer}) warmed up in turn by the same rule as a
-    row (warm_up), so the tool's rows, its pricing and the benches start timing from the same state."""
+    row (warm_up), so the tool's rows and the interleaved loop (vdmrender.measuring.interleaved: the sweep's pricing,
+    the benches) start timing from the same state."""
     return {k: warm_up(timer, r, cams, budget) for k, r in renderers.items()}
 
 

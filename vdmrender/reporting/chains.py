@@ -7,6 +7,7 @@ from pathlib import Path
 
 from vdmbake.scene import LIMIT_ON
 
+from ..common import markdown
 from ..common.markdown import cell, number
 from ..common.plots import ERROR_LABEL
 from ..deciding.baseline import POINT
@@ -28,30 +29,27 @@ def table(lod: dict) -> str:
                   "the pipeline costs (a shading sample per pixel, the anti-aliasing), not the representation; no "
                   "difference below the reference's noise can be told from noise. Where the full asset's IoU falls "
                   "(ray-cast quadrics miss atoms smaller than a pixel), what the chains decide on is drawn wrong too.", "",
-                  "| size [px] | full asset | mean ΔLuv | p95 ΔLuv | IoU | reference noise ΔLuv | variant pairs within "
-                  "noise |", "|---:|---|---:|---:|---:|---:|---:|"]
-        lines += [f"| {f['size_px']} | {cell(f['full_asset'])} | {number(f['floor_dluv'], 3)} | {number(f['floor_p95_dluv'], 2)} | "
-                  f"{number(f.get('floor_iou'), 4)} | {number(f['reference_noise_dluv'], 3)} | {f['ties']} of {f['pairs']} |"
-                  for f in rows]
-        lines.append("")
+                  markdown.table(["size [px]", "full asset", "mean ΔLuv", "p95 ΔLuv", "IoU", "reference noise ΔLuv",
+                         "variant pairs within noise"], "rlrrrrr",
+                        [[str(f["size_px"]), cell(f["full_asset"]), number(f["floor_dluv"], 3),
+                          number(f["floor_p95_dluv"], 2), number(f.get("floor_iou"), 4),
+                          number(f["reference_noise_dluv"], 3), f"{f['ties']} of {f['pairs']}"] for f in rows]), ""]
     for c in lod["chains"]:
         limits = ", ".join(f"{k} {'>=' if k.endswith('iou') else '<='} {v:g}" for k, v in c["limits"].items())
         limits += f", pop <= {c['pop_dluv']:g}" if c.get("pop_dluv") is not None else ""
         for obj, ch in c["objects"].items():
-            lines += [f"## {c['name']} ({limits}): {obj}", "",
-                      "| band [px]: over, up to | variant | within limits | change ΔLuv | change p95 | IoU with the "
-                      "full asset | ΔLuv against the reference | floor ΔLuv | median GPU ms | pop ΔLuv taking over | "
-                      "switch down, up [px] |",
-                      "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+            rows = []
             for e in ch["entries"]:
-                top = e["measured"][0]
-                switch = e.get("switch_px")
-                lines.append(f"| ({e['min_px']}, {e['max_px']}] | {cell(e['variant'])} | {'yes' if e['meets'] else '**no**'} | "
-                             f"{number(top.get(CHANGE), 3)} | {number(top.get('change_p95_dluv'), 2)} | "
-                             f"{number(top.get('change_iou'), 4)} | {number(top['mean_dluv'], 3)} | "
-                             f"{number(top.get('floor_dluv'), 3)} | {number(top['median_ms'], 3)} | "
-                             f"{number(top.get('pop_dluv'), 2)} | {f'{switch[0]:g}, {switch[1]:g}' if switch else '-'} |")
-            lines.append("")
+                top, switch = e["measured"][0], e.get("switch_px")
+                rows.append([f"({e['min_px']}, {e['max_px']}]", cell(e["variant"]), "yes" if e["meets"] else "**no**",
+                             number(top.get(CHANGE), 3), number(top.get("change_p95_dluv"), 2),
+                             number(top.get("change_iou"), 4), number(top["mean_dluv"], 3),
+                             number(top.get("floor_dluv"), 3), number(top["median_ms"], 3),
+                             number(top.get("pop_dluv"), 2), f"{switch[0]:g}, {switch[1]:g}" if switch else "-"])
+            lines += [f"## {c['name']} ({limits}): {obj}", "",
+                      markdown.table(["band [px]: over, up to", "variant", "within limits", "change ΔLuv", "change p95",
+                             "IoU with the full asset", "ΔLuv against the reference", "floor ΔLuv", "median GPU ms",
+                             "pop ΔLuv taking over", "switch down, up [px]"], "lllrrrrrrrl", rows), ""]
             if ch["unmet_px"]:
                 lines += [f"**No variant is within the limits at {', '.join(map(str, ch['unmet_px']))} px**: the chain "
                           "takes the variant of least mean change against the full asset there.", ""]
@@ -61,13 +59,13 @@ def table(lod: dict) -> str:
             if "field" in ch:
                 f = ch["field"]
                 lines += [f"Priced on the field of copies: {f['how']}", "",
-                          "| on the field | median GPU ms | spread ms | change ΔLuv | ΔLuv against the reference | "
-                          "floor ΔLuv | within limits |", "|---|---:|---:|---:|---:|---:|---|"]
-                lines += [f"| {'**' + cell(r['variant']) + '**' if r['variant'] == f['chosen'] else cell(r['variant'])} | "
-                          f"{number(r['median_ms'], 2)} | {number(r['spread_ms'], 2)} | {number(r.get('change_dluv'), 3)} | "
-                          f"{number(r['mean_dluv'], 3)} | {number(r.get('floor_dluv'), 3)} | {'yes' if r['meets'] else 'no'} |"
-                          for r in f["candidates"]]
-                lines.append("")
+                          markdown.table(["on the field", "median GPU ms", "spread ms", "change ΔLuv",
+                                 "ΔLuv against the reference", "floor ΔLuv", "within limits"], "lrrrrrl",
+                                [[f"**{cell(r['variant'])}**" if r["variant"] == f["chosen"] else cell(r["variant"]),
+                                  number(r["median_ms"], 2), number(r["spread_ms"], 2),
+                                  number(r.get("change_dluv"), 3), number(r["mean_dluv"], 3),
+                                  number(r.get("floor_dluv"), 3), "yes" if r["meets"] else "no"]
+                                 for r in f["candidates"]]), ""]
             lines += [f"Above {ch['above_px']} px nothing was measured.", ""]
     return "\n".join(lines)
 

@@ -9,7 +9,7 @@ import json
 import math
 from pathlib import Path
 
-from ..common.markdown import cell, number
+from ..common.markdown import cell, number, table
 from ..common.plots import ERROR_LABEL, log_ticks
 
 COLUMNS = ["object", "technique", "knob", "value", "label", "faces", "frames", "empty_frames", "median_ms", "min_ms",
@@ -83,10 +83,10 @@ def composite_table(report: dict) -> str:
     lines = [f"Composite frames, {report['resolution'][0]}x{report['resolution'][1]}, {report['device']}: every object "
              "in one frame, against the reference tracing every object together; frames in composite/frames/SET/, "
              "heat maps in composite/heatmaps/SET/, the sheet in composite/overview.png.", "",
-             "| set | variants | median GPU ms/frame | mean ΔLuv | p95 ΔLuv | IoU | FLIP |", "|---:|---|---:|---:|---:|---:|---:|"]
-    for r in report["composite"]:
-        lines.append(f"| {r['set']} | {r['label']} | {r['median_ms']:.1f} | {number(r['mean_dluv'], 3)} | "
-                     f"{number(r['p95_dluv'], 2)} | {number(r['iou'], 4)} | {number(r['flip_mean'], 4)} |")
+             table(["set", "variants", "median GPU ms/frame", "mean ΔLuv", "p95 ΔLuv", "IoU", "FLIP"], "rlrrrrr",
+                   [[str(r["set"]), r["label"], f"{r['median_ms']:.1f}", number(r["mean_dluv"], 3),
+                     number(r["p95_dluv"], 2), number(r["iou"], 4), number(r["flip_mean"], 4)]
+                    for r in report["composite"]])]
     return "\n".join(lines) + "\n"
 
 
@@ -160,16 +160,15 @@ def baseline_table(block: dict) -> str:
     t = block["thresholds"]
     lines = [f"change against the baseline (max error increase {t['max_error_increase']}, "
              f"max slowdown {t['max_slowdown']})", *(f"note: {cell(n)}" for n in block["notes"]), "",
-             "| object | variant | mean ΔLuv old → new | Δ mean | p95 old → new | Δ p95 | FLIP Δ | GPU ms old → new "
-             "| time ratio | noise ms | exceeds |", "|---|---|---|---:|---|---:|---:|---|---:|---:|---|"]
-    for c in block["rows"]:
-        lines.append(
-            f"| {cell(c['object'])} | {cell(c['label'])} | "
-            f"{number(c['old_mean_dluv'], 3)} → {number(c['new_mean_dluv'], 3)} | {number(c['d_mean_dluv'], 3, True)} | "
-            f"{number(c['old_p95_dluv'], 2)} → {number(c['new_p95_dluv'], 2)} | {number(c['d_p95_dluv'], 2, True)} | "
-            f"{number(c['d_flip'], 4, True)} | {number(c['old_ms'], 2)} → {number(c['new_ms'], 2)} | "
-            f"{number(c['time_ratio'], 2)} | {number(c['noise_ms'], 2)} | "
-            f"{cell(', '.join(c['exceeds']) or ('' if c['status'] == 'compared' else c['status']))} |")
+             table(["object", "variant", "mean ΔLuv old → new", "Δ mean", "p95 old → new", "Δ p95", "FLIP Δ",
+                    "GPU ms old → new", "time ratio", "noise ms", "exceeds"], "lllrlrrlrrl",
+                   [[cell(c["object"]), cell(c["label"]),
+                     f"{number(c['old_mean_dluv'], 3)} → {number(c['new_mean_dluv'], 3)}", number(c["d_mean_dluv"], 3, True),
+                     f"{number(c['old_p95_dluv'], 2)} → {number(c['new_p95_dluv'], 2)}", number(c["d_p95_dluv"], 2, True),
+                     number(c["d_flip"], 4, True), f"{number(c['old_ms'], 2)} → {number(c['new_ms'], 2)}",
+                     number(c["time_ratio"], 2), number(c["noise_ms"], 2),
+                     cell(", ".join(c["exceeds"]) or ("" if c["status"] == "compared" else c["status"]))]
+                    for c in block["rows"]])]
     return "\n".join(lines) + "\n"
 
 

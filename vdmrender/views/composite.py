@@ -101,9 +101,9 @@ def scene_sphere(bundle, scene) -> tuple[np.ndarray, float]:
     return enclosing_sphere([objs[o.name]["centre"] for o in scene.objects], [objs[o.name]["radius"] for o in scene.objects])
 
 
-def reference_frames(out, bundle, scene, cams, log, spp: int = 1, folder: str = f"{FOLDER}/reference"):
-    """The composite reference frames (linear RGBA float32) at `spp` samples per pixel (reference.filtered),
-    traced or from the previous run's cache in `folder`."""
+def reference_source(bundle, scene, cams, spp: int = 1):
+    """The composite reference from `cams` at `spp` samples per pixel (reference.filtered): its cache key, and its
+    tracer for refcache.load_or_trace."""
     entries = bundle.manifest["objects"]
     geometry = {o.name: {**refcache.reference_geometry(o, entries[o.name], bundle), "material": asdict(o.material)}
                 for o in scene.objects}
@@ -117,22 +117,25 @@ def reference_frames(out, bundle, scene, cams, log, spp: int = 1, folder: str = 
         frames, halves = zip(*(reference.filtered(ref.render, c, spp) for c in cams))
         return list(frames), list(halves), [None] * len(frames), ref.rays_cast - before
 
-    return refcache.load_or_trace(out, folder, key, cams, trace, scene.render.background,
-                                  "composite" + (f" ({spp} spp)" if spp > 1 else ""), log)
+    return key, trace
 
 
-def render_sets(harness, out, bundle, scene, only, opts, device, log) -> list[dict]:
-    """Every variant set of render.composite (those whose techniques --technique keeps): timed, scored against
-    the composite reference, written under OUT/composite/; one report row per set. A set none of whose frames
-    has a pixel to score is an error (vdmrender.cli) unless every object sets expect_empty."""
-    sets = [s for s in scene.render.composite if only is None or all(v.split("@")[0] in only for v in s.values())]
-    if not sets:
-        return []
+def variant_sets(scene, only) -> list[dict]:
+    """The variant sets of render.composite that a run draws: those whose techniques --technique keeps (`only`)."""
+    return [s for s in scene.render.composite if only is None or all(v.split("@")[0] in only for v in s.values())]
+
+
+def cameras(bundle, scene, width: int, height: int) -> list:
+    """The composite's cameras: the scene's orbit around the sphere that holds every object."""
+    return cameras_for(scene.camera, *scene_sphere(bundle, scene), width, height)
+
+
+def render_sets(harness, out, bundle, scene, sets, cams, refs, opts, device, log) -> list[dict]:
+    """The variant sets `sets` (variant_sets'), drawn from `cams` (cameras'): timed, scored against the composite
+    reference `refs` (scoring.References), written under OUT/composite/; one report row per set. A set none of
+    whose frames has a pixel to score is an error (vdmrender.cli) unless every object sets expect_empty."""
     ctx = harness.ctx
     centre, radius = scene_sphere(bundle, scene)
-    cams = cameras_for(scene.camera, centre, radius, *harness.target.size)
-    refs = scoring.References.traced(lambda spp, folder: reference_frames(out, bundle, scene, cams, log, spp, folder),
-                                     f"{FOLDER}/reference", opts.reference_spp, scene.render.background)
     sheet, rows, drawn = [("reference", refs.filtered)], [], {}
     entries = bundle.manifest["objects"]
     full = {o.name: change.full_asset(o, entries[o.name], bundle, scene) for o in scene.objects}

@@ -5,8 +5,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...common import geometry
-from ...errors import InputError
 from ...formats import exr
 from ...schema import REQUIRED, Integer, setting
 from .kind import PartKind, channels, check_shape, finite, need
@@ -42,20 +40,6 @@ def _unpack_mesostructure(data, meta, origin) -> MesostructureMaps:
 @dataclass(frozen=True)
 class MesostructureMeta:
     size: int = setting(REQUIRED, Integer(4, 1024), "texels per tile side")
-
-
-def check_reference(base, size: int, tiling, origin: str) -> None:
-    """Refuse a mesostructure whose reference is more than vdmrender traces: the reference is the base mesh
-    subdivided until every edge spans under half a texel of the tiled height field
-    (vdmbake.common.geometry.reference_levels), and vdmrender builds at most geometry.MAX_FACES faces. `base`: the
-    base mesh as stored (the renderer's); `size`: this part's; `tiling`: the scene's. The bake asks it for every
-    mesostructure object and vdmrender before it builds the reference: one check, one message."""
-    levels = geometry.reference_levels(base, size, tiling)
-    faces = len(base.faces) * 4 ** levels
-    if faces > geometry.MAX_FACES:
-        raise InputError(f"{origin}: with mesostructure.tiling {list(tiling)} and size {size}, the reference is the "
-                         f"base mesh subdivided {levels} times, {faces:,} faces, more than the {geometry.MAX_FACES:,} "
-                         "vdmrender traces; lower the tiling or the size.")
 
 
 MESOSTRUCTURE = PartKind("mesostructure", ".exr", _pack_mesostructure, _unpack_mesostructure, MesostructureMeta)
