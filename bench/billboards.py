@@ -26,6 +26,7 @@ from pathlib import Path
 
 import click
 
+from bench import publish, tables
 from bench.quadrics import measure_scene
 from vdmrender.common import progress
 
@@ -145,59 +146,17 @@ def march_cost(bundle_path: Path, width: int, height: int) -> dict:
     return out
 
 
-def _markdown(rows: list[dict], bakes: dict, prof: list[dict], cost: dict, device: str, model: str, rounds: int,
-              cost_resolution: str) -> str:
-    lines = [f"# Enhanced billboards benchmark ({device})", "",
-             "| model | billboards greedy / axis | faces left out (greedy) | maps MB greedy / axis | bake s | "
-             "hier: pyramids MB (float32) / bake s |",
-             "|---|---:|---|---:|---:|---:|"]
-    for name, b in bakes.items():
-        lines.append(f"| {name} | {b['greedy']} / {b['axis']} | {b['leftover']} | {b['greedy_mb']:.2f} / "
-                     f"{b['axis_mb']:.2f} | {b['bake_s']:.1f} | {b['pyramid_mb']:.2f} / {b['hier_bake_s']:.2f} |")
-    lines += ["", "| model | resolution | variant | median ms | mean ΔLuv | thesis (A-2) | p95 | IoU |",
-              "|---|---|---|---:|---:|---:|---:|---:|"]
-    for r in rows:
-        thesis = THESIS.get(r["object"])
-        ref = ""
-        if thesis and r["resolution"] == "800x600" and r["label"].endswith("hit0.01"):
-            ref = f"{thesis[0]:.2f}"
-        elif thesis and r["resolution"] == "800x600" and r["label"].endswith("hit0.01+coarse"):
-            ref = f"{thesis[1]:.2f}"
-        lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | {r['median_ms']:.1f} | "
-                     f"{r['mean_dluv']:.3f} | {ref} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
-    if prof:
-        lines += ["", f"## {model}, interleaved ({rounds} rounds, every pass timed)", "",
-                  "| variant | resolution | median GPU ms | x full mesh (95%) | median CPU ms | x full mesh, CPU (95%) | "
-                  "shadow pass share | passes (median GPU ms) |",
-                  "|---|---|---:|---:|---:|---:|---:|---|"]
-        for p in prof:
-            passes = ", ".join(f"{k} {v:.1f}" for k, v in p["passes_ms"].items())
-            gpu, cpu = (f"{p[k]:.2f} ({p[k + '_95'][0]:.2f}-{p[k + '_95'][1]:.2f})"
-                        for k in ("ratio_to_mesh", "cpu_ratio_to_mesh"))
-            lines.append(f"| {p['label']} | {p['resolution']} | {p['median_ms']:.1f} | {gpu} | "
-                         f"{p['median_cpu_ms']:.1f} | {cpu} | {p['shadow_share']:.0%} | {passes} |")
-        lines += ["", "Time per halving of the resolution (median CPU ms of one over the next):", "",
-                  "| variant | 800x600 / 400x300 | 400x300 / 200x150 |", "|---|---:|---:|"]
-        for label in PROFILE:
-            t = {p["resolution"]: p["median_cpu_ms"] for p in prof if p["label"] == label}
-            if len(t) == 3:
-                lines.append(f"| {label} | {t['800x600'] / t['400x300']:.2f} | {t['400x300'] / t['200x150']:.2f} |")
-    if cost:
-        lines += ["", f"## March cost, {model} {cost_resolution} (instrumented, vdmrender/measuring/counters.py)", "",
-                  "Per covered pixel, over the frame's passes but the shadow map's; hier's steps are cell visits.", "",
-                  "| march (+coarse) | covered pixels | fragments / px | fetches / px | steps / px | searches / px | "
-                  "steps / search |", "|---|---:|---:|---:|---:|---:|---:|"]
-        for name, c in cost.items():
-            lines.append(f"| {name} | {c['covered_pixels']} | {c['fragments_per_pixel']:.1f} | {c['fetches_per_pixel']:.1f} | "
-                         f"{c['steps_per_pixel']:.1f} | {c['searches_per_pixel']:.1f} | {c['steps_per_search']:.1f} |")
-    return "\n".join(lines) + "\n"
+def _markdown(doc: dict) -> str:
+    return f"# Enhanced billboards benchmark ({doc['device']})\n\n" + tables.billboards(doc)
 
 
 @click.command()
 @click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
 @click.option("--quick", is_flag=True, help="Sphere only, 200x150, 64-texel maps (a smoke run).")
-def main(out: Path, quick: bool):
+@publish.option("billboards-bench")
+def main(out: Path, quick: bool, publish_dir: Path | None):
     """Run the billboard benchmark and write OUT/billboards.json and OUT/billboards.md."""
+    started = publish.Run("bench.billboards")
     models = MODELS[:1] if quick else MODELS
     resolutions = RESOLUTIONS[-1:] if quick else RESOLUTIONS
     res, shadow_map = (64, 512) if quick else (512, 1024)
@@ -232,12 +191,14 @@ def main(out: Path, quick: bool):
     cost = march_cost(first, *resolutions[0])
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
-    (out / "billboards.json").write_text(json.dumps({"device": device, "map_resolution": res, "shadow_map": shadow_map,
-                                                     "bakes": bakes, "rows": rows, "profile": prof,
-                                                     "march_cost": cost}, indent=1) + "\n")
-    (out / "billboards.md").write_text(_markdown(rows, bakes, prof, cost, device, models[-1][0], rounds,
-                                                 "x".join(map(str, resolutions[0]))))
+    doc = {"device": device, "map_resolution": res, "shadow_map": shadow_map, "thesis": THESIS, "bakes": bakes,
+           "rows": rows, "profiled_model": models[-1][0], "rounds": rounds, "profile": prof,
+           "cost_resolution": "x".join(map(str, resolutions[0])), "march_cost": cost}
+    (out / "billboards.json").write_text(json.dumps(doc, indent=1) + "\n")
+    (out / "billboards.md").write_text(_markdown(doc))
     click.echo(f"wrote {out / 'billboards.json'}, {out / 'billboards.md'}")
+    if publish_dir:
+        click.echo(f"published {started.publish(publish_dir, 'billboards-bench', doc)}")
 
 
 if __name__ == "__main__":

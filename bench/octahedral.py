@@ -33,6 +33,7 @@ from vdmbake.bundle.directory import Bundle
 from vdmbake.scene import load_scene
 from vdmbake.techniques.octahedral import VARIANT as OCT_VARIANT
 
+from bench import publish, tables
 from vdmrender.measuring import counters, interleaved
 from vdmrender.gpu import gl
 from vdmrender.common import images
@@ -256,44 +257,18 @@ def _costs(ctx, build, cam, target) -> dict:
     return {"fetches_per_pixel": round(frame["fetches"] / px, 1), "steps_per_pixel": round(frame["steps"] / px, 1)}
 
 
-def _markdown(rows: list[dict], device: str) -> str:
-    lines = [f"# Octahedral impostors against enhanced billboards ({device})", "",
-             "Mean and p95 ΔLuv pooled over every scored pixel of every camera (the union of coverage masks; "
-             "vdmrender.comparing.metrics.pooled, as vdmrender's rows), IoU averaged over the frames that are not empty, "
-             "'-' where no frame had a pixel to score; median GPU ms (timer queries) and CPU ms per frame (shadow pass "
-             "included; CPU: the process's time over all its threads, llvmpipe's included, which other processes on "
-             "the machine barely inflate); shadow ms: the octahedral shadow pass alone (GPU); "
-             "asset MB: the textures and buffers a variant uploads (maps, pyramid atlases, coverage, coarse mesh, "
-             "occupancy boxes, the octahedral atlas); target MB: what it renders into every frame besides the "
-             "frame and its shadow map (the billboards' depth pre-pass and occupancy targets); bake seconds.", "",
-             "| model | resolution | variant | asset MB | target MB | bake s | GPU ms | CPU ms | shadow ms | fetches/px | "
-             "steps/px | "
-             "mean ΔLuv | p95 | IoU |",
-             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for r in rows:
-        lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | {r['gpu_bytes'] / 2**20:.2f} | "
-                     f"{r['target_bytes'] / 2**20:.2f} | {r['bake_s']:.1f} | {r['median_ms']:.0f} | {r['median_cpu_ms']:.0f} | "
-                     f"{r.get('shadow_ms', '')} | {r.get('fetches_per_pixel', '')} | {r.get('steps_per_pixel', '')} | "
-                     f"{number(r['mean_dluv'], 3)} | {number(r['p95_dluv'], 2)} | {number(r['iou'], 4)} |")
-    lines += ["", "Per camera category: mean ΔLuv / IoU (pooled as above) / median CPU ms over the cameras of that kind.",
-              "", "| model | resolution | variant | " + " | ".join(c for c, _ in CATEGORIES) + " |",
-              "|---|---|---|" + "---|" * len(CATEGORIES)]
-    for r in rows:
-        cells = [f"{number(c['mean_dluv'], 2)} / {number(c['iou'], 3)} / {c['cpu_ms']:.0f}" if c else ""
-                 for c in (r["categories"].get(k) for k, _ in CATEGORIES)]
-        lines.append(f"| {r['object']} | {r['resolution']} | {r['label']} | " + " | ".join(cells) + " |")
-    lines += ["", "outside: the cameras outside the bounding sphere (all but inside). orbit: 8 at 25 degrees; "
-              "top: top-down and 80 degrees; grazing: 0 and 5 degrees; below: -30 degrees; close: 1.4 and 1.2 radii "
-              "(fov 50 and 90); inside: 0.95 radii, inside the bounding sphere."]
-    return "\n".join(lines) + "\n"
+def _markdown(doc: dict) -> str:
+    return f"# Octahedral impostors against enhanced billboards ({doc['device']})\n\n" + tables.octahedral(doc)
 
 
 @click.command()
 @click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
 @click.option("--quick", is_flag=True, help="Sphere only, 200x150, 4 cameras, 64-texel billboard maps (a smoke run).")
 @click.option("--models", default=None, help="Comma-separated subset of: " + ", ".join(m for m, _ in MODELS))
-def main(out: Path, quick: bool, models: str | None):
+@publish.option("octahedral-bench")
+def main(out: Path, quick: bool, models: str | None, publish_dir: Path | None):
     """Run the octahedral benchmark and write OUT/octahedral.json and OUT/octahedral.md."""
+    started = publish.Run("bench.octahedral")
     chosen = MODELS[:1] if quick else [m for m in MODELS if models is None or m[0] in models.split(",")]
     rows = []
     for name, source in chosen:
@@ -303,10 +278,12 @@ def main(out: Path, quick: bool, models: str | None):
                        f"IoU {number(r['iou'], 4)}  {r['gpu_bytes'] / 2**20:6.1f} MB", err=True)
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
-    (out / "octahedral.json").write_text(json.dumps({"device": device, "shadow_map": SHADOW_MAP, "rows": rows},
-                                                    indent=1) + "\n")
-    (out / "octahedral.md").write_text(_markdown(rows, device))
+    doc = {"device": device, "shadow_map": SHADOW_MAP, "categories": [c for c, _ in CATEGORIES], "rows": rows}
+    (out / "octahedral.json").write_text(json.dumps(doc, indent=1) + "\n")
+    (out / "octahedral.md").write_text(_markdown(doc))
     click.echo(f"wrote {out / 'octahedral.json'}, {out / 'octahedral.md'}")
+    if publish_dir:
+        click.echo(f"published {started.publish(publish_dir, 'octahedral-bench', doc)}")
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ import click
 
 from vdmbake.bake import bake
 
+from bench import publish, tables
 from vdmrender.common import progress
 from vdmrender.render import Options, run
 
@@ -72,14 +73,8 @@ def _one(out: Path, name, path, distance, techniques, w, h, repeats, shadow_map)
     return [{**r, "distance": distance} for r in measure_scene(out, f"{name}-d{distance:g}", text)]
 
 
-def _markdown(rows: list[dict], device: str) -> str:
-    lines = [f"# Quadric benchmark ({device})", "",
-             "| molecule | atoms | distance | variant | median ms | mean ΔLuv | p95 | IoU | coverage |",
-             "|---|---:|---:|---|---:|---:|---:|---:|---:|"]
-    for r in rows:
-        lines.append(f"| {r['object']} | {r['atoms']} | {r['distance']:g} | {r['label']} | {r['median_ms']:.1f} | "
-                     f"{r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} | {r['coverage']:.3f} |")
-    return "\n".join(lines) + "\n"
+def _markdown(summary: dict) -> str:
+    return f"# Quadric benchmark ({summary['device']})\n\n" + tables.quadrics(summary)
 
 
 def _plot(rows: list[dict], path: Path) -> None:
@@ -113,8 +108,10 @@ def _plot(rows: list[dict], path: Path) -> None:
 @click.command()
 @click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
 @click.option("--quick", is_flag=True, help="256x192, 1024 shadow map, the small molecules only (a smoke run).")
-def main(out: Path, quick: bool):
+@publish.option("quadrics")
+def main(out: Path, quick: bool, publish_dir: Path | None):
     """Run the quadric benchmark and write OUT/quadrics.json, OUT/quadrics.md and OUT/quadrics.png."""
+    started = publish.Run("bench.quadrics")
     w, h, shadow_map = (256, 192, 1024) if quick else (1024, 768, SHADOW_MAP)
     mols = [m for m in MOLECULES if _available(m[1])][: 2 if quick else None]
     skipped = [m[0] for m in MOLECULES if not _available(m[1])]
@@ -133,9 +130,11 @@ def main(out: Path, quick: bool):
     summary = {"device": device, "resolution": [w, h], "shadow_map": shadow_map,
                "skipped (package not installed)": skipped, "rows": rows}
     (out / "quadrics.json").write_text(json.dumps(summary, indent=1) + "\n")
-    (out / "quadrics.md").write_text(_markdown(rows, device))
+    (out / "quadrics.md").write_text(_markdown(summary))
     _plot(rows, out / "quadrics.png")
     click.echo(f"wrote {out / 'quadrics.json'}, {out / 'quadrics.md'}, {out / 'quadrics.png'}")
+    if publish_dir:
+        click.echo(f"published {started.publish(publish_dir, 'quadrics', summary)}")
 
 
 if __name__ == "__main__":

@@ -26,12 +26,11 @@ import numpy as np
 from vdmbake.assets import heightfields
 from vdmbake.kernels import vdm, vdm_storage
 
-from bench import interleave
+from bench import interleave, publish, tables
 from bench.quadrics import measure_scene
 from vdmrender.gpu import gl
 from vdmrender.common import progress
 from vdmrender.reporting import report
-from vdmrender.common.markdown import number
 from vdmrender.common.source import Source
 from vdmrender.techniques import variants
 from vdmrender.techniques.vdm import VDMPass
@@ -100,7 +99,7 @@ def paper_bake(size: int, n_phi: int, n_c: int) -> dict:
             "throughput_ratio": round((t3 - t2) / (t1 - t0), 3),
             "tables_s": round(t5 - t4, 3), "svd_s": round(t6 - t5, 3), "bake_s": round(t6 - t4, 3),
             "rank": comp.rank, "raw_bytes": table.nbytes + theta_mvm.nbytes, "compressed": per_k,
-            "storage_k8": storage, "storage_chosen": chosen}
+            "storage_k8": storage, "storage_chosen": chosen, "storage_tolerance": vdm_storage.TOLERANCE}
 
 
 def _scene_rows(out: Path, name, primitive, params, tiling, hname, height, w, h, size, n_phi, n_c, levels) -> list[dict]:
@@ -132,48 +131,8 @@ def _interleaved(out: Path, tag: str, rounds: int) -> dict:
     return {"rows": rows, "costs": costs}
 
 
-def _markdown(paper: dict, rows: list[dict], device: str, inter: dict) -> str:
-    p = paper
-    lines = [f"# VDM benchmark ({device})", "",
-             f"## Bake, the paper's configuration ({p['size']}^2, {p['n_phi']} x {p['n_theta']} views, "
-             f"{p['curvatures']} curvatures in [-2, 3], bricks)", "",
-             f"- total {p['bake_s']:.2f} s: tables {p['tables_s']:.2f} s, SVD to k = 8 {p['svd_s']:.2f} s",
-             f"- zero-curvature ray cast: {p['rays']:,} rays in {p['flat_s']:.2f} s = {p['flat_mrays_per_s']:.2f} Mrays/s; "
-             f"raw Embree on the same rays {p['raw_mrays_per_s']:.2f} Mrays/s (ratio {p['throughput_ratio']:.2f})",
-             f"- raw tables (VDM + MVM, float32): {p['raw_bytes'] / 2**20:.1f} MB; rank {p['rank']}", "",
-             "| k | size MB | energy kept | RMS d (texture units) | max abs d | RMS theta_MVM (rad) |",
-             "|---|---:|---:|---:|---:|---:|"]
-    for key, c in p["compressed"].items():
-        lines.append(f"| {key} ({c['k']}) | {c['bytes'] / 2**20:.2f} | {c['energy']:.5f} | {c['rms_vdm']:.4f} | "
-                     f"{c['max_abs_vdm']:.3f} | {c['rms_mvm']:.4f} |")
-    lines += ["", f"Weights' storage at k = 8 (the bake keeps {p['storage_chosen']}: the smallest adding at most "
-              f"{vdm_storage.TOLERANCE:.0%} to the truncation's RMS in quadrature; RMS over every table entry):", "",
-              "| W storage | size MB (W + E) | added RMS d | added RMS theta_MVM |", "|---|---:|---:|---:|"]
-    for f, e in p["storage_k8"].items():
-        lines.append(f"| {f} | {e['bytes'] / 2**20:.3f} | {e['rms_vdm']:.5f} | {e['rms_mvm']:.5f} |")
-    lines += ["", "## Error against time (mean ΔLuv against the displaced geometry traced by Embree)", "",
-              "| surface | height | variant | faces | median ms | ratio to mesh | mean ΔLuv | p95 | IoU |",
-              "|---|---|---|---:|---:|---:|---:|---:|---:|"]
-    for r in rows:
-        lines.append(f"| {r['surface']} | {r['height']} | {r['label']} | {r['faces'] or ''} | {r['median_ms']:.1f} | "
-                     f"{r.get('ratio_to_baseline', 1.0):.2f} | {r['mean_dluv']:.3f} | {r['p95_dluv']:.2f} | {r['iou']:.4f} |")
-    for tag, m in inter.items():
-        lines += ["", f"## {tag}: interleaved in one process (wall and CPU ms per frame, medians)", "",
-                  "| variant | median ms | CPU ms | CPU ratio to pom@16 | mean ΔLuv | p95 | IoU |",
-                  "|---|---:|---:|---:|---:|---:|---:|"]
-        base = m["rows"]["pom@16"]["median_cpu_ms"]
-        for k, r in m["rows"].items():
-            lines.append(f"| {k} | {r['median_ms']:.1f} | {r['median_cpu_ms']:.1f} | {r['median_cpu_ms'] / base:.2f} | "
-                         f"{number(r['mean_dluv'], 3)} | {number(r['p95_dluv'], 2)} | {number(r['iou'], 4)} |")
-        lines += ["", "The frame pass's costs per covered pixel (instrumented builds, vdmrender/measuring/counters.py; fragments: "
-                  "every one the stage ran, discarded ones too), and its fetches per fragment:", "",
-                  "| variant | fragments | texture fetches | search steps | searches | fetches / fragment |",
-                  "|---|---:|---:|---:|---:|---:|"]
-        for k, c in m["costs"].items():
-            f, n = c["passes"]["frame"], c["covered"]
-            lines.append(f"| {k} | {f['fragments'] / n:.2f} | {f['fetches'] / n:.2f} | {f['steps'] / n:.2f} | "
-                         f"{f['searches'] / n:.2f} | {f['fetches'] / f['fragments']:.2f} |")
-    return "\n".join(lines) + "\n"
+def _markdown(doc: dict) -> str:
+    return f"# VDM benchmark ({doc['device']})\n\n" + tables.vdm(doc)
 
 
 def _series(rows: list[dict]) -> list[dict]:
@@ -187,8 +146,10 @@ def _series(rows: list[dict]) -> list[dict]:
 @click.command()
 @click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
 @click.option("--quick", is_flag=True, help="Small tables, 96x96 frames, bricks on the torus only (a smoke run).")
-def main(out: Path, quick: bool):
+@publish.option("vdm-bench")
+def main(out: Path, quick: bool, publish_dir: Path | None):
     """Run the VDM benchmark and write OUT/vdm.json, OUT/vdm.md and OUT/vdm.png."""
+    started = publish.Run("bench.vdm")
     size, n_phi, n_c, (w, h) = (32, 8, 4, (96, 96)) if quick else (128, 32, 16, (512, 512))
     paper = paper_bake(size, n_phi, n_c)
     click.echo(f"paper configuration: {paper['bake_s']:.2f} s, {paper['flat_mrays_per_s']:.2f} Mrays/s "
@@ -208,11 +169,13 @@ def main(out: Path, quick: bool):
                        f"dLuv {r['mean_dluv']:.3f}", err=True)
     out.mkdir(parents=True, exist_ok=True)
     device = rows[0]["device"]
-    (out / "vdm.json").write_text(json.dumps({"device": device, "resolution": [w, h], "paper_bake": paper,
-                                              "rows": rows, "interleaved": inter}, indent=1) + "\n")
-    (out / "vdm.md").write_text(_markdown(paper, rows, device, inter))
+    doc = {"device": device, "resolution": [w, h], "paper_bake": paper, "rows": rows, "interleaved": inter}
+    (out / "vdm.json").write_text(json.dumps(doc, indent=1) + "\n")
+    (out / "vdm.md").write_text(_markdown(doc))
     report.plot(out / "vdm.png", {"rows": _series(rows), "resolution": [w, h], "device": device})
     click.echo(f"wrote {out / 'vdm.json'}, {out / 'vdm.md'}, {out / 'vdm.png'}")
+    if publish_dir:
+        click.echo(f"published {started.publish(publish_dir, 'vdm-bench', doc)}")
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@ path checked, small asset files, and edits of a bench's templates for its smoke 
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import json
 from pathlib import Path
 
@@ -189,6 +190,14 @@ def edited(monkeypatch, module, name: str, old: str, new: str) -> None:
     text = getattr(module, name)
     assert old in text, f"{module.__name__}.{name} no longer holds {old!r}"
     monkeypatch.setattr(module, name, text.replace(old, new))
+
+
+def make_docs():
+    """tools/make_docs.py as a module (tools/ is no package)."""
+    spec = importlib.util.spec_from_file_location("make_docs", Path(__file__).resolve().parents[1] / "tools" / "make_docs.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def doubled(renderer, name: str):

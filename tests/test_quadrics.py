@@ -3,6 +3,8 @@ impostors against the analytic reference on stiff and extreme cases."""
 from __future__ import annotations
 
 import json
+import shlex
+import sys
 
 import numpy as np
 import pytest
@@ -13,6 +15,7 @@ from vdmbake.common.geometry import onb
 from vdmrender.tracing import quadric_math as qm
 from vdmrender.common.camera import Camera
 
+from helpers import make_docs
 from scenes import bake_and_render, rows_by_label
 
 RNG = np.random.default_rng(7)
@@ -360,8 +363,19 @@ def test_bench_quick_smoke(tmp_path, monkeypatch, no_warm_up):
     import bench.quadrics
 
     monkeypatch.setattr(bench.quadrics, "MOLECULES", bench.quadrics.MOLECULES[:1])
-    r = CliRunner().invoke(bench.quadrics.main, ["-o", str(tmp_path), "--quick"])
+    args = ["-o", str(tmp_path), "--quick", "--publish", str(tmp_path / "results")]
+    monkeypatch.setattr(sys, "argv", ["quadrics.py", *args])
+    r = CliRunner().invoke(bench.quadrics.main, args)
     assert r.exit_code == 0, r.output
+    published = json.loads((tmp_path / "results" / "quadrics.json").read_text())
+    view = make_docs().VIEWS["quadrics"]
+    assert f"`{shlex.join(['python', '-m', 'bench.quadrics', *args])}`" in view(published, "provenance")
+    p = published.pop("provenance")
+    assert p["command"] == shlex.join(["python", "-m", "bench.quadrics", *args]) and len(p["commit"]) == 40
+    assert p["device"] == published["device"] and len(p["load_start"]) == len(p["load_end"]) == 3
+    assert published == json.loads((tmp_path / "quadrics.json").read_text())
+    # the docs' table is the bench's own table
+    assert (tmp_path / "quadrics.md").read_text().endswith(view(published, "rows"))
     report = json.loads((tmp_path / "quadrics.json").read_text())
     labels = {row["label"] for row in report["rows"]}
     assert {"impostor@direct", "impostor@deferred", "impostor@outlines", "tessellated@3"} <= labels

@@ -4,10 +4,14 @@ One rule: a table between `<!-- table:FILE:KEY -->` and `<!-- /table -->` is the
 docs/results/FILE.json, and nothing else. A result file is either
 
 * a bench's own output, committed as the bench wrote it, rendered by the view named after the file in VIEWS
-  (the figures formatted as the bench's own .md formats them), or
+  (the figures formatted as the bench's own .md formats them: bench/tables.py, shared with the benches).
+  A bench run with `--publish docs/results` writes it with its `provenance` (bench/publish.py: the command,
+  commit, date, device, load average at start and end, wall time), which the key `provenance` renders as a
+  sentence; or
 * a transcription of a measurement's table (`"tables": {KEY: {"header", "align", "rows"}}`, every cell the
   string that was published, never re-rounded), beside `measured_by`, `when` and `device`: which command
-  measured it, when and on what.
+  measured it, when and on what, and `transcribed`: why no bench writes it (a GPU session, code that no longer
+  exists, a one-off experiment, a run that did not fit).
 
 `python tools/make_docs.py` rewrites the tables in place; `--check` changes nothing and exits 1 naming every
 table that differs from its result file (tests/test_docs.py runs it)."""
@@ -19,6 +23,9 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from bench import tables  # noqa: E402  (the standard library only: no package import)
+
 RESULTS = ROOT / "docs" / "results"
 BLOCK = re.compile(r"(<!-- table:([\w.-]+):([\w.-]+) -->\n)(.*?)(<!-- /table -->)", re.S)
 
@@ -27,10 +34,7 @@ def documents() -> list[Path]:
     return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
 
-def markdown(header: list[str], align: list[str], rows: list[list[str]]) -> str:
-    def line(cells):
-        return "|" + "|".join(f" {c} " if c else " " for c in cells) + "|\n"
-    return line(header) + "|" + "|".join(align) + "|\n" + "".join(line(r) for r in rows)
+markdown = tables.markdown
 
 
 def _filtered(doc: dict, key: str) -> str:
@@ -78,7 +82,35 @@ def _rooms(doc: dict, key: str) -> str:
     return markdown(["room", "modules", "imports rooms"], ["---", "---", "---"], rows)
 
 
-VIEWS = {"filtered": _filtered, "demo": _demo, "rooms": _rooms}
+def _provenance(doc: dict) -> str:
+    """A published bench output's provenance, as one sentence."""
+    p = doc["provenance"]
+    when = p["date"].replace("T", " ").replace("+00:00", " UTC")
+    dirty = " with uncommitted changes" if p["dirty"] else ""
+    return (f"Measured by `{p['command']}` at commit {p['commit'][:9]}{dirty}, {when}, on {p['device']}; load average "
+            f"(1 min) {p['load_start'][0]:.2f} at the start and {p['load_end'][0]:.2f} at the end; "
+            f"{p['wall_s'] / 60:.1f} min wall.\n")
+
+
+# a command's own output without bench/publish.py's provenance, and why
+UNPUBLISHED = {"rooms": "tools/rooms.py reads it from the source (not a measurement; test_docs checks it is current)",
+               "filtered": "bench.filtered's JSON as it wrote it, before the benches published their provenance",
+               "demo": "tools/demo_results.py's summary of make demo, before the benches published their provenance",
+               "reference": "bench.reference --docs writes it, its tables with its own command, date and load average",
+               "reference-ab6be10": "bench.reference --docs at commit ab6be10, kept beside today's run"}
+
+
+def _bench(views: dict):
+    """A published bench's view: its keys, and `provenance`."""
+    return lambda doc, key: _provenance(doc) if key == "provenance" else views[key](doc)
+
+
+VIEWS = {"filtered": _filtered, "demo": _demo, "rooms": _rooms,
+         "quadrics": _bench({"rows": tables.quadrics, "selected": tables.quadrics_selected}),
+         "vdm-bench": _bench({"page": tables.vdm, "interleaved-cpu": tables.vdm_interleaved_cpu}),
+         "billboards-bench": _bench({"page": tables.billboards, "models-800x600": tables.billboards_models,
+                                     "bunny-interleaved": tables.billboards_interleaved}),
+         "octahedral-bench": _bench({"page": tables.octahedral})}
 
 
 def table(name: str, key: str) -> str:
