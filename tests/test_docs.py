@@ -123,9 +123,6 @@ def test_every_measured_table_is_generated():
 
 
 # transcriptions that other work of issue 45 turns into their commands' own output (bench.cluster, the test loop)
-CONVERTED_ELSEWHERE = {"cluster", "testing"}
-
-
 def test_every_result_file_is_published_or_says_why_it_is_transcribed():
     """A result file is a bench's own output, published with its whole provenance by a full run (not --quick),
     or a command's own output that make_docs.UNPUBLISHED names with the reason it has no provenance, or a transcription
@@ -139,7 +136,7 @@ def test_every_result_file_is_published_or_says_why_it_is_transcribed():
             assert "--quick" not in doc["provenance"]["command"], f"{name}: a smoke run published"
         elif name in docs.UNPUBLISHED:
             assert docs.UNPUBLISHED[name], name
-        elif name not in CONVERTED_ELSEWHERE:
+        else:
             assert {"measured_by", "when", "device"} <= set(doc) and doc.get("transcribed"), \
                 f"{name}: a transcription must say which command measured it, when, on what, and why it is transcribed"
 
