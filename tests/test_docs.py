@@ -103,12 +103,12 @@ def test_a_hand_edited_figure_is_caught():
     assert docs.render(edited) == text
 
 
-MEASURED = re.compile(r"ΔLuv|dLuv|\bms\b|\bMB\b|IoU|\bCPU\b|\bGPU\b|\bwall\b|RSS")
+MEASURED = re.compile(r"ΔLuv|dLuv|\bms\b|\bMB\b|IoU|\bCPU\b|\bGPU\b|\bwall\b|RSS|\bbefore\b|\bafter\b")
 
 
 def test_every_measured_table_is_generated():
     """Every table of README.md and docs/*.md whose header names a measured quantity (ΔLuv, IoU, ms, MB, CPU,
-    GPU or wall time, RSS), and every table of docs/results.md, lies between table markers; every
+    GPU or wall time, RSS) or compares a before with an after, and every table of docs/results.md, lies between table markers; every
     marker names a result file that exists and every result file is used; a transcribed one says which
     command measured it, when and on what device."""
     docs = make_docs()
