@@ -258,6 +258,11 @@ def handed_back(row: dict) -> str:
     return f"handed back by {', '.join(row['handed_back'])}" if row.get("handed_back") else ""
 
 
+def handing_back(what: str, worker: str, why: str) -> str:
+    """The line said as a task is handed back (run_tasks' `handed`), while the run waits for another worker."""
+    return f"{what}: handed back by {worker} ({why}); another worker may take it"
+
+
 def existing(path: Path) -> str:
     """The nearest folder at or above `path` that exists (where a task makes the rest)."""
     path = Path(path).absolute()

@@ -30,7 +30,7 @@ from vdmbake.bundle import budget as memory
 from vdmbake.bundle.directory import Bundle
 from vdmbake.bundle.staging import StagedDir
 from vdmbake.errors import InputError, paragraph
-from vdmbake.cluster import WAIT_S, connected, existing, handed_back, run_tasks
+from vdmbake.cluster import WAIT_S, connected, existing, handed_back, handing_back, run_tasks
 
 from . import many, render
 from .tracing import refcache
@@ -54,7 +54,7 @@ def run_many(paths: list[Path], out: Path, opts, log, address: str, wait_s: floa
                     + (f" on {entry['worker']}" if entry.get("worker") else "") + (f": {r['reason']}" if r["reason"] else ""))
             entries, stopped = run_tasks(client, address, partial(_here, os.getcwd(), many.render_one), jobs, _needs,
                                          _failed, done, wait_s, "vdmrender",
-                                         lambda j, worker, why: _handed(log, j.bundle, worker, why))
+                                         lambda j, worker, why: log(handing_back(j.bundle, worker, why)))
         for e in entries:       # where each ran, in its runs entry (report.json, runs.md)
             e["run"].update({k: e[k] for k in ("worker", "handed_back") if k in e})
         return entries, stopped
@@ -131,13 +131,8 @@ def trace_references(client, address: str, jobs: list[many.Job], wait_s: float, 
             + (f" ({handed_back(row)})" if row.get("handed_back") else ""))
     _, stopped = run_tasks(client, address, partial(_here, os.getcwd(), _trace), list(tasks.values()), _trace_needs,
                            lambda t, why: {"reference": _named(t), "status": "failed", "reason": why}, done, wait_s,
-                           "reference", lambda t, worker, why: _handed(log, f"reference {_named(t)}", worker, why))
+                           "reference", lambda t, worker, why: log(handing_back(f"reference {_named(t)}", worker, why)))
     return stopped
-
-
-def _handed(log, what: str, worker: str, why: str) -> None:
-    """Said as a task is handed back (vdmbake.cluster.run_tasks), while the run waits for another worker."""
-    log(f"{what}: handed back by {worker} ({why}); another worker may take it")
 
 
 def _named(task: Trace) -> str:

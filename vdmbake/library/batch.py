@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import wait
 from pathlib import Path
 
-from ..cluster import WAIT_S, connected, existing, handed_back, run_tasks
+from ..cluster import WAIT_S, connected, existing, handed_back, handing_back, run_tasks
 from ..errors import InputError, escaped, paragraph
 
 GLOB_CHARS = set("*?[")
@@ -260,7 +260,7 @@ class Progress:
         """A scene a cluster worker handed back (vdmbake.cluster.run_tasks): said as it happens, as a user waiting
         for another worker would want to know."""
         if not self.quiet:
-            self._say(escaped(f"{Path(task.scene).name}: handed back by {worker} ({why}); another worker may take it"))
+            self._say(escaped(handing_back(Path(task.scene).name, worker, why)))
 
     def _say(self, line: str) -> None:
         if self.bar is not None:
