@@ -38,14 +38,15 @@ def hidden(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir() if p.name.startswith(".")) if folder.is_dir() else []
 
 
-def _wait_for_staging(folder: Path, proc, timeout: float = 120) -> int:
-    """The pid in the first hidden staging folder `.NAME.tmp-HOST-PID` that appears in `folder`: the process baking."""
+def _wait_for_staging(folder: Path, proc=None, timeout: float = 120) -> int:
+    """The pid in the first hidden staging folder `.NAME.tmp-HOST-PID` that appears in `folder`: the process baking
+    (`proc`, the command running it, if any, still running meanwhile)."""
     t0 = time.time()
     while time.time() - t0 < timeout:
         for name in hidden(folder):
             if ".tmp-" in name:
                 return int(name.rsplit("-", 1)[1])
-        assert proc.poll() is None, proc.communicate()
+        assert proc is None or proc.poll() is None, proc.communicate()
         time.sleep(0.01)
     raise AssertionError("no bake started")
 
@@ -59,7 +60,7 @@ def _announced(folder: Path, stem: str, proc, timeout: float = 120) -> int:
         for name in hidden(folder):
             if m := pattern.fullmatch(name):
                 return int(m[1])
-        assert proc.poll() is None, proc.communicate()
+        assert proc is None or proc.poll() is None, proc.communicate()
         time.sleep(0.005)
     raise AssertionError(f"no bake of {stem} started")
 

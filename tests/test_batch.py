@@ -128,6 +128,25 @@ def test_signal_stops_the_batch_and_its_workers(tmp_path):
     assert hidden(out) == [] and not (out / "slow.bundle").exists()
 
 
+def test_a_worker_deaf_to_the_signal_leaves_nothing(tmp_path):
+    """Fault test: the batch is stopped while a worker cannot act on its SIGTERM (stopped here by SIGSTOP, as a
+    long C call or a swallowed signal would hold it past the grace); it is killed, and the staging folder and lease
+    it left are removed by the batch, which re-raises the stop."""
+    from vdmbake.library.batch import Task, run_local
+
+    scenes = write(tmp_path / "s", slow=SLOW, a=SMALL.format(name="a", prim="sphere"))
+    out = tmp_path / "out"
+    tasks = [Task(str(s), str(out / f"{s.stem}.bundle")) for s in scenes]
+
+    def stop_the_batch(row):
+        os.kill(_wait_for_staging(out), signal.SIGSTOP)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_local(tasks, 2, stop_the_batch)
+    assert hidden(out) == [] and not (out / "slow.bundle").exists()
+
+
 def test_library_has_100_varied_scenes(tmp_path):
     from bench import library_scenes as library
     from vdmbake.bake import input_hash

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from multiprocessing.connection import wait
 from pathlib import Path
 
+from ..bundle import staging
+from ..bundle.directory import MANIFEST
 from ..cluster import WAIT_S, connected, existing, handed_back, handing_back, run_tasks
 from ..errors import InputError, escaped, paragraph
 
@@ -215,6 +217,8 @@ def run_local(tasks: list[Task], jobs: int, done) -> list[dict]:
     except BaseException:
         for s in slots:
             s.stop(term=True)
+            if s.task:       # a worker killed after the grace (stuck in a C call, or its signal swallowed) left it
+                staging.recover(Path(s.task[1].out), MANIFEST)
         raise
     for s in slots:
         s.stop()
