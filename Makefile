@@ -20,7 +20,7 @@ DEMO_STAMP := $(VENV)/.demo
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test docs fuzz kill-test bake-library bench bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference bench-filtered bench-mipmaps bench-reference sysdeps sysdeps-gl clean
+.PHONY: demo test docs fuzz kill-test bake-library bench bench-suite bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference bench-filtered bench-mipmaps bench-reference sysdeps sysdeps-gl clean
 
 # The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
 GLTF_VALIDATOR := 2.0.0-dev.3.10
@@ -129,6 +129,11 @@ bench-filtered: $(STAMP)
 #                    ΔLuv per variant against the 16-spp reference and the pixel centres (out/bench/mipmaps.md, .json)
 bench-mipmaps: $(STAMP)
 	$(BIN)/python -m bench.mipmaps -o out/bench
+
+# make bench-suite: make test's suite run once with each test's CPU seconds, and the tests of 62f9cd8 (the day issue 45
+#                  was filed) summed apart (out/bench/suite.json, .md; PUBLISH=1: docs/results/suite.json)
+bench-suite: $(STAMP)
+	$(BIN)/python -m bench.suite -o out/bench --ids-of 62f9cd8 $(PUBLISH_FLAG)
 
 bench-reference: $(STAMP)
 	$(BIN)/pip install -q -e '.[bench]'

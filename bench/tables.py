@@ -251,3 +251,45 @@ def billboards_interleaved(doc: dict) -> str:
             for label in dict.fromkeys(p["label"] for p in prof)]
     return markdown(["variant", *(f"{s}: CPU ms (x mesh)" for s in sizes), f"{sizes[0]}: GPU ms (x mesh)",
                      f"shadow pass share at {sizes[0]}"], ["---"] + ["---:"] * (len(sizes) + 2), rows)
+
+
+def _minutes(s: float) -> str:
+    return f"{int(s // 60)}:{s % 60:04.1f}"
+
+
+def suite(doc: dict) -> str:
+    """bench.suite: the run's outcome, CPU seconds and wall time."""
+    r = doc["run"]
+    workers = "one process" if r["workers"] == "0" else f"`-n {r['workers']}`"
+    row = [f"{r['commit'][:9]}, {workers}", str(r["tests"]), str(r["passed"]),
+           ", ".join(f"{r[k]} {k}" for k in ("failed", "skipped", "xfailed", "xpassed", "errors") if r[k]) or "-",
+           f"{r['cpu_s']:.1f} ({r['user_s']:.1f} + {r['sys_s']:.1f})", f"{r['tests_cpu_s']:.1f}",
+           f"{r['slow_cpu_s']:.1f} ({r['slow_tests']} tests)", _minutes(r["wall_s"]),
+           f"{100 * r['cpu_s'] / r['wall_s']:.0f}%" if r["wall_s"] else "-"]
+    return markdown(["suite", "tests", "passed", "else", "CPU s (user + sys)", "tests' own CPU s", "slow tests' CPU s",
+                     "wall", "CPU / wall"], ["---", "---:", "---:", "---", "---:", "---:", "---:", "---:", "---:"], [row])
+
+
+def suite_subsets(doc: dict) -> str:
+    """bench.suite --ids-of: the tests another commit had, their CPU seconds now, and the tests added since."""
+    rows = [[s["commit"][:9], str(s["tests_then"]), str(s["here"]), f"{s['cpu_s']:.1f}", str(len(s["gone"])),
+             str(s["added"]), f"{s['added_cpu_s']:.1f}",
+             ", ".join(f"{f['file'].removeprefix('tests/')} {f['cpu_s']:.1f}" for f in s["added_by_file"][:4])]
+            for s in doc["subsets"]]
+    return markdown(["tests of", "then", "here now", "their CPU s now", "gone or renamed", "added since",
+                     "their CPU s", "costliest added files (CPU s)"],
+                    ["---", "---:", "---:", "---:", "---:", "---:", "---:", "---"], rows)
+
+
+def suite_files(doc: dict, n: int = 15) -> str:
+    """bench.suite: the costliest test files."""
+    rows = [[f"`{f['file']}`", str(f["tests"]), f"{f['cpu_s']:.1f}", number(f["slow_cpu_s"] or None, 1)]
+            for f in doc["files"][:n]]
+    return markdown(["file", "tests", "CPU s", "of which slow tests"], ["---", "---:", "---:", "---:"], rows)
+
+
+def suite_tests(doc: dict, n: int = 15) -> str:
+    """bench.suite: the costliest tests."""
+    rows = [[f"`{t['id']}`", f"{t['cpu_s']:.1f}", f"{t['wall_s']:.1f}", "slow" if t["slow"] else ""]
+            for t in doc["tests"][:n]]
+    return markdown(["test", "CPU s", "wall s", "marker"], ["---", "---:", "---:", "---"], rows)

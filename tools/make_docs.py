@@ -74,6 +74,19 @@ def _demo(doc: dict, key: str) -> str:
                     ["---", "---", "---", "---", "---", "---:", "---:", "---:", "---:"], rows)
 
 
+def _composite(doc: dict, key: str) -> str:
+    """tools/demo_results.py's composite.json: `sets`, each composite set; `objects`, each object's own rows."""
+    if key == "sets":
+        rows = [[str(c["set"]), ", ".join(f"{o} {v}" for o, v in c["variants"].items()), f"{c['median_ms']:.1f}",
+                 f"{c['mean_dluv']:.3f}", f"{c['p95_dluv']:.2f}", f"{c['iou']:.4f}"] for c in doc["sets"]]
+        return markdown(["set", "variants", "median ms/frame", "mean ΔLuv", "p95 ΔLuv", "IoU"],
+                        ["---:", "---", "---:", "---:", "---:", "---:"], rows)
+    rows = [[r["object"], r["variant"], f"{r['median_ms']:.1f}", f"{r['mean_dluv']:.3f}", f"{r['p95_dluv']:.2f}",
+             f"{r['iou']:.4f}"] for r in doc["rows"]]
+    return markdown(["object", "variant", "median ms/frame", "mean ΔLuv", "p95 ΔLuv", "IoU"],
+                    ["---", "---", "---:", "---:", "---:", "---:"], rows)
+
+
 def _rooms(doc: dict, key: str) -> str:
     """tools/rooms.py's rooms.json: each room, its modules and the rooms it imports."""
     rows = [[f"`{name}`" if name != "(top)" else "the run (top level)", ", ".join(r["modules"]),
@@ -96,6 +109,7 @@ def _provenance(doc: dict) -> str:
 UNPUBLISHED = {"rooms": "tools/rooms.py reads it from the source (not a measurement; test_docs checks it is current)",
                "filtered": "bench.filtered's JSON as it wrote it, before the benches published their provenance",
                "demo": "tools/demo_results.py's summary of make demo, before the benches published their provenance",
+               "composite": "tools/demo_results.py's summary of a run of configs/composite.toml",
                "reference": "bench.reference --docs writes it, its tables with its own command, date and load average",
                "reference-ab6be10": "bench.reference --docs at commit ab6be10, kept beside today's run"}
 
@@ -105,12 +119,15 @@ def _bench(views: dict):
     return lambda doc, key: _provenance(doc) if key == "provenance" else views[key](doc)
 
 
-VIEWS = {"filtered": _filtered, "demo": _demo, "rooms": _rooms,
+VIEWS = {"filtered": _filtered, "demo": _demo, "composite": _composite, "rooms": _rooms,
          "quadrics": _bench({"rows": tables.quadrics, "selected": tables.quadrics_selected}),
          "vdm-bench": _bench({"page": tables.vdm, "interleaved-cpu": tables.vdm_interleaved_cpu}),
          "billboards-bench": _bench({"page": tables.billboards, "models-800x600": tables.billboards_models,
                                      "bunny-interleaved": tables.billboards_interleaved}),
-         "octahedral-bench": _bench({"page": tables.octahedral})}
+         "octahedral-bench": _bench({"page": tables.octahedral}),
+         "suite": _bench({"run": tables.suite, "subsets": tables.suite_subsets, "files": tables.suite_files,
+                          "tests": tables.suite_tests})}
+VIEWS["suite-62f9cd8"] = VIEWS["suite"]          # the suite of the day issue 45 was filed, run by bench.suite --at
 
 
 def table(name: str, key: str) -> str:
