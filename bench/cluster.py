@@ -1,18 +1,17 @@
 """Issue 41's closing figures: three small bundles (at --resolution) and configs/lod-bunny.toml's one bundle (at its
 own resolution: its references split over the workers) rendered on one machine and on a local Dask cluster of two
 workers (same files apart from the times, and the wall time of each), and each cluster fault as the user meets it
-(what the command prints, its exit code, its time). Writes docs/results/cluster.json (docs/cluster.md's tables).
+(what the command prints, its exit code, its time). Writes OUT/cluster.json and OUT/cluster.md (docs/cluster.md's
+tables; --publish docs/results publishes them).
 
-    python -m bench.cluster WORK [--resolution 128x128]
+    python -m bench.cluster WORK -o out/bench [--resolution 128x128] [--publish docs/results]
 
 Also the helpers the cluster tests share: a `dask scheduler` and workers on the loopback, and the comparison of
 two output folders apart from what is timing."""
 from __future__ import annotations
 
-import argparse
 import contextlib
 import csv
-import datetime
 import json
 import os
 import re
@@ -22,6 +21,10 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+import click
+
+from bench import publish, tables
 
 BIN = Path(sys.executable).parent
 ROOT = Path(__file__).resolve().parents[1]
@@ -171,10 +174,9 @@ def _run(cmd, **kw) -> tuple[int, float, str]:
     return r.returncode, time.perf_counter() - t0, r.stdout + r.stderr
 
 
-def _said(text: str, *needles: str) -> str:
-    """The lines of `text` that hold a needle, joined, for a table cell."""
-    lines = [ln.strip() for ln in text.splitlines() if any(n in ln for n in needles)]
-    return " / ".join(dict.fromkeys(lines)).replace("|", "\\|")
+def _said(text: str, *needles: str) -> list[str]:
+    """The lines of `text` that hold a needle, each once."""
+    return list(dict.fromkeys(ln.strip() for ln in text.splitlines() if any(n in ln for n in needles)))
 
 
 def _closed_port() -> int:
@@ -185,18 +187,25 @@ def _closed_port() -> int:
     return port
 
 
-def faults(work: Path, bundles: Path, res: list[str]) -> list[list[str]]:
-    rows = []
+def unreachable(work: Path, bundles: Path, res: list[str]) -> dict:
+    """The fault of an address where nothing listens."""
+    port = _closed_port()
+    code, s, text = _run([str(BIN / "vdmrender"), str(bundles), "--no-flip", *res, "-o", str(work / "f1"),
+                          "--scheduler", f"tcp://127.0.0.1:{port}"])
+    return {"fault": "nothing listens at the address", "command": f"--scheduler tcp://127.0.0.1:{port}",
+            "exit": code, "wall_s": round(s, 1), "said": _said(text, "error")}
+
+
+def faults(work: Path, bundles: Path, res: list[str]) -> list[dict]:
+    """Each cluster fault as a row: the fault, the command's options (and what was done to the run), its exit
+    code, its seconds, and what it printed (the lines that say) or what it left."""
+    rows = [unreachable(work, bundles, res)]
     render = [str(BIN / "vdmrender"), str(bundles), "--no-flip", *res]
 
-    port = _closed_port()
-    code, s, text = _run(render + ["-o", str(work / "f1"), "--scheduler", f"tcp://127.0.0.1:{port}"])
-    rows.append(["nothing listens at the address", f"`--scheduler tcp://127.0.0.1:{port}`", str(code), f"{s:.1f} s",
-                 _said(text, "error")])
     with scheduler(work) as (address, _):
         code, s, text = _run(render + ["-o", str(work / "f2"), "--scheduler", address, "--workers-wait", "5"])
-    rows.append(["a scheduler without workers", "`--scheduler ADDRESS --workers-wait 5`", str(code), f"{s:.1f} s",
-                 _said(text, "error")])
+    rows.append({"fault": "a scheduler without workers", "command": "--scheduler ADDRESS --workers-wait 5",
+                 "exit": code, "wall_s": round(s, 1), "said": _said(text, "error")})
 
     out = work / "f3"
     with scheduler(work) as (address, sched):
@@ -216,9 +225,10 @@ def faults(work: Path, bundles: Path, res: list[str]) -> list[list[str]]:
             worker_s = time.perf_counter() - t0
         finally:
             stop(w)
-    rows.append(["the scheduler killed mid-run (one worker)", "`--scheduler ADDRESS`, scheduler SIGKILL",
-                 str(p.returncode), f"{client_s:.1f} s to exit after the kill (the worker: {worker_s:.1f} s)",
-                 _said(said + stdout + stderr, "| failed", "| rendered", "error")])
+    rows.append({"fault": "the scheduler killed mid-run (one worker)", "command": "--scheduler ADDRESS",
+                 "then": "scheduler SIGKILL", "exit": p.returncode, "exit_after_kill_s": round(client_s, 1),
+                 "worker_exit_after_kill_s": round(worker_s, 1),
+                 "said": _said(said + stdout + stderr, "| failed", "| rendered", "error")})
 
     out = work / "f4"
     t0 = time.perf_counter()
@@ -228,21 +238,23 @@ def faults(work: Path, bundles: Path, res: list[str]) -> list[list[str]]:
     os.kill(pid, signal.SIGKILL)
     stdout, stderr = p.communicate(timeout=1200)
     runs = json.loads((out / "report.json").read_text())["runs"]
-    rows.append(["a worker killed mid-render (local:2)", f"`--scheduler local:2`, SIGKILL to the worker rendering "
-                 f"{CONFIGS[1]}", str(p.returncode), f"{time.perf_counter() - t0:.1f} s",
-                 f"{sum(r['status'] == 'rendered' for r in runs)} of {len(runs)} bundles rendered, "
-                 f"{len(list(out.rglob('.*')))} hidden files left"])
+    rows.append({"fault": "a worker killed mid-render (local:2)", "command": "--scheduler local:2",
+                 "then": f"SIGKILL to the worker rendering {CONFIGS[1]}", "exit": p.returncode,
+                 "wall_s": round(time.perf_counter() - t0, 1),
+                 "rendered": sum(r["status"] == "rendered" for r in runs), "bundles": len(runs),
+                 "hidden_left": len(list(out.rglob(".*")))})
 
     p, stdout, stderr, s = beside_a_blind_worker(render + ["-o", str(work / "f5")], bundles, work, len(CONFIGS), 1200)
-    rows.append(["a worker that cannot see the bundles (its own mount namespace), a second one joining",
-                 "`--scheduler ADDRESS`", str(p.returncode), f"{s:.1f} s", _said(stdout + stderr, "| rendered", "| failed")])
+    rows.append({"fault": "a worker that cannot see the bundles (its own mount namespace), a second one joining",
+                 "command": "--scheduler ADDRESS", "exit": p.returncode, "wall_s": round(s, 1),
+                 "said": _said(stdout + stderr, "| rendered", "| failed")})
     return rows
 
 
-def _compared(work: Path, name: str, target: Path, more: list[str]) -> list[list[str]]:
-    """`target` (a bundle, or a folder of them) rendered on one machine and on `--scheduler local:2`: a table row
-    each (wall time, the load average at its end, the reference tasks; the cluster's: what differs apart from
-    times)."""
+def compared(work: Path, name: str, target: Path, more: list[str]) -> list[dict]:
+    """`target` (a bundle, or a folder of them) rendered on one machine and on `--scheduler local:2`: a row each
+    (its report's device, wall time, the load average at its end, report rows; the serial run's seconds tracing
+    references; the cluster's reference tasks, the report fields and the files that differ apart from times)."""
     walls, logs, loads = {}, {}, {}
     for run, cluster in (("one", []), ("two", ["--scheduler", "local:2"])):
         code, walls[run], logs[run] = _run([str(BIN / "vdmrender"), str(target), "-o", str(work / name / run),
@@ -250,25 +262,29 @@ def _compared(work: Path, name: str, target: Path, more: list[str]) -> list[list
         loads[run] = os.getloadavg()[0]
         assert code == 0, logs[run][-3000:]
     one, two = (json.loads((work / name / run / "report.json").read_text()) for run in ("one", "two"))
-    diff = differences(work / name / "one", work / name / "two")
-    fields = changed(one, two)
-    files = sum(1 for f in (work / name / "one").rglob("*") if f.is_file())
-    traced = sum(float(s) for s in re.findall(r"frames traced in ([\d.]+) s", logs["one"]))
     tasks = re.search(r"tracing (\d+) references on the cluster", logs["two"])
-    what = f"{name} (`{' '.join(more)}`)" if more else name
-    return [[what, "one machine", f"{walls['one']:.1f} s", f"{loads['one']:.1f}", str(len(one["rows"])),
-             f"- ({traced:.1f} s of it tracing references)", "-", "-"],
-            [what, "`--scheduler local:2`", f"{walls['two']:.1f} s", f"{loads['two']:.1f}", str(len(two["rows"])),
-             f"{tasks[1] if tasks else 0} reference tasks", "all" if not fields else f"NO: {', '.join(fields[:5])}",
-             f"{len(diff)} of {files}" + (f" ({', '.join(diff[:5])})" if diff else "")]]
+    common = {"bundles": name, "options": more}
+    return [{**common, "scheduler": None, "device": one["device"], "wall_s": round(walls["one"], 1),
+             "load_end": round(loads["one"], 2), "rows": len(one["rows"]),
+             "traced_s": round(sum(float(s) for s in re.findall(r"frames traced in ([\d.]+) s", logs["one"])), 1)},
+            {**common, "scheduler": "local:2", "device": two["device"], "wall_s": round(walls["two"], 1),
+             "load_end": round(loads["two"], 2), "rows": len(two["rows"]),
+             "reference_tasks": int(tasks[1]) if tasks else 0, "changed": changed(one, two),
+             "differ": differences(work / name / "one", work / name / "two"),
+             "files": sum(1 for f in (work / name / "one").rglob("*") if f.is_file())}]
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("work", type=Path)
-    ap.add_argument("--resolution", default="128x128")
-    args = ap.parse_args(argv)
-    work = args.work.absolute()
+@click.command()
+@click.argument("work", type=click.Path(path_type=Path, file_okay=False))
+@click.option("-o", "--output", "out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
+@click.option("--resolution", default="128x128", show_default=True,
+              help="The three small bundles' frame size (vdmrender --resolution); lod-bunny renders at its own.")
+@publish.option("cluster")
+def main(work: Path, out: Path, resolution: str, publish_dir: Path | None):
+    """Bake the three small configs and lod-bunny into WORK, render each on one machine and on a local cluster of
+    two workers, then meet each cluster fault; write OUT/cluster.json and OUT/cluster.md (about 25 min on 2 cores)."""
+    started = publish.Run("bench.cluster")
+    work = work.absolute()
     for folder, configs in (("scenes", CONFIGS), ("large", (LARGE,))):
         (work / folder).mkdir(parents=True, exist_ok=True)
         for c in configs:
@@ -278,29 +294,19 @@ def main(argv=None) -> int:
     code, large_s, text = _run([str(BIN / "vdmbake"), str(work / "large" / f"{LARGE}.toml"), "-o",
                                 str(work / f"{LARGE}.bundle")])
     assert code == 0, text
-    res = ["--resolution", args.resolution]
-    table = _compared(work, "three small bundles", work / "bundles", res) + \
-        _compared(work, LARGE, work / f"{LARGE}.bundle", [])
-    doc = {"about": "docs/cluster.md's measured tables (bench/cluster.py)",
-           "measured_by": f"python -m bench.cluster WORK --resolution {args.resolution} (the small bundles: configs "
-                          f"{', '.join(CONFIGS)}, baked with --jobs 2 in {bake_s:.0f} s; {LARGE} baked in "
-                          f"{large_s:.0f} s)",
-           "device": "llvmpipe on the project's shared 2-core machine, shared with other jobs (the load average at "
-                     "the end of each run beside it): every worker and the serial run on the same two CPUs",
-           "when": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-           "tables": {
-               "serial-vs-cluster": {
-                   "header": ["bundles", "run", "wall", "load average (1 min) at its end", "rows", "references",
-                              "reports (rows, sweep, chains) the same apart from times",
-                              f"files that differ (apart from {', '.join(sorted(TIMING_FILES))})"],
-                   "align": ["---", "---", "---:", "---:", "---:", "---", "---", "---"], "rows": table},
-               "faults": {
-                   "header": ["fault", "command", "exit", "wall", "what it prints (the lines that say)"],
-                   "align": ["---", "---", "---:", "---", "---"], "rows": faults(work, work / "bundles", res)}}}
-    (ROOT / "docs" / "results" / "cluster.json").write_text(json.dumps(doc, indent=1, ensure_ascii=False) + "\n")
-    print(json.dumps(doc, indent=1, ensure_ascii=False))
-    return 0
+    res = ["--resolution", resolution]
+    runs = compared(work, "three small bundles", work / "bundles", res) + \
+        compared(work, LARGE, work / f"{LARGE}.bundle", [])
+    doc = {"device": runs[0]["device"], "resolution": resolution, "configs": list(CONFIGS), "large": LARGE,
+           "bake_s": round(bake_s, 1), "large_bake_s": round(large_s, 1), "timing_files": sorted(TIMING_FILES),
+           "runs": runs, "faults": faults(work, work / "bundles", res), "how": __doc__.split("\n\n")[0]}
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "cluster.json").write_text(json.dumps(doc, indent=1, ensure_ascii=False) + "\n")
+    (out / "cluster.md").write_text(tables.cluster(doc))
+    click.echo(f"wrote {out / 'cluster.json'}, {out / 'cluster.md'}")
+    if publish_dir:
+        click.echo(f"published {started.publish(publish_dir, 'cluster', doc)}")
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -13,7 +13,7 @@ variant within mean ΔLuv LIMIT per band of screen sizes (vdmrender.deciding.lod
 drawn per frame by the variant its screen size selects (vdmrender.views.lodmix.LodMix), as an engine would. The crossover:
 the smallest N at which each impostor's median time is below the full mesh's.
 
-    python -m bench.instances -o out/bench [--quick]
+    python -m bench.instances -o out/bench [--quick] [--publish docs/results]
 """
 from __future__ import annotations
 
@@ -37,9 +37,9 @@ from vdmrender.deciding import lod
 from vdmrender.views import lodmix, sweep
 from vdmrender.tracing import refcache
 from vdmrender.common.camera import Camera, cameras_for, clip_planes
-from vdmrender.common.markdown import number
 from vdmrender.techniques import variants
 
+from . import publish, tables
 from .interleave import costs, measure
 
 ASSETS = {"scan": ('mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"', 'coarse = { ratios = [0.1, 0.01] }'),
@@ -147,10 +147,10 @@ def run(out: Path, quick: bool, log) -> dict:
     finally:
         ctx.release()
     result = {"device": device, "resolution": [w, h], "counts": list(counts), "sizes": list(sizes),
-              "bakes": bakes, "rows": rows,
-              "crossover": crossover(rows), "how": __doc__.split("\n\n")[0]}
+              "limit": LIMIT, "bakes": bakes, "rows": rows, "crossover": crossover(rows),
+              "how": __doc__.split("\n\n")[0]}
     (out / "instances.json").write_text(json.dumps(result, indent=1) + "\n")
-    (out / "instances.md").write_text(table(result))
+    (out / "instances.md").write_text(tables.instances(result))
     plot(out / "instances.png", result)
     return result
 
@@ -194,29 +194,6 @@ def crossover(rows) -> dict:
     return out
 
 
-def table(result) -> str:
-    lines = [f"Instances on {result['device']} at {result['resolution'][0]}x{result['resolution'][1]}. "
-             f"{result['how']}".replace("\n", " "), "",
-             "| asset | copies | variant | median GPU ms | mean ΔLuv | p95 ΔLuv | IoU | GPU MB | primitives |",
-             "|---|---:|---|---:|---:|---:|---:|---:|---:|"]
-    for r in result["rows"]:
-        lines.append(f"| {r['asset']} | {r['copies']} | {r['label']} | {r['median_ms']:.2f} | "
-                     f"{number(r.get('mean_dluv'), 3)} | "
-                     f"{'-' if r.get('p95_dluv') is None else r['p95_dluv']} | "
-                     f"{'-' if r.get('iou') is None else r['iou']} | {r['gpu_bytes'] / 2**20:.1f} | {r['primitives']} |")
-    lines += ["", "Crossover (smallest count at which the variant is faster than the full mesh):", ""]
-    for asset, c in result["crossover"].items():
-        lines.append(f"* {asset}: " + ", ".join(f"{k}: {v if v is not None else 'never (up to the largest count run)'}"
-                                                 for k, v in c.items()))
-    lines += ["", f"Per-copy LOD chains (one copy at {', '.join(map(str, result['sizes']))} px across, the cheapest "
-              f"variant within mean ΔLuv {LIMIT:g} per band):", ""]
-    lines += [f"* {a}: " + ", ".join(f"({e['min_px']}, {e['max_px']}] px {e['variant']}" + ("" if e["meets"] else
-                                     " (over the limit)") for e in b["chain"]) for a, b in result["bakes"].items()]
-    lines += ["", "Bake: " + "; ".join(f"{a} {b['bake_s']} s ({', '.join(f'{k} {v}' for k, v in b['steps_s'].items())})"
-                                       for a, b in result["bakes"].items())]
-    return "\n".join(lines) + "\n"
-
-
 def plot(path: Path, result) -> None:
     import matplotlib
 
@@ -250,10 +227,16 @@ def plot(path: Path, result) -> None:
 
 
 @click.command()
-@click.option("-o", "--out", type=click.Path(path_type=Path), default=Path("out/bench"))
+@click.option("-o", "--out", type=click.Path(path_type=Path), default=Path("out/bench"), show_default=True)
 @click.option("--quick", is_flag=True, help="a sphere, 1 and 4 copies, 160x90 (a smoke test)")
-def main(out, quick):
-    run(out, quick, lambda m: click.echo(m, err=True))
+@publish.option("instances")
+def main(out: Path, quick: bool, publish_dir: Path | None):
+    """Run the instances benchmark and write OUT/instances.json, OUT/instances.md and OUT/instances.png."""
+    started = publish.Run("bench.instances")
+    result = run(out, quick, lambda m: click.echo(m, err=True))
+    click.echo(f"wrote {out / 'instances.json'}, {out / 'instances.md'}, {out / 'instances.png'}")
+    if publish_dir:
+        click.echo(f"published {started.publish(publish_dir, 'instances', result)}")
 
 
 if __name__ == "__main__":

@@ -293,3 +293,92 @@ def suite_tests(doc: dict, n: int = 15) -> str:
     rows = [[f"`{t['id']}`", f"{t['cpu_s']:.1f}", f"{t['wall_s']:.1f}", "slow" if t["slow"] else ""]
             for t in doc["tests"][:n]]
     return markdown(["test", "CPU s", "wall s", "marker"], ["---", "---:", "---:", "---"], rows)
+
+
+def _instances_ms(ms: float) -> str:
+    return f"{ms:.0f}" if ms >= 1000 else f"{ms:.1f}"
+
+
+def instances_fields(doc: dict) -> str:
+    """bench.instances' digest: per asset and count, each variant's median GPU ms / mean ΔLuv against the merged
+    reference ("-": not measured; "not run": the frame would have been over the bench's frame budget; blank: no such
+    variant for that asset)."""
+    labels = list(dict.fromkeys(r["label"] for r in doc["rows"]))
+    rows = []
+    for asset in dict.fromkeys(r["asset"] for r in doc["rows"]):
+        mine = {(r["copies"], r["label"]): r for r in doc["rows"] if r["asset"] == asset}
+        has = {label for _, label in mine}
+        faces = next(iter(mine.values()))["faces"]
+        for i, n in enumerate(doc["counts"]):
+            cells = ["" if label not in has else "not run" if (n, label) not in mine else
+                     f"{_instances_ms(mine[n, label]['median_ms'])} / {number(mine[n, label]['mean_dluv'], 2)}"
+                     for label in labels]
+            rows.append([f"{asset} ({faces:,} faces)" if i == 0 else "", str(n), *cells])
+    return markdown(["asset", "copies", *labels], ["---", "---:"] + ["---"] * len(labels), rows)
+
+
+def instances(doc: dict) -> str:
+    """bench.instances: every row, the crossover with the full mesh, the per-copy LOD chains and the bakes."""
+    w, h = doc["resolution"]
+    rows = [[r["asset"], str(r["copies"]), r["label"], f"{r['median_ms']:.2f}", number(r.get("mean_dluv"), 3),
+             "-" if r.get("p95_dluv") is None else str(r["p95_dluv"]), "-" if r.get("iou") is None else str(r["iou"]),
+             f"{r['gpu_bytes'] / 2**20:.1f}", str(r["primitives"])] for r in doc["rows"]]
+    lines = [markdown(["asset", "copies", "variant", "median GPU ms", "mean ΔLuv", "p95 ΔLuv", "IoU", "GPU MB",
+                       "primitives"], ["---", "---:", "---", "---:", "---:", "---:", "---:", "---:", "---:"], rows),
+             "Crossover (smallest count at which the variant is faster than the full mesh):", ""]
+    for asset, c in doc["crossover"].items():
+        lines.append(f"* {asset}: " + ", ".join(f"{k}: {v if v is not None else 'never (up to the largest count run)'}"
+                                                 for k, v in c.items()))
+    lines += ["", f"Per-copy LOD chains (one copy at {', '.join(map(str, doc['sizes']))} px across, the cheapest "
+              f"variant within mean ΔLuv {doc['limit']:g} per band):", ""]
+    lines += [f"* {a}: " + ", ".join(f"({e['min_px']}, {e['max_px']}] px {e['variant']}" + ("" if e["meets"] else
+                                     " (over the limit)") for e in b["chain"]) for a, b in doc["bakes"].items()]
+    lines += ["", "Bake: " + "; ".join(f"{a} {b['bake_s']} s ({', '.join(f'{k} {v}' for k, v in b['steps_s'].items())})"
+                                       for a, b in doc["bakes"].items())]
+    return (f"Instances on {doc['device']} at {w}x{h}. {doc['how']}".replace("\n", " ") + "\n\n"
+            + "Median GPU ms / mean ΔLuv per asset, count and variant:\n\n" + instances_fields(doc) + "\n"
+            + "\n".join(lines) + "\n")
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|")
+
+
+def cluster_runs(doc: dict) -> str:
+    """bench.cluster: each set of bundles rendered on one machine and on a local cluster of two workers."""
+    rows = []
+    for r in doc["runs"]:
+        serial = r["scheduler"] is None
+        rows.append([f"{r['bundles']} (`{' '.join(r['options'])}`)" if r["options"] else r["bundles"],
+                     "one machine" if serial else f"`--scheduler {r['scheduler']}`", f"{r['wall_s']:.1f} s",
+                     f"{r['load_end']:.1f}", str(r["rows"]),
+                     f"- ({r['traced_s']:.1f} s of it tracing references)" if serial else
+                     f"{r['reference_tasks']} reference tasks",
+                     "-" if serial else "all" if not r["changed"] else f"NO: {', '.join(r['changed'][:5])}",
+                     "-" if serial else f"{len(r['differ'])} of {r['files']}"
+                     + (f" ({', '.join(r['differ'][:5])})" if r["differ"] else "")])
+    return markdown(["bundles", "run", "wall", "load average (1 min) at its end", "rows", "references",
+                     "reports (rows, sweep, chains) the same apart from times",
+                     f"files that differ (apart from {', '.join(doc['timing_files'])})"],
+                    ["---", "---", "---:", "---:", "---:", "---", "---", "---"], rows)
+
+
+def cluster_faults(doc: dict) -> str:
+    """bench.cluster: each cluster fault as the user meets it."""
+    rows = []
+    for f in doc["faults"]:
+        wall = f"{f['wall_s']:.1f} s" if "wall_s" in f else \
+            f"{f['exit_after_kill_s']:.1f} s to exit after the kill (the worker: {f['worker_exit_after_kill_s']:.1f} s)"
+        said = (_cell(" / ".join(f["said"])) if "said" in f else
+                f"{f['rendered']} of {f['bundles']} bundles rendered, {f['hidden_left']} hidden files left")
+        rows.append([f["fault"], f"`{f['command']}`" + (f", {f['then']}" if f.get("then") else ""), str(f["exit"]),
+                     wall, said])
+    return markdown(["fault", "command", "exit", "wall", "what it prints (the lines that say)"],
+                    ["---", "---", "---:", "---", "---"], rows)
+
+
+def cluster(doc: dict) -> str:
+    """bench.cluster's page: how it measured, then its two tables."""
+    return (doc["how"].replace("\n", " ") + f" On {doc['device']}; the small bundles ({', '.join(doc['configs'])}) "
+            f"baked in {doc['bake_s']:.0f} s, {doc['large']} in {doc['large_bake_s']:.0f} s.\n\n"
+            + cluster_runs(doc) + "\n" + cluster_faults(doc))

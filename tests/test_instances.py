@@ -1,6 +1,8 @@
 """Instances (issue 23): an object drawn many times from one bake, by instanced draws (mesh, coarse, octahedral),
 against a reference that traces every copy merged (vdmbake.common.instances)."""
 import json
+import shlex
+import sys
 
 import numpy as np
 import pytest
@@ -164,10 +166,24 @@ def test_memory_guard_counts_every_copy(tmp_path):
 
 @pytest.mark.gl
 @pytest.mark.slow
-def test_bench_quick_smoke(tmp_path, no_warm_up):
-    from bench.instances import run
+def test_bench_quick_smoke(tmp_path, monkeypatch, no_warm_up):
+    """make bench-instances runs end to end (a sphere, 1 and 4 copies) and publishes its JSON with its provenance,
+    which the docs' view renders as the bench's own instances.md does."""
+    import bench.instances
+    from helpers import make_docs
 
-    result = run(tmp_path, quick=True, log=lambda m: None)
+    args = ["-o", str(tmp_path), "--quick", "--publish", str(tmp_path / "results")]
+    monkeypatch.setattr(sys, "argv", ["instances.py", *args])
+    r = CliRunner().invoke(bench.instances.main, args)
+    assert r.exit_code == 0, r.output
+    result = json.loads((tmp_path / "instances.json").read_text())
+    published = json.loads((tmp_path / "results" / "instances.json").read_text())
+    view = make_docs().VIEWS["instances"]
+    assert f"`{shlex.join(['python', '-m', 'bench.instances', *args])}`" in view(published, "provenance")
+    assert published.pop("provenance")["device"] == result["device"] and published == result
+    fields = view(published, "fields")   # the docs' table is the bench's own
+    assert fields in (tmp_path / "instances.md").read_text()
+    assert fields.count("\n") == 2 + len(result["counts"]) and "| sphere (" in fields
     assert {(r["copies"], r["label"]) for r in result["rows"]} >= {
         (4, "mesh"), (4, "octahedral@full-9x64-virtual"), (4, "billboards@greedy-hier+coarse"), (4, "lod@dluv3")}
     four = {r["label"]: r for r in result["rows"] if r["copies"] == 4}

@@ -172,3 +172,24 @@ def test_a_worker_that_cannot_see_the_bundles_hands_them_back(library, tmp_path)
     assert sorted(s for s, *_ in refs) == sorted(r["scene"] for r in runs), stderr[-3000:]
     for scene, seeing, blind, manifest in refs:
         assert seeing != blind and manifest == f"{library.absolute() / scene}.bundle", (scene, seeing, blind, manifest)
+
+
+def test_bench_rows_render_as_the_docs_show_them(library, tmp_path):
+    """bench.cluster's rows (the bundles on one machine and on local:2, and the fault of an address where nothing
+    listens), published with their provenance and rendered by the docs' view as the bench's cluster.md has them."""
+    from bench import cluster, publish
+    from helpers import make_docs
+
+    runs = cluster.compared(tmp_path, "library", library, [])
+    doc = {"device": runs[0]["device"], "timing_files": sorted(cluster.TIMING_FILES), "runs": runs,
+           "faults": [cluster.unreachable(tmp_path, library, [])]}
+    published = json.loads(publish.Run("bench.cluster").publish(tmp_path / "results", "cluster", doc).read_text())
+    view = make_docs().VIEWS["cluster"]
+    assert "`python -m bench.cluster" in view(published, "provenance")
+    table = view(published, "serial-vs-cluster")
+    assert table.count("\n") == 4 and "| one machine |" in table and "| `--scheduler local:2` |" in table
+    files = runs[1]["files"]   # the same report and files apart from the times
+    assert f"| all | 0 of {files} |" in table and files > 0
+    faults = view(published, "faults")
+    assert "| nothing listens at the address | `--scheduler tcp://127.0.0.1:" in faults
+    assert "| 2 |" in faults and "cannot reach the Dask scheduler" in faults

@@ -125,6 +125,8 @@ VIEWS = {"filtered": _filtered, "demo": _demo, "composite": _composite, "rooms":
          "billboards-bench": _bench({"page": tables.billboards, "models-800x600": tables.billboards_models,
                                      "bunny-interleaved": tables.billboards_interleaved}),
          "octahedral-bench": _bench({"page": tables.octahedral}),
+         "instances": _bench({"fields": tables.instances_fields}),
+         "cluster": _bench({"serial-vs-cluster": tables.cluster_runs, "faults": tables.cluster_faults}),
          "suite": _bench({"run": tables.suite, "subsets": tables.suite_subsets, "files": tables.suite_files,
                           "tests": tables.suite_tests})}
 VIEWS["suite-62f9cd8"] = VIEWS["suite"]          # the suite of the day issue 45 was filed, run by bench.suite --at
