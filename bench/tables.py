@@ -266,8 +266,10 @@ def suite(doc: dict) -> str:
            f"{r['cpu_s']:.1f} ({r['user_s']:.1f} + {r['sys_s']:.1f})", f"{r['tests_cpu_s']:.1f}",
            f"{r['slow_cpu_s']:.1f} ({r['slow_tests']} tests)", _minutes(r["wall_s"]),
            f"{100 * r['cpu_s'] / r['wall_s']:.0f}%" if r["wall_s"] else "-"]
+    failed = r.get("failed_tests") or []
     return markdown(["suite", "tests", "passed", "else", "CPU s (user + sys)", "tests' own CPU s", "slow tests' CPU s",
-                     "wall", "CPU / wall"], ["---", "---:", "---:", "---", "---:", "---:", "---:", "---:", "---:"], [row])
+                     "wall", "CPU / wall"], ["---", "---:", "---:", "---", "---:", "---:", "---:", "---:", "---:"], [row]) + (
+        "\nFailed: " + ", ".join(f"`{t}`" for t in failed) + "\n" if failed else "")
 
 
 def suite_subsets(doc: dict) -> str:

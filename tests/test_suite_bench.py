@@ -41,6 +41,8 @@ def test_failures_are_counted_and_end_in_exit_1(tmp_path):
     assert r.exit_code == 1, r.output
     run = json.loads((tmp_path / "out" / "suite.json").read_text())["run"]
     assert (run["tests"], run["passed"], run["failed"], run["slow_tests"]) == (2, 1, 1, 1)
+    assert [t.rsplit("::", 1)[1] for t in run["failed_tests"]] == ["test_b"]
+    assert "test_two.py::test_b`" in (tmp_path / "out" / "suite.md").read_text()
 
 
 def test_the_summary_line_read():
