@@ -175,12 +175,12 @@ def test_a_worker_that_cannot_see_the_bundles_hands_them_back(library, tmp_path)
 
 
 def test_bench_rows_render_as_the_docs_show_them(library, tmp_path):
-    """bench.cluster's rows (the bundles on one machine and on local:2, and the fault of an address where nothing
+    """bench.cluster's rows (a bundle on one machine and on local:2, and the fault of an address where nothing
     listens), published with their provenance and rendered by the docs' view as the bench's cluster.md has them."""
     from bench import cluster, publish
     from helpers import make_docs
 
-    runs = cluster.compared(tmp_path, "library", library, [])
+    runs = cluster.compared(tmp_path, "cone", library / "cone.bundle", [])
     doc = {"device": runs[0]["device"], "timing_files": sorted(cluster.TIMING_FILES), "runs": runs,
            "faults": [cluster.unreachable(tmp_path, library, [])]}
     published = json.loads(publish.Run("bench.cluster").publish(tmp_path / "results", "cluster", doc).read_text())
