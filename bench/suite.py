@@ -99,7 +99,7 @@ def run_suite(commit: str | None, workers: str, args: tuple[str, ...]) -> tuple[
               "sys_s": round(sys_, 1), "wall_s": round(wall, 1), "tests_cpu_s": round(sum(r["cpu_s"] for r in rows), 1),
               "slow_cpu_s": round(sum(r["cpu_s"] for r in rows if r["slow"]), 1),
               "slow_tests": sum(r["slow"] for r in rows),
-              "failed_tests": sorted(r["id"] for r in rows if r.get("failed"))}
+              "failed_tests": sorted(r["id"] for r in rows if r["failed"])}
     return totals, rows, done.stdout + done.stderr
 
 

@@ -2,6 +2,7 @@
 from the plugin, the sums by file and over another commit's tests from those rows; failures are counted and said
 by the exit code."""
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -48,3 +49,11 @@ def test_failures_are_counted_and_end_in_exit_1(tmp_path):
 def test_the_summary_line_read():
     said = "....\nFAILED x.py::t - AssertionError\n3 failed, 1375 passed, 2 skipped, 1 xfailed, 1 error in 258.64s"
     assert suite.outcome(said) == {"passed": 1375, "failed": 3, "skipped": 2, "xfailed": 1, "xpassed": 0, "errors": 1}
+
+
+def test_the_command_is_make_tests():
+    """The bench runs the Makefile's test recipe (its cache plugin off: nothing of one run is kept for the next)."""
+    recipe = re.search(r"^test:.*\n\t\$\(BIN\)/python -m pytest (.*)$", (ROOT / "Makefile").read_text(), re.M)[1]
+    command = suite.pytest_command("auto", ())
+    assert command[:3] == [sys.executable, "-m", "pytest"] and command[4:6] == ["-p", "no:cacheprovider"]
+    assert command[3:4] + command[6:] == recipe.replace("$(TEST_WORKERS)", "auto").split()

@@ -77,14 +77,14 @@ def _demo(doc: dict, key: str) -> str:
 def _composite(doc: dict, key: str) -> str:
     """tools/demo_results.py's composite.json: `sets`, each composite set; `objects`, each object's own rows."""
     if key == "sets":
-        rows = [[str(c["set"]), ", ".join(f"{o} {v}" for o, v in c["variants"].items()), f"{c['median_ms']:.1f}",
-                 f"{c['mean_dluv']:.3f}", f"{c['p95_dluv']:.2f}", f"{c['iou']:.4f}"] for c in doc["sets"]]
-        return markdown(["set", "variants", "median ms/frame", "mean ΔLuv", "p95 ΔLuv", "IoU"],
-                        ["---:", "---", "---:", "---:", "---:", "---:"], rows)
-    rows = [[r["object"], r["variant"], f"{r['median_ms']:.1f}", f"{r['mean_dluv']:.3f}", f"{r['p95_dluv']:.2f}",
-             f"{r['iou']:.4f}"] for r in doc["rows"]]
-    return markdown(["object", "variant", "median ms/frame", "mean ΔLuv", "p95 ΔLuv", "IoU"],
-                    ["---", "---", "---:", "---:", "---:", "---:"], rows)
+        head, align = ["set", "variants"], ["---:", "---"]
+        lead = [(str(c["set"]), ", ".join(f"{o} {v}" for o, v in c["variants"].items()), c) for c in doc["sets"]]
+    else:
+        head, align = ["object", "variant"], ["---", "---"]
+        lead = [(r["object"], r["variant"], r) for r in doc["rows"]]
+    rows = [[a, b, f"{r['median_ms']:.1f}", f"{r['mean_dluv']:.3f}", f"{r['p95_dluv']:.2f}", f"{r['iou']:.4f}"]
+            for a, b, r in lead]
+    return markdown(head + ["median ms/frame", "mean ΔLuv", "p95 ΔLuv", "IoU"], align + ["---:"] * 4, rows)
 
 
 def _rooms(doc: dict, key: str) -> str:
