@@ -40,6 +40,16 @@ TIMING_FILES = {"report.html", "error_vs_time.png", "runs.md", "cost_vs_size.png
 
 # ------------------------------------------------------------------------------------- shared with tests
 
+def vdmrender(target: Path, out: Path, *more: str) -> list[str]:
+    """The command line `vdmrender TARGET -o OUT --no-flip MORE...` (FLIP is the same on any machine: left out)."""
+    return [str(BIN / "vdmrender"), str(target), "-o", str(out), "--no-flip", *more]
+
+
+def render(target: Path, out: Path, *more: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    """vdmrender(...) run to its end in ENV, its output captured."""
+    return subprocess.run(vdmrender(target, out, *more), capture_output=True, text=True, env=ENV, timeout=timeout)
+
+
 @contextlib.contextmanager
 def scheduler(folder: Path):
     """A `dask scheduler` on the loopback, without workers: (its address, its process); killed after."""
@@ -190,8 +200,7 @@ def _closed_port() -> int:
 def unreachable(work: Path, bundles: Path, res: list[str]) -> dict:
     """The fault of an address where nothing listens."""
     port = _closed_port()
-    code, s, text = _run([str(BIN / "vdmrender"), str(bundles), "--no-flip", *res, "-o", str(work / "f1"),
-                          "--scheduler", f"tcp://127.0.0.1:{port}"])
+    code, s, text = _run(vdmrender(bundles, work / "f1", *res, "--scheduler", f"tcp://127.0.0.1:{port}"))
     return {"fault": "nothing listens at the address", "command": f"--scheduler tcp://127.0.0.1:{port}",
             "exit": code, "wall_s": round(s, 1), "said": _said(text, "error")}
 
@@ -200,10 +209,9 @@ def faults(work: Path, bundles: Path, res: list[str]) -> list[dict]:
     """Each cluster fault as a row: the fault, the command's options (and what was done to the run), its exit
     code, its seconds, and what it printed (the lines that say) or what it left."""
     rows = [unreachable(work, bundles, res)]
-    render = [str(BIN / "vdmrender"), str(bundles), "--no-flip", *res]
 
     with scheduler(work) as (address, _):
-        code, s, text = _run(render + ["-o", str(work / "f2"), "--scheduler", address, "--workers-wait", "5"])
+        code, s, text = _run(vdmrender(bundles, work / "f2", *res, "--scheduler", address, "--workers-wait", "5"))
     rows.append({"fault": "a scheduler without workers", "command": "--scheduler ADDRESS --workers-wait 5",
                  "exit": code, "wall_s": round(s, 1), "said": _said(text, "error")})
 
@@ -211,7 +219,7 @@ def faults(work: Path, bundles: Path, res: list[str]) -> list[dict]:
     with scheduler(work) as (address, sched):
         w = worker(address)
         try:
-            p = subprocess.Popen(render + ["-o", str(out), "--scheduler", address], stdout=subprocess.PIPE,
+            p = subprocess.Popen(vdmrender(bundles, out, *res, "--scheduler", address), stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE, text=True, env=ENV)
             said = ""
             while ": rendered" not in said:
@@ -232,7 +240,7 @@ def faults(work: Path, bundles: Path, res: list[str]) -> list[dict]:
 
     out = work / "f4"
     t0 = time.perf_counter()
-    p = subprocess.Popen(render + ["-o", str(out), "--scheduler", "local:2"], stdout=subprocess.PIPE,
+    p = subprocess.Popen(vdmrender(bundles, out, *res, "--scheduler", "local:2"), stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True, env=ENV)
     pid, _ = rendering(out, CONFIGS[1], p)
     os.kill(pid, signal.SIGKILL)
@@ -244,7 +252,8 @@ def faults(work: Path, bundles: Path, res: list[str]) -> list[dict]:
                  "rendered": sum(r["status"] == "rendered" for r in runs), "bundles": len(runs),
                  "hidden_left": len(list(out.rglob(".*")))})
 
-    p, stdout, stderr, s = beside_a_blind_worker(render + ["-o", str(work / "f5")], bundles, work, len(CONFIGS), 1200)
+    p, stdout, stderr, s = beside_a_blind_worker(vdmrender(bundles, work / "f5", *res), bundles, work, len(CONFIGS),
+                                                 1200)
     rows.append({"fault": "a worker that cannot see the bundles (its own mount namespace), a second one joining",
                  "command": "--scheduler ADDRESS", "exit": p.returncode, "wall_s": round(s, 1),
                  "said": _said(stdout + stderr, "| rendered", "| failed")})
@@ -257,8 +266,7 @@ def compared(work: Path, name: str, target: Path, more: list[str]) -> list[dict]
     references; the cluster's reference tasks, the report fields and the files that differ apart from times)."""
     walls, logs, loads = {}, {}, {}
     for run, cluster in (("one", []), ("two", ["--scheduler", "local:2"])):
-        code, walls[run], logs[run] = _run([str(BIN / "vdmrender"), str(target), "-o", str(work / name / run),
-                                            "--no-flip", *more, *cluster])
+        code, walls[run], logs[run] = _run(vdmrender(target, work / name / run, *more, *cluster))
         loads[run] = os.getloadavg()[0]
         assert code == 0, logs[run][-3000:]
     one, two = (json.loads((work / name / run / "report.json").read_text()) for run in ("one", "two"))

@@ -7,21 +7,18 @@ import re
 import shutil
 import signal
 import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
 from scenes import BRICK_PLANE, TINY_HEAD
-from bench.cluster import ENV, beside_a_blind_worker, differences, rendering, scheduler, stop, worker
+from bench.cluster import ENV, beside_a_blind_worker, differences, render, rendering, scheduler, stop, vdmrender, worker
 from batches import _ancestors
 from vdmbake.bundle import staging
 from vdmbake.cli import main as bake_main
 
 pytest.importorskip("distributed")
 pytestmark = pytest.mark.gl
-BIN = Path(sys.executable).parent
 SCENES = {"ball": TINY_HEAD + '[[objects]]\nname = "ball"\nprimitive = "sphere"\n'
                               'techniques = { mesh = {}, coarse = { ratios = [0.2] } }\n',
           "cone": TINY_HEAD + '[[objects]]\nname = "cone"\nprimitive = "cone"\ntechniques = { mesh = {} }\n',
@@ -39,11 +36,6 @@ def library(tmp_path):
     return tmp_path / "bundles"
 
 
-def _render(library, out, *more, **popen):
-    return subprocess.run([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip", *more],
-                          capture_output=True, text=True, env=ENV, timeout=600, **popen)
-
-
 def test_a_local_cluster_renders_what_one_machine_renders(library, tmp_path):
     """Three bundles and a broken one on a local cluster of two workers: every frame, reference, heat map and
     overview the same bytes as a run on one machine, every report row, count and error the same apart from the
@@ -51,9 +43,9 @@ def test_a_local_cluster_renders_what_one_machine_renders(library, tmp_path):
     (library / "zzz.bundle").mkdir()
     (library / "zzz.bundle" / "manifest.json").write_text("{}")
     one, two = tmp_path / "one", tmp_path / "two"
-    r = _render(library, one)
+    r = render(library, one)
     assert r.returncode == 1 and "1 of 4 bundles failed: zzz" in r.stderr, r.stderr[-3000:]
-    r = _render(library, two, "--scheduler", "local:2")
+    r = render(library, two, "--scheduler", "local:2")
     assert r.returncode == 1 and "1 of 4 bundles failed: zzz" in r.stderr, r.stderr[-3000:]
     assert "rendering 4 bundles into" in r.stderr and "Dask scheduler tcp://127.0.0.1:" in r.stderr
     assert differences(one, two) == []
@@ -81,11 +73,11 @@ def test_one_bundle_renders_on_a_worker(library, tmp_path):
     """One bundle given alone renders on one worker into OUT as without a cluster; its bad input is refused as
     on one machine (exit 2, one paragraph), though found on the worker."""
     one, two = tmp_path / "one", tmp_path / "two"
-    assert _render(library / "cone.bundle", one).returncode == 0
-    r = _render(library / "cone.bundle", two, "--scheduler", "local:1")
+    assert render(library / "cone.bundle", one).returncode == 0
+    r = render(library / "cone.bundle", two, "--scheduler", "local:1")
     assert r.returncode == 0 and "cone.bundle: rendered on tcp://127.0.0.1:" in r.stderr, r.stderr[-3000:]
     assert differences(one, two) == []
-    r = _render(library / "cone.bundle", tmp_path / "three", "--scheduler", "local:1", "-t", "vdm")
+    r = render(library / "cone.bundle", tmp_path / "three", "--scheduler", "local:1", "-t", "vdm")
     assert r.returncode == 2 and "--technique 'vdm': no object of this bundle's scene names it" in r.stderr, r.stderr
     assert "Traceback" not in r.stderr and not (tmp_path / "three").exists()
 
@@ -95,8 +87,8 @@ def test_a_worker_killed_mid_render_is_redone_elsewhere(library, tmp_path):
     again on a worker, the run completes (exit 0) with every bundle rendered, nothing hidden is left in OUT, and
     ball's files are a run on one machine's."""
     out = tmp_path / "two"
-    p = subprocess.Popen([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip", "--sample-s", "2",
-                          "--scheduler", "local:2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    p = subprocess.Popen(vdmrender(library, out, "--sample-s", "2", "--scheduler", "local:2"),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
     pid, folder = rendering(out, "ball", p)
     assert pid != p.pid and p.pid in _ancestors(pid), (pid, p.pid)          # a worker of this run
     os.kill(pid, signal.SIGKILL)
@@ -106,7 +98,7 @@ def test_a_worker_killed_mid_render_is_redone_elsewhere(library, tmp_path):
     assert {r["status"] for r in runs.values()} == {"rendered"}, runs
     assert not [q for q in out.rglob(".*")], list(out.rglob(".*"))
     one = tmp_path / "one"
-    r = _render(library / "ball.bundle", one, "--sample-s", "2")
+    r = render(library / "ball.bundle", one, "--sample-s", "2")
     assert r.returncode == 0, r.stderr[-3000:]
     assert differences(one, out / "ball") == []
 
@@ -114,7 +106,7 @@ def test_a_worker_killed_mid_render_is_redone_elsewhere(library, tmp_path):
 def test_no_worker_within_the_wait(library, tmp_path):
     """A scheduler without workers: exit 2 after --workers-wait, the scheduler named, no output folder."""
     with scheduler(tmp_path) as (address, _):
-        r = _render(library, tmp_path / "out", "--scheduler", address, "--workers-wait", "1")
+        r = render(library, tmp_path / "out", "--scheduler", address, "--workers-wait", "1")
     assert r.returncode == 2, r.stderr[-3000:]
     assert f"--scheduler {address}: no Dask worker joined the scheduler within 1 s (--workers-wait)" in r.stderr
     assert not (tmp_path / "out").exists() and staging.recover(tmp_path / "out", "runs.md") == []
@@ -128,9 +120,8 @@ def test_a_scheduler_lost_mid_render(library, tmp_path):
     with scheduler(tmp_path) as (address, sched):
         w = worker(address)
         try:
-            p = subprocess.Popen([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip", "--sample-s", "2",
-                                  "--scheduler", address], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                 env=ENV)
+            p = subprocess.Popen(vdmrender(library, out, "--sample-s", "2", "--scheduler", address),
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
             said = ""
             while "ball: rendered" not in said:                   # one bundle finished, its row on the client
                 said += p.stderr.readline()
@@ -159,8 +150,7 @@ def test_a_worker_that_cannot_see_the_bundles_hands_them_back(library, tmp_path)
     if not (shutil.which("unshare") and subprocess.run(["unshare", "-m", "true"]).returncode == 0):
         pytest.skip("needs unshare -m (root) to hide a folder from one worker")
     out = tmp_path / "out"
-    p, stdout, stderr, _ = beside_a_blind_worker([str(BIN / "vdmrender"), str(library), "-o", str(out), "--no-flip"],
-                                                 library, tmp_path, 3, 600)
+    p, stdout, stderr, _ = beside_a_blind_worker(vdmrender(library, out), library, tmp_path, 3, 600)
     assert p.returncode == 0, stderr[-3000:]
     runs = json.loads((out / "report.json").read_text())["runs"]
     assert {r["status"] for r in runs} == {"rendered"}, runs

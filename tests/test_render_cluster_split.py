@@ -8,14 +8,13 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
-from bench.cluster import ENV, differences
+from bench.cluster import ENV, differences, render, vdmrender
 from vdmbake.bundle import staging
 from vdmbake.bundle.directory import Bundle
 from vdmbake.cli import main as bake_main
@@ -23,7 +22,6 @@ from vdmrender.render import Options, references
 
 pytest.importorskip("distributed")
 pytestmark = pytest.mark.gl
-BIN = Path(sys.executable).parent
 # Two objects swept over two sizes and drawn together: 2 x 3 view sets and the composite's, each with a filtered
 # (4 spp) and a pixel-centre reference: 14 references. The chain's limit only the full mesh meets (its change is
 # 0), so that the chain is decided by errors alone, not by times that differ from run to run.
@@ -63,11 +61,6 @@ def bundle(tmp_path):
     return tmp_path / "split.bundle"
 
 
-def _render(bundle, out, *more, **popen):
-    return subprocess.run([str(BIN / "vdmrender"), str(bundle), "-o", str(out), "--no-flip", *more],
-                          capture_output=True, text=True, env=ENV, timeout=600, **popen)
-
-
 def _hidden(folder: Path) -> list[Path]:
     return list(folder.rglob(".*"))
 
@@ -78,10 +71,10 @@ def test_one_bundle_split_renders_what_one_machine_renders(bundle, tmp_path):
     times, its references reported as traced by the run (as there). A run on one machine given that cache traces
     nothing: the keys the cluster traced under are the ones a render looks for."""
     one, two, cache = tmp_path / "one", tmp_path / "two", tmp_path / "cache"
-    r = _render(bundle, one)
+    r = render(bundle, one)
     assert r.returncode == 0, r.stderr[-3000:]
     assert r.stderr.count("frames traced in") == 14, r.stderr
-    r = _render(bundle, two, "--scheduler", "local:2", "--reference-cache", str(cache))
+    r = render(bundle, two, "--scheduler", "local:2", "--reference-cache", str(cache))
     assert r.returncode == 0, r.stderr[-3000:]
     assert "tracing 14 references on the cluster" in r.stderr, r.stderr[-3000:]
     traced = re.findall(r"\] reference split/(\S+): traced on tcp://127\.0\.0\.1:\d+", r.stderr)
@@ -91,7 +84,7 @@ def test_one_bundle_split_renders_what_one_machine_renders(bundle, tmp_path):
     assert report["lod"]["chains"] and report["composite"] and not any(row["reference_cached"] for row in report["rows"])
     assert len(list(cache.iterdir())) == 14 and not _hidden(cache) and not _hidden(two)
 
-    r = _render(bundle, tmp_path / "three", "--reference-cache", str(cache))
+    r = render(bundle, tmp_path / "three", "--reference-cache", str(cache))
     assert r.returncode == 0, r.stderr[-3000:]
     assert r.stderr.count("frames (cached)") == 14 and "frames traced in" not in r.stderr, r.stderr
     assert all(row["reference_cached"] for row in json.loads((tmp_path / "three" / "report.json").read_text())["rows"])
@@ -109,8 +102,8 @@ def test_a_worker_killed_mid_trace_is_redone_elsewhere(bundle, tmp_path):
                 if folder == "reference/ball")
     key = view.source(b, b.scene, 64)[0]
     one, two = tmp_path / "one", tmp_path / "two"
-    p = subprocess.Popen([str(BIN / "vdmrender"), str(bundle), "-o", str(two), "--no-flip", *more, "--scheduler",
-                          "local:2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    p = subprocess.Popen(vdmrender(bundle, two, *more, "--scheduler", "local:2"), stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, env=ENV)
     staged = re.compile(rf"\.{key}\.tmp-{re.escape(staging.host())}-(\d+)")
     t0, found = time.time(), []
     while not found:
@@ -125,6 +118,6 @@ def test_a_worker_killed_mid_trace_is_redone_elsewhere(bundle, tmp_path):
     assert not staging.alive(pid)
     assert re.search(r"\] reference split/reference/ball: traced on tcp://127\.0\.0\.1:\d+", stderr), stderr[-3000:]
     assert not list(tmp_path.glob(".two.*")) and not _hidden(two), (list(tmp_path.glob(".two.*")), _hidden(two))
-    r = _render(bundle, one, *more)
+    r = render(bundle, one, *more)
     assert r.returncode == 0, r.stderr[-3000:]
     assert differences(one, two) == []
