@@ -37,6 +37,33 @@ depth = 0.06
 tiling = [2, 2]
 """
 
+def scan_sweep(resolution: int, reference_spp: int, orbits: int, shadow_map: int = 2048) -> str:
+    """The scanned Stanford bunny's 1% coarse mesh (object "scan", pymeshfix's copy) supersampled (ssaa4) and swept
+    to 512 and 16 px across: its facets about a dozen pixels wide at 512, under half a pixel at 16."""
+    return f"""
+[render]
+resolution = [{resolution}, {resolution}]
+repeats = 1
+warmup = 0
+shadow_map = {shadow_map}
+reference_spp = {reference_spp}
+antialias = "ssaa4"
+
+[render.sweep]
+sizes = [512, 16]
+
+[camera]
+up = [0, 0, 1]
+orbit = {{ count = {orbits}, elevation_deg = 20, azimuth_deg = 30, distance = 2.6, fov_deg = 40 }}
+
+[[objects]]
+name = "scan"
+mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"
+[objects.techniques]
+coarse = {{ ratios = [0.01] }}
+"""
+
+
 # Two copies of a sphere, one at the origin and one at [FAR, 0, 0] (the test replaces FAR), object "b".
 FAR_COPIES = RENDER + """
 [[objects]]

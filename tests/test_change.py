@@ -8,7 +8,7 @@ import os
 import pytest
 from click.testing import CliRunner
 
-from scenes import BRICK_PLANE, RENDER, bake_and_render
+from scenes import BRICK_PLANE, RENDER, bake_and_render, scan_sweep
 from vdmbake.cli import main as bake_main
 from vdmrender.cli import main as render_main
 
@@ -85,27 +85,7 @@ def test_a_render_setting_does_not_bake_again(tmp_path):
     assert r.exit_code == 0 and "baking (inputs or settings changed)" in r.output, r.output
 
 
-SCAN = """
-[render]
-resolution = [512, 512]
-repeats = 1
-warmup = 0
-reference_spp = 4
-antialias = "ssaa4"
-
-[render.sweep]
-sizes = [512, 16]
-
-[camera]
-up = [0, 0, 1]
-orbit = { count = 2, elevation_deg = 20, azimuth_deg = 30, distance = 2.6, fov_deg = 40 }
-
-[[objects]]
-name = "scan"
-mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"
-[objects.techniques]
-coarse = { ratios = [0.01] }
-"""
+SCAN = scan_sweep(128, reference_spp=4, orbits=2)   # at 128 px the frame is a crop of the 512-px bunny
 
 
 @pytest.mark.slow

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from scenes import scan_sweep
 from vdmbake.assets import primitives
 from vdmbake.common.colour import srgb8_to_linear
 from vdmbake.kernels.quadrics import QuadricSet
@@ -155,28 +156,7 @@ def test_msaa_beyond_the_device_is_refused(ctx):
         antialias.Target(ctx, 8, 8, f"msaa{2 * ctx.max_samples}")
 
 
-SCAN = """
-[render]
-resolution = [64, 64]
-repeats = 1
-warmup = 0
-shadow_map = 512
-reference_spp = 64
-antialias = "ssaa4"
-
-[render.sweep]
-sizes = [512, 16]
-
-[camera]
-up = [0, 0, 1]
-orbit = { count = 4, elevation_deg = 20, azimuth_deg = 30, distance = 2.6, fov_deg = 40 }
-
-[[objects]]
-name = "scan"
-mesh = "pkg:pymeshfix/examples/StanfordBunny.ply"
-[objects.techniques]
-coarse = { ratios = [0.01] }
-"""
+SCAN = scan_sweep(64, reference_spp=64, orbits=4, shadow_map=512)
 
 
 @pytest.mark.slow
