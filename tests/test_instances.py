@@ -306,8 +306,10 @@ def test_billboard_copies_hide_and_shadow_each_other_as_in_the_reference(tmp_pat
 def pairs(tmp_path_factory):
     """One bake and render of the overlapping torus pair four times: at the origin at unit scale ("unit"), placed
     1.7e4 units from the object itself ("far"), and scaled by 1e-3 and 1e3 ("small", "large"); each object is
-    framed and drawn alone, so the tests below compare two of them. Without counters or FLIP: the frames and ΔLuv are the subject."""
-    text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "1024")
+    framed and drawn alone, so the tests below compare two of them. Without counters or FLIP: the frames and ΔLuv are the subject.
+    A 512² shadow map: the pairs are compared with each other, and a 1024² one shows the same differences (none
+    above 0.0005 of the pixels, ΔLuv within 0.0001) at 1.8x the CPU."""
+    text = RENDER.replace("[32, 32]", "[64, 64]").replace("256", "512")
     text += (torus_pair("unit", SURFACES) + torus_pair("far", SURFACES, at=(1e4, -1e4, 1e4))
              + torus_pair("small", SURFACES, s=1e-3) + torus_pair("large", SURFACES, s=1e3))
     res, out = bake_and_render(tmp_path_factory.mktemp("pairs"), text, "--no-counters", "--no-flip")
