@@ -38,16 +38,17 @@ def hidden(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir() if p.name.startswith(".")) if folder.is_dir() else []
 
 
-def _wait_for_staging(folder: Path, proc=None, timeout: float = 120) -> int:
-    """The pid in the first hidden staging folder `.NAME.tmp-HOST-PID` that appears in `folder`: the process baking
-    (`proc`, the command running it, if any, still running meanwhile)."""
-    t0 = time.time()
+def _wait_for_staging(folder: Path, proc=None, timeout: float = 120, stem: str = "", poll: float = 0.01) -> int:
+    """The pid in the first hidden staging folder `.NAME.tmp-HOST-PID` that appears in `folder` (of bundle
+    STEM.bundle, if `stem` is given): the process baking (`proc`, the command running it, if any, still running
+    meanwhile); looked for every `poll` seconds."""
+    t0, prefix = time.time(), f".{stem}.bundle.tmp-" if stem else "."
     while time.time() - t0 < timeout:
         for name in hidden(folder):
-            if ".tmp-" in name:
+            if ".tmp-" in name and name.startswith(prefix):
                 return int(name.rsplit("-", 1)[1])
         assert proc is None or proc.poll() is None, proc.communicate()
-        time.sleep(0.01)
+        time.sleep(poll)
     raise AssertionError("no bake started")
 
 

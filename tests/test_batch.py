@@ -1,6 +1,7 @@
 """Many scenes per call (vdmbake/batch.py, issue 24): OUTDIR/<stem>.bundle per scene, a failing scene never
 stops the others, the closing table and the exit codes, a worker killed mid-bake, a signal to the batch;
 and the library of 100+ scenes (bench/library_scenes.py)."""
+import concurrent.futures
 import json
 import os
 import signal
@@ -137,9 +138,14 @@ def test_a_worker_deaf_to_the_signal_leaves_nothing(tmp_path):
     scenes = write(tmp_path / "s", slow=SLOW, a=SMALL.format(name="a", prim="sphere"))
     out = tmp_path / "out"
     tasks = [Task(str(s), str(out / f"{s.stem}.bundle")) for s in scenes]
+    # slow's worker is stopped as soon as its staging folder appears, so that it is still baking however late
+    # a's worker starts on a loaded machine; the batch is stopped when a's row comes
+    stopped = concurrent.futures.ThreadPoolExecutor(1).submit(
+        lambda: os.kill(_wait_for_staging(out, stem="slow", poll=0.001), signal.SIGSTOP))
 
     def stop_the_batch(row):
-        os.kill(_wait_for_staging(out), signal.SIGSTOP)
+        assert Path(row["scene"]).stem == "a", row
+        stopped.result(timeout=120)
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
