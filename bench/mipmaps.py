@@ -96,7 +96,7 @@ def rows(sweep_csv: Path) -> list[dict]:
 
 
 def table(results: dict, spp: int) -> str:
-    lines = [f"# Mipmaps on and off (render.mipmaps), mean ΔLuv per variant and screen size\n",
+    lines = ["# Mipmaps on and off (render.mipmaps), mean ΔLuv per variant and screen size\n",
              f"Filtered: against the reference averaged over {spp} samples per pixel (box); point: against the pixel "
              "centres' (1 sample). GPU ms: median per frame. Two cameras per size.\n"]
     for scene, by in results.items():

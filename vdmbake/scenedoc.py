@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .assets.primitives import PRIMITIVES
 from .schema import knob, markdown, settings
-from .scene import (Cameras, Instances, Light, Material, Mesostructure, Object, Orbit, Placement, Pose, Render, Scatter,
+from .scene import (Cameras, Light, Material, Mesostructure, Object, Orbit, Placement, Pose, Render, Scatter,
                     Sweep, Thresholds, Transform)
 from .techniques import REGISTRY
 
