@@ -138,17 +138,16 @@ def test_a_worker_deaf_to_the_signal_leaves_nothing(tmp_path):
     scenes = write(tmp_path / "s", slow=SLOW, a=SMALL.format(name="a", prim="sphere"))
     out = tmp_path / "out"
     tasks = [Task(str(s), str(out / f"{s.stem}.bundle")) for s in scenes]
-    # slow's worker is stopped as soon as its staging folder appears, so that it is still baking however late
-    # a's worker starts on a loaded machine; the batch is stopped when a's row comes
-    stopped = concurrent.futures.ThreadPoolExecutor(1).submit(
-        lambda: os.kill(_wait_for_staging(out, stem="slow", poll=0.001), signal.SIGSTOP))
 
     def stop_the_batch(row):
         assert Path(row["scene"]).stem == "a", row
         stopped.result(timeout=120)
         raise KeyboardInterrupt
 
-    with pytest.raises(KeyboardInterrupt):
+    # slow's worker is stopped as soon as its staging folder appears, so that it is still baking however late
+    # a's worker starts on a loaded machine; the batch is stopped when a's row comes
+    with concurrent.futures.ThreadPoolExecutor(1) as watcher, pytest.raises(KeyboardInterrupt):
+        stopped = watcher.submit(lambda: os.kill(_wait_for_staging(out, stem="slow", poll=0.001), signal.SIGSTOP))
         run_local(tasks, 2, stop_the_batch)
     assert hidden(out) == [] and not (out / "slow.bundle").exists()
 
