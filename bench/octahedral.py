@@ -43,6 +43,7 @@ from vdmrender.common.camera import cameras_for
 from vdmrender.comparing.metrics import compare, pooled
 from vdmrender.techniques import octahedral
 from vdmrender.measuring.timing import Budget, FrameTimer
+from vdmrender.passes.shadowmap import ShadowMap
 from vdmrender.common.markdown import number
 
 MODELS = [("sphere", 'primitive = "sphere"'), ("torus", 'primitive = "torus"'), ("cone", 'primitive = "cone"'),
@@ -81,26 +82,12 @@ def _poses(centre, radius, poses) -> str:
     return "\n".join(out)
 
 
-def _gl_objects(renderer) -> list:
-    """The moderngl objects a renderer holds: its attributes, and the items of its list, tuple and dict
-    attributes (one level), each once."""
-    found, seen = [], set()
-    for v in vars(renderer).values():
-        items = v.values() if isinstance(v, dict) else v if isinstance(v, (list, tuple)) else [v]
-        for o in items:
-            for x in (o if isinstance(o, tuple) else (o,)):
-                if id(x) not in seen and type(x).__module__.split(".")[0] == "moderngl":
-                    seen.add(id(x))
-                    found.append(x)
-    return found
-
-
 def gpu_bytes(renderer) -> tuple[int, int]:
     """(asset, targets): bytes of the textures and buffers a renderer uploads for its asset (maps, pyramid
     atlases, coverage, the coarse mesh's and the occupancy boxes' buffers, the atlas), and of the textures
     it renders into every frame (the occupancy and depth pre-pass targets, at the frame's size; its shadow
     map is neither)."""
-    objs = _gl_objects(renderer)
+    objs = counters.gl_objects(renderer, skip=(ShadowMap,))
     drawn = {id(a) for f in objs if type(f).__name__ == "Framebuffer"
              for a in (*f.color_attachments, f.depth_attachment) if a is not None}
     asset = targets = 0

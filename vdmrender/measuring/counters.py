@@ -48,7 +48,7 @@ def count_frame(ctx, renderer, camera, target) -> dict:
     (cost_count.glsl), the primitives the vertex stages put out (GL_PRIMITIVES_GENERATED), draw calls and
     instances drawn (GL has no query for these: moderngl's VertexArray.render is wrapped for the frame; a
     draw without instancing is one instance)."""
-    if not any("CostCounts" in p for p in _gl_objects(renderer) if isinstance(p, moderngl.Program)):
+    if not any("CostCounts" in p for p in gl_objects(renderer) if isinstance(p, moderngl.Program)):
         raise ValueError(f"{type(renderer).__name__}: no program counts; build the renderer inside counters.counting(ctx)")
     if ctx.extra is None:
         ctx.extra = {}
@@ -110,7 +110,7 @@ def resident_bytes(renderer) -> int:
     texels times components times bytes per component (depth: 4 bytes), its mipmap chain where it is
     filtered through one; after a frame, the per-frame targets a renderer keeps (e.g. the hierarchical
     billboards' depth and occupancy pre-passes)."""
-    return sum(texture_bytes(o) if not isinstance(o, moderngl.Buffer) else o.size for o in _gl_objects(renderer)
+    return sum(texture_bytes(o) if not isinstance(o, moderngl.Buffer) else o.size for o in gl_objects(renderer)
                if isinstance(o, (moderngl.Buffer, moderngl.Texture, moderngl.TextureArray, moderngl.Texture3D,
                                  moderngl.TextureCube, moderngl.Renderbuffer)))
 
@@ -132,13 +132,14 @@ def texture_bytes(t) -> int:
     return texels * layers * texel * (max(t.samples, 1) if isinstance(t, moderngl.Texture) else 1)
 
 
-def _gl_objects(root) -> list:
+def gl_objects(root, skip: tuple = ()) -> list:
     """The moderngl objects reachable from `root` through the attributes of vdmrender objects, lists,
-    tuples, sets, dict values and framebuffer attachments, each once (the context is not walked)."""
+    tuples, sets, dict values and framebuffer attachments, each once (the context is not walked, nor instances
+    of the types in `skip`)."""
     found, seen, todo = [], set(), [root]
     while todo:
         o = todo.pop()
-        if id(o) in seen:
+        if id(o) in seen or isinstance(o, skip):
             continue
         seen.add(id(o))
         if isinstance(o, (list, tuple, set, frozenset)):
