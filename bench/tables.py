@@ -212,6 +212,53 @@ def octahedral(doc: dict) -> str:
         "0.95 radii, inside the bounding sphere.\n"])
 
 
+# docs/impostors.md's digests of bench.octahedral: one model's rows at one resolution, its camera categories,
+# its two resolutions side by side, and the primitives outside and inside their bounding spheres
+def _octahedral_rows(doc: dict, model: str, resolution: str) -> list[dict]:
+    return [r for r in doc["rows"] if r["object"] == model and r["resolution"] == resolution]
+
+
+def octahedral_model(doc: dict, model: str = "bunny", resolution: str = "800x600") -> str:
+    rows = _octahedral_rows(doc, model, resolution)
+    mesh = next(r for r in rows if r["label"] == "mesh")
+
+    def blank(x):
+        return "" if x is None else f"{x:,.1f}"
+    return markdown(["variant", "asset MB", "frame targets MB", "bake s", "GPU ms", "CPU ms", "x mesh (CPU)",
+                     "fetches / px", "steps / px", "mean ΔLuv", "p95", "IoU"], ["---"] + ["---:"] * 11,
+                    [[r["label"], f"{r['gpu_bytes'] / 2**20:.1f}", f"{r['target_bytes'] / 2**20:.1f}",
+                      f"{r['bake_s']:.1f}", f"{r['median_ms']:,.0f}", f"{r['median_cpu_ms']:,.0f}",
+                      f"{r['median_cpu_ms'] / mesh['median_cpu_ms']:.2f}", blank(r.get("fetches_per_pixel")),
+                      blank(r.get("steps_per_pixel")), number(r["mean_dluv"], 3), number(r["p95_dluv"], 2),
+                      number(r["iou"], 4)] for r in rows])
+
+
+def octahedral_categories(doc: dict, model: str = "bunny", resolution: str = "800x600") -> str:
+    rows = _octahedral_rows(doc, model, resolution)
+    cats = [c for c in doc["categories"] if c != "outside" and any(c in r["categories"] for r in rows)]
+    return markdown(["variant", *cats], ["---"] * (1 + len(cats)),
+                    [[r["label"], *(f"{number(c['mean_dluv'], 2)} / {number(c['iou'], 3)} / {c['cpu_ms']:,.0f}"
+                                    for c in (r["categories"][k] for k in cats))] for r in rows])
+
+
+def octahedral_resolutions(doc: dict, model: str = "bunny") -> str:
+    sizes = list(dict.fromkeys(r["resolution"] for r in doc["rows"] if r["object"] == model))
+    at = {(r["label"], r["resolution"]): r for r in doc["rows"] if r["object"] == model}
+    labels = list(dict.fromkeys(label for label, _ in at))
+    return markdown(["variant", *(f"{s}: CPU ms" for s in sizes), *(f"{s}: mean ΔLuv" for s in sizes)],
+                    ["---"] + ["---:"] * (2 * len(sizes)),
+                    [[label, *(f"{at[label, s]['median_cpu_ms']:,.0f}" for s in sizes),
+                      *(number(at[label, s]["mean_dluv"], 3) for s in sizes)] for label in labels])
+
+
+def octahedral_primitives(doc: dict, resolution: str = "800x600") -> str:
+    def cell(c):
+        return "" if c is None else f"{number(c['mean_dluv'], 2)} / {number(c['iou'], 3)} / {c['cpu_ms']:,.0f}"
+    return markdown(["model", "variant", "outside", "inside"], ["---"] * 4,
+                    [[r["object"], r["label"], cell(r["categories"].get("outside")), cell(r["categories"].get("inside"))]
+                     for r in doc["rows"] if r["resolution"] == resolution and r["object"] != "bunny"])
+
+
 # docs/results.md's digests of bench.billboards: mean ΔLuv at 800x600 per model (the thesis's, appendix A-2, in
 # brackets), and the profiled model's interleaved times at each resolution
 BILLBOARDS_SELECTED = [("full mesh", "mesh"), ("coarse mesh (10%)", "coarse@0.1"),

@@ -11,7 +11,7 @@ docs/results/FILE.json, and nothing else. A result file is either
 * a transcription of a measurement's table (`"tables": {KEY: {"header", "align", "rows"}}`, every cell the
   string that was published, never re-rounded), beside `measured_by`, `when` and `device`: which command
   measured it, when and on what, and `transcribed`: why no bench writes it (a GPU session, code that no longer
-  exists, a one-off experiment, a run that did not fit).
+  exists, a one-off experiment).
 
 `python tools/make_docs.py` rewrites the tables in place; `--check` changes nothing and exits 1 naming every
 table that differs from its result file (tests/test_docs.py runs it)."""
@@ -124,7 +124,10 @@ VIEWS = {"filtered": _filtered, "demo": _demo, "composite": _composite, "rooms":
          "vdm-bench": _bench({"page": tables.vdm, "interleaved-cpu": tables.vdm_interleaved_cpu}),
          "billboards-bench": _bench({"page": tables.billboards, "models-800x600": tables.billboards_models,
                                      "bunny-interleaved": tables.billboards_interleaved}),
-         "octahedral-bench": _bench({"page": tables.octahedral}),
+         "octahedral-bench": _bench({"page": tables.octahedral, "bunny-800x600": tables.octahedral_model,
+                                     "bunny-categories-800x600": tables.octahedral_categories,
+                                     "bunny-resolutions": tables.octahedral_resolutions,
+                                     "primitives-800x600": tables.octahedral_primitives}),
          "instances": _bench({"fields": tables.instances_fields}),
          "cluster": _bench({"serial-vs-cluster": tables.cluster_runs, "faults": tables.cluster_faults}),
          "suite": _bench({"run": tables.suite, "subsets": tables.suite_subsets, "files": tables.suite_files,
