@@ -7,6 +7,7 @@ import re
 import shutil
 import signal
 import subprocess
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -25,15 +26,23 @@ SCENES = {"ball": TINY_HEAD + '[[objects]]\nname = "ball"\nprimitive = "sphere"\
           "plane": TINY_HEAD + BRICK_PLANE}
 
 
-@pytest.fixture
-def library(tmp_path):
-    (tmp_path / "scenes").mkdir()
+@pytest.fixture(scope="module")
+def baked(tmp_path_factory):
+    """The three scenes baked once for the module."""
+    d = tmp_path_factory.mktemp("library")
+    (d / "scenes").mkdir()
     for name, text in SCENES.items():
-        (tmp_path / "scenes" / f"{name}.toml").write_text(text)
-    r = CliRunner().invoke(bake_main, [str(tmp_path / "scenes"), "-o", str(tmp_path / "bundles"), "--jobs", "1"],
+        (d / "scenes" / f"{name}.toml").write_text(text)
+    r = CliRunner().invoke(bake_main, [str(d / "scenes"), "-o", str(d / "bundles"), "--jobs", "1"],
                            env={"VDM_CACHE": None})
     assert r.exit_code == 0, r.output
-    return tmp_path / "bundles"
+    return d / "bundles"
+
+
+@pytest.fixture
+def library(baked, tmp_path):
+    """Each test's own copy of the baked bundles (tests add bundles and renders may write beside them)."""
+    return Path(shutil.copytree(baked, tmp_path / "bundles"))
 
 
 def test_a_local_cluster_renders_what_one_machine_renders(library, tmp_path):
