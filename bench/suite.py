@@ -183,8 +183,9 @@ def main(out: Path, workers: str, commit: str | None, ids_of: tuple[str, ...], n
     out.mkdir(parents=True, exist_ok=True)
     (out / "suite.json").write_text(json.dumps(doc, indent=1) + "\n")
     (out / "suite.md").write_text(_markdown(doc))
+    (out / "pytest.log").write_text(said)   # what a failure said: the tables keep only that it failed
     click.echo(f"{totals['tests']} tests, {totals['cpu_s']} CPU s, {totals['wall_s']} s wall; wrote {out / 'suite.json'}, "
-               f"{out / 'suite.md'}")
+               f"{out / 'suite.md'}, {out / 'pytest.log'}")
     if publish_dir:
         click.echo(f"published {started.publish(publish_dir, name, doc)}")
     if totals["exit_code"]:                 # 1: tests failed (in the tables); 2: pytest did not run the suite

@@ -44,6 +44,7 @@ def test_failures_are_counted_and_end_in_exit_1(tmp_path):
     assert (run["tests"], run["passed"], run["failed"], run["slow_tests"]) == (2, 1, 1, 1)
     assert [t.rsplit("::", 1)[1] for t in run["failed_tests"]] == ["test_b"]
     assert "test_two.py::test_b`" in (tmp_path / "out" / "suite.md").read_text()
+    assert "E       assert 0" in (tmp_path / "out" / "pytest.log").read_text()   # what the failure said
 
 
 def test_the_summary_line_read():
