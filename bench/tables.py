@@ -181,6 +181,11 @@ def billboards(doc: dict) -> str:
     return "\n".join(out)
 
 
+def _category(c: dict | None) -> str:
+    """A camera category's cell: mean ΔLuv / IoU / median CPU ms ("" where the model has no such camera)."""
+    return "" if not c else f"{number(c['mean_dluv'], 2)} / {number(c['iou'], 3)} / {c['cpu_ms']:,.0f}"
+
+
 def octahedral(doc: dict) -> str:
     """bench.octahedral: every model, resolution and variant, over all cameras and per camera category."""
     def blank(x):
@@ -205,8 +210,7 @@ def octahedral(doc: dict) -> str:
         "Per camera category: mean ΔLuv / IoU (pooled as above) / median CPU ms over the cameras of that kind.", "",
         markdown(["model", "resolution", "variant", *cats], ["---"] * (3 + len(cats)),
                  [[r["object"], r["resolution"], r["label"],
-                   *(f"{number(c['mean_dluv'], 2)} / {number(c['iou'], 3)} / {c['cpu_ms']:.0f}" if c else ""
-                     for c in (r["categories"].get(k) for k in cats))] for r in doc["rows"]]),
+                   *(_category(r["categories"].get(k)) for k in cats)] for r in doc["rows"]]),
         "outside: the cameras outside the bounding sphere (all but inside). orbit: 8 at 25 degrees; top: top-down and "
         "80 degrees; grazing: 0 and 5 degrees; below: -30 degrees; close: 1.4 and 1.2 radii (fov 50 and 90); inside: "
         "0.95 radii, inside the bounding sphere.\n"])
@@ -237,8 +241,7 @@ def octahedral_categories(doc: dict, model: str = "bunny", resolution: str = "80
     rows = _octahedral_rows(doc, model, resolution)
     cats = [c for c in doc["categories"] if c != "outside" and any(c in r["categories"] for r in rows)]
     return markdown(["variant", *cats], ["---"] * (1 + len(cats)),
-                    [[r["label"], *(f"{number(c['mean_dluv'], 2)} / {number(c['iou'], 3)} / {c['cpu_ms']:,.0f}"
-                                    for c in (r["categories"][k] for k in cats))] for r in rows])
+                    [[r["label"], *(_category(r["categories"][k]) for k in cats)] for r in rows])
 
 
 def octahedral_resolutions(doc: dict, model: str = "bunny") -> str:
@@ -252,10 +255,9 @@ def octahedral_resolutions(doc: dict, model: str = "bunny") -> str:
 
 
 def octahedral_primitives(doc: dict, resolution: str = "800x600") -> str:
-    def cell(c):
-        return "" if c is None else f"{number(c['mean_dluv'], 2)} / {number(c['iou'], 3)} / {c['cpu_ms']:,.0f}"
     return markdown(["model", "variant", "outside", "inside"], ["---"] * 4,
-                    [[r["object"], r["label"], cell(r["categories"].get("outside")), cell(r["categories"].get("inside"))]
+                    [[r["object"], r["label"], _category(r["categories"].get("outside")),
+                      _category(r["categories"].get("inside"))]
                      for r in doc["rows"] if r["resolution"] == resolution and r["object"] != "bunny"])
 
 
