@@ -39,26 +39,28 @@ def pad(values: np.ndarray, valid: np.ndarray, rings: int = PAD, linear: bool = 
     linear=False: each proposes n1 (the covered neighbours' mean), for colours: no overshoot, no texture
     detail amplified, and filtering at a silhouette keeps the edge texels' colour instead of fading to 0."""
     h, w = valid.shape
-    big = 2 * rings + 2
     v = values.astype(np.float32).copy()
     ok = valid.copy()
+    around = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1) if di or dj]
     for _ in range(rings):
-        vp = np.pad(v, ((big, big), (big, big), (0, 0)))
-        op = np.pad(ok, big)
-        acc, cnt = np.zeros_like(v), np.zeros((h, w), np.float32)
-        for di in (-1, 0, 1):
-            for dj in (-1, 0, 1):
-                if di == dj == 0:
-                    continue
-                n1 = vp[big + di:big + di + h, big + dj:big + dj + w]
-                n2 = vp[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
-                ok1 = op[big + di:big + di + h, big + dj:big + dj + w]
-                ok2 = op[big + 2 * di:big + 2 * di + h, big + 2 * dj:big + 2 * dj + w]
-                acc += np.where(ok1[..., None], np.where(ok2[..., None] & linear, 2 * n1 - n2, n1), 0.0)
-                cnt += ok1
-        fill = ~ok & (cnt > 0)
-        v[fill] = acc[fill] / cnt[fill, None]
-        ok |= fill
+        # this ring: the empty texels with a covered 8-neighbour (only they are computed: a thin band)
+        op = np.pad(ok, 2)
+        near = np.zeros_like(ok)
+        for di, dj in around:
+            near |= op[2 + di:2 + di + h, 2 + dj:2 + dj + w]
+        i, j = np.nonzero(near & ~ok)
+        if not len(i):
+            break
+        vp = np.pad(v, ((2, 2), (2, 2), (0, 0)))
+        i, j = i + 2, j + 2
+        acc, cnt = np.zeros((len(i), v.shape[-1]), np.float32), np.zeros(len(i), np.float32)
+        for di, dj in around:
+            n1, n2 = vp[i + di, j + dj], vp[i + 2 * di, j + 2 * dj]
+            ok1, ok2 = op[i + di, j + dj], op[i + 2 * di, j + 2 * dj]
+            acc += np.where(ok1[:, None], np.where(ok2[:, None] & linear, 2 * n1 - n2, n1), 0.0)
+            cnt += ok1
+        v[i - 2, j - 2] = acc / cnt[:, None]
+        ok[i - 2, j - 2] = True
     return v
 
 
