@@ -61,14 +61,15 @@ VALUES = st.one_of(
     st.builds(_deep, st.sampled_from([50, 400])))
 
 
-def _paths(node, prefix=()):
-    yield prefix
-    if isinstance(node, dict):
-        for k, v in node.items():
-            yield from _paths(v, prefix + (k,))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield from _paths(v, prefix + (i,))
+def _paths(node):
+    """Every key path into `node`, depth first in document order (the empty path first). A stack, not recursion:
+    a nested `yield from` costs each path one step per level, and _deep values are 400 levels deep."""
+    stack = [((), node)]
+    while stack:
+        prefix, node = stack.pop()
+        yield prefix
+        items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+        stack.extend(reversed([(prefix + (k,), v) for k, v in items]))
 
 
 @st.composite
