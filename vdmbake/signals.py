@@ -4,9 +4,15 @@
 The handlers raise an exception (KeyboardInterrupt for SIGINT, Interrupted for the others), so the
 cleanup written for errors (`except BaseException: abort()`) runs. Some libraries swallow it (trimesh's
 optional imports catch BaseException); the signal is therefore also recorded, and `check()`, called
-before an output is committed and when the command returns, raises it again."""
+before an output is committed and when the command returns, raises it again.
+
+Once the interpreter exits, the command's outcome is decided (its output committed or removed, its exit code
+chosen): the signals are then ignored (`_ignored_while_exiting`). Python's finalisation would otherwise put
+back their default action before its C-level teardown (about 0.2 s with llvmpipe loaded), where SIGTERM killed
+a finished render: its output complete, its exit status that of a run stopped before writing anything."""
 from __future__ import annotations
 
+import atexit
 import signal
 import threading
 
@@ -39,6 +45,13 @@ def install() -> None:
     for s in HANDLED:
         if signal.getsignal(s) is not signal.SIG_IGN:     # nohup's ignored SIGHUP stays ignored
             signal.signal(s, _handler)
+
+
+@atexit.register
+def _ignored_while_exiting() -> None:
+    for s in HANDLED:
+        if signal.getsignal(s) is _handler:              # installed by this process's command, in its main thread
+            signal.signal(s, signal.SIG_IGN)
 
 
 def check() -> None:
