@@ -29,9 +29,10 @@ def subdivide(faces: np.ndarray, attrs: dict[str, np.ndarray]) -> tuple[np.ndarr
     stays watertight. An integer "weld" attribute (position ids, see weld) is carried exactly: a
     midpoint gets the id of its edge's end ids, so the two copies of an edge split at a UV seam
     give midpoints with the same id (and, from bit-identical ends, the same position)."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    uniq, inv = np.unique(np.sort(e, axis=1), axis=0, return_inverse=True)
-    a, b = uniq[:, 0], uniq[:, 1]
+    n = len(attrs["pos"])
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1).astype(np.int64)
+    keys, inv = np.unique(e[:, 0] * n + e[:, 1], return_inverse=True)   # an edge's key orders as its (a, b) row
+    a, b = np.divmod(keys, n)
     out = {k: np.concatenate([v, 0.5 * (v[a] + v[b])]) for k, v in attrs.items() if k != "weld"}
     out["normal"] /= np.maximum(np.linalg.norm(out["normal"], axis=1, keepdims=True), 1e-300)
     if "weld" in attrs:
@@ -39,7 +40,7 @@ def subdivide(faces: np.ndarray, attrs: dict[str, np.ndarray]) -> tuple[np.ndarr
         top = int(w.max()) + 1
         _, mid = np.unique(np.minimum(w[a], w[b]) * top + np.maximum(w[a], w[b]), return_inverse=True)  # one key per edge
         out["weld"] = np.concatenate([w, top + mid.ravel()])
-    m = len(attrs["pos"]) + inv.reshape(3, -1).T          # midpoints of edges 01, 12, 20 per face
+    m = n + inv.reshape(3, -1).T                          # midpoints of edges 01, 12, 20 per face
     f = np.concatenate([np.stack([faces[:, 0], m[:, 0], m[:, 2]], 1), np.stack([faces[:, 1], m[:, 1], m[:, 0]], 1),
                         np.stack([faces[:, 2], m[:, 2], m[:, 1]], 1), m])
     return f, out
