@@ -553,7 +553,7 @@ def test_shader_compile_error_is_exit_2_with_the_log(monkeypatch):
 @pytest.mark.slow
 def test_concurrent_bakes_to_one_output(tmp_path):
     """Two vdmbake --force on one -o: each exits 0 (the swap is an exchange) or 2 with a message, never a
-    traceback, and one valid bundle is left with no debris. Each bakes 512² billboards (about 1.3 s, 11 MB):
+    traceback, and one valid bundle is left with no debris. Each bakes 512² billboards (about 1 s, 11 MB):
     started together, the two bakes overlap from start to swap."""
     out = tmp_path / "x.bundle"
     scene = write_scene(tmp_path, SLOW_SCENE.replace("resolution = 1024", "resolution = 512"))
