@@ -390,8 +390,7 @@ def test_bake_signal_cleans_up_and_exits_128_plus_n(tmp_path, sig, code):
 
 def test_render_sigterm_cleans_up_and_keeps_the_previous_output(baked, tmp_path):
     """SIGTERM mid-render: exit 143, the previous output as it was, nothing beside it. The render asked for would
-    sample for minutes (--sample-s), so the signal lands mid-render however late a loaded machine delivers it (with
-    --repeats 50 it was a second long)."""
+    sample for minutes (--sample-s), so the signal lands mid-render however late a loaded machine delivers it."""
     out = tmp_path / "out"
     cmd = [str(BIN / "vdmrender"), str(baked), "-o", str(out), "--no-flip"]
     assert subprocess.run(cmd, capture_output=True).returncode == 0
@@ -416,7 +415,7 @@ guarded(lambda: print("done", flush=True), False)
 def test_a_signal_while_the_interpreter_exits_is_ignored(tmp_path):
     """A command that returned (its output committed, its exit code chosen), then SIGTERM during the interpreter's
     teardown: exit 0. Python's finalisation puts back a signal's default action before that teardown (0.2 s after a
-    render's last line with llvmpipe loaded), where SIGTERM killed finished renders (-15: as a shell reads it, a run
+    render's last line with llvmpipe loaded), where SIGTERM would kill a finished run (-15: as a shell reads it, a run
     stopped before writing); vdmbake.signals ignores the signals once the interpreter exits. The teardown here is an
     object's slow destructor, so the signal lands in it every time."""
     (tmp_path / "exiting.py").write_text(EXITING)

@@ -8,7 +8,7 @@ before an output is committed and when the command returns, raises it again.
 
 Once the interpreter exits, the command's outcome is decided (its output committed or removed, its exit code
 chosen): the signals are then ignored (`_ignored_while_exiting`). Python's finalisation would otherwise put
-back their default action before its C-level teardown (about 0.2 s with llvmpipe loaded), where SIGTERM killed
+back their default action before its C-level teardown (about 0.2 s with llvmpipe loaded), where SIGTERM would kill
 a finished render: its output complete, its exit status that of a run stopped before writing anything."""
 from __future__ import annotations
 
